@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Installs the Debian packages marglab needs (only those missing), then configures and builds
+# marglab in ./build (Release). Idempotent: a second run installs nothing and rebuilds incrementally.
+#   MARGLAB_BUILD_DIR   build folder (default: build)
+#   MARGLAB_JOBS        parallel build jobs (default: number of cores)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PACKAGES=(
+  build-essential cmake pkg-config git
+  libeigen3-dev libsuitesparse-dev libceres-dev libcli11-dev libfmt-dev libhdf5-dev zlib1g-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libtomlplusplus-dev
+  python3 python3-matplotlib python3-h5py python3-numpy
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if ((${#missing[@]})); then
+  echo "setup: installing missing Debian packages: ${missing[*]}"
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  $SUDO apt-get update
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
+else
+  echo "setup: all Debian packages present"
+fi
+
+BUILD_DIR="${MARGLAB_BUILD_DIR:-build}"
+JOBS="${MARGLAB_JOBS:-$(nproc)}"
+cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release
+cmake --build "$BUILD_DIR" -j "$JOBS"
