@@ -2,11 +2,11 @@
 
 #include <fmt/core.h>
 
+#include <unistd.h>
 #include <algorithm>
 #include <cstdio>
 #include <exception>
 #include <memory>
-#include <unistd.h>
 
 #include "core/common/error.h"
 #include "marglab/version.h"
@@ -31,8 +31,8 @@ bool stderrIsTerminal() { return isatty(fileno(stderr)) != 0; }
 int main(int argc, char** argv) {
   using namespace marglab;
   CLI::App app{"marglab: numerical stability of marginalization in sliding-window estimators"};
-  app.set_version_flag("--version", fmt::format("marglab {} (git {})", MARGLAB_VERSION_STRING,
-                                                MARGLAB_GIT_SHA));
+  app.set_version_flag("--version",
+                       fmt::format("marglab {} (git {})", MARGLAB_VERSION_STRING, MARGLAB_GIT_SHA));
   app.require_subcommand(1);
   app.get_formatter()->column_width(40);
 

@@ -1,0 +1,215 @@
+#include "core/linalg/landmark_block.h"
+
+#include <fmt/core.h>
+#include <Eigen/Cholesky>
+#include <Eigen/Householder>
+#include <Eigen/Jacobi>
+
+#include "core/common/scalar.h"
+
+namespace marglab {
+namespace {
+
+template <typename Scalar>
+Status checkInput(const MatX<Scalar>& J_p, const Mat<Scalar, Eigen::Dynamic, 3>& J_l,
+                  const VecX<Scalar>& r, const PoseBlockMap& map) {
+  const Eigen::Index m = J_l.rows();
+  if (m < 3 || J_p.rows() != m || r.size() != m || J_p.cols() != map.localCols()) {
+    return Status::Error(
+        Status::Code::kInvalidArgument,
+        fmt::format("landmark block: J_p {}x{}, J_l {}x3, r {} with {} pose "
+                    "blocks of {} (needs ≥ 3 consistent rows)",
+                    J_p.rows(), J_p.cols(), m, r.size(), map.rcs_offset.size(), map.pose_dim));
+  }
+  if (!J_p.allFinite() || !J_l.allFinite() || !r.allFinite()) {
+    return Status::Error(Status::Code::kNotFinite,
+                         "landmark block: non-finite Jacobian or residual");
+  }
+  return Status::Ok();
+}
+
+template <typename Scalar>
+void scatterReduced(const PoseBlockMap& map, const MatX<Scalar>& H_loc, const VecX<Scalar>& b_loc,
+                    MatX<Scalar>& H, VecX<Scalar>& b) {
+  const int pd = map.pose_dim;
+  const int n_blocks = static_cast<int>(map.rcs_offset.size());
+  for (int i = 0; i < n_blocks; ++i) {
+    b.segment(map.rcs_offset[i], pd) += b_loc.segment(i * pd, pd);
+    for (int j = 0; j < n_blocks; ++j) {
+      H.block(map.rcs_offset[i], map.rcs_offset[j], pd, pd) += H_loc.block(i * pd, j * pd, pd, pd);
+    }
+  }
+}
+
+}  // namespace
+
+template <typename Scalar>
+VecX<Scalar> gatherLocal(const PoseBlockMap& map, const VecX<Scalar>& delta_rcs) {
+  VecX<Scalar> local(map.localCols());
+  for (size_t j = 0; j < map.rcs_offset.size(); ++j) {
+    local.segment(j * map.pose_dim, map.pose_dim) =
+        delta_rcs.segment(map.rcs_offset[j], map.pose_dim);
+  }
+  return local;
+}
+
+template <typename Scalar>
+Status LandmarkBlockNs<Scalar>::setFromJacobians(const MatX<Scalar>& J_p,
+                                                 const Mat<Scalar, Eigen::Dynamic, 3>& J_l,
+                                                 const VecX<Scalar>& r, PoseBlockMap map) {
+  Status status = checkInput(J_p, J_l, r, map);
+  if (!status.ok()) return status;
+  map_ = std::move(map);
+  m_ = J_l.rows();
+  n_p_ = J_p.cols();
+  const Eigen::Index n_total = n_p_ + 4;
+  storage_.setZero(m_ + 3, n_total);
+  storage_.topLeftCorner(m_, n_p_) = J_p;
+  storage_.block(0, n_p_, m_, 3) = J_l;
+  storage_.col(n_p_ + 3).head(m_) = r;
+  H_ll_diagonal_ = J_l.colwise().squaredNorm().transpose();
+
+  // In-place Householder QR of the three landmark columns; each reflection acts on the whole
+  // row range, pose columns included.
+  VecX<Scalar> essential(m_);
+  VecX<Scalar> workspace(n_total);
+  for (Eigen::Index k = 0; k < 3; ++k) {
+    const Eigen::Index col = n_p_ + k;
+    const Eigen::Index len = m_ - k;
+    auto ess = essential.head(len - 1);
+    Scalar tau;
+    Scalar beta;
+    storage_.col(col).segment(k, len).makeHouseholder(ess, tau, beta);
+    storage_.block(k, 0, len, n_p_).applyHouseholderOnTheLeft(ess, tau, workspace.data());
+    storage_.block(k, col + 1, len, n_total - col - 1)
+        .applyHouseholderOnTheLeft(ess, tau, workspace.data());
+    storage_(k, col) = beta;
+    storage_.col(col).segment(k + 1, len - 1).setZero();
+  }
+  undamped_top_ = storage_.topRows(3);
+  reduced_rows_ = m_ - 3;
+  return Status::Ok();
+}
+
+template <typename Scalar>
+void LandmarkBlockNs<Scalar>::setLandmarkDamping(const Vec3<Scalar>& d) {
+  storage_.topRows(3) = undamped_top_;
+  storage_.bottomRows(3).setZero();
+  if ((d.array() <= Scalar(0)).all()) {
+    reduced_rows_ = m_ - 3;
+    return;
+  }
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::Index damping_row = m_ + j;
+    storage_(damping_row, n_p_ + j) = std::sqrt(std::max(d[j], Scalar(0)));
+    for (int c = j; c < 3; ++c) {
+      Eigen::JacobiRotation<Scalar> G;
+      G.makeGivens(storage_(c, n_p_ + c), storage_(damping_row, n_p_ + c));
+      storage_.applyOnTheLeft(c, damping_row, G.adjoint());
+      storage_(damping_row, n_p_ + c) = Scalar(0);
+    }
+  }
+  reduced_rows_ = m_;
+}
+
+template <typename Scalar>
+void LandmarkBlockNs<Scalar>::addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const {
+  const auto Jr = reducedJp();
+  const MatX<Scalar> H_loc = Jr.transpose() * Jr;
+  const VecX<Scalar> b_loc = Jr.transpose() * reducedR();
+  scatterReduced(map_, H_loc, b_loc, H, b);
+}
+
+template <typename Scalar>
+void LandmarkBlockNs<Scalar>::copyReducedRows(Eigen::Ref<MatX<Scalar>> stacked, int row) const {
+  const int pd = map_.pose_dim;
+  for (size_t j = 0; j < map_.rcs_offset.size(); ++j) {
+    stacked.block(row, map_.rcs_offset[j], reduced_rows_, pd) =
+        storage_.block(3, j * pd, reduced_rows_, pd);
+  }
+  stacked.col(stacked.cols() - 1).segment(row, reduced_rows_) = reducedR();
+}
+
+template <typename Scalar>
+Status LandmarkBlockNs<Scalar>::backSubstitute(const VecX<Scalar>& delta_rcs,
+                                               Vec3<Scalar>* delta_l) const {
+  const VecX<Scalar> delta_p = gatherLocal(map_, delta_rcs);
+  const Vec3<Scalar> rhs =
+      storage_.topLeftCorner(3, n_p_) * delta_p + storage_.col(n_p_ + 3).head(3);
+  const auto R1 = storage_.block(0, n_p_, 3, 3);
+  if ((R1.diagonal().array() == Scalar(0)).any()) {
+    return Status::Error(Status::Code::kRankDeficient,
+                         "landmark back-substitution: R1 is singular (landmark not observable)");
+  }
+  *delta_l = -R1.template triangularView<Eigen::Upper>().solve(rhs);
+  if (!delta_l->allFinite()) {
+    return Status::Error(Status::Code::kNotFinite, "landmark back-substitution: non-finite step");
+  }
+  return Status::Ok();
+}
+
+template <typename Scalar>
+Status LandmarkBlockSc<Scalar>::setFromJacobians(const MatX<Scalar>& J_p,
+                                                 const Mat<Scalar, Eigen::Dynamic, 3>& J_l,
+                                                 const VecX<Scalar>& r, PoseBlockMap map) {
+  Status status = checkInput(J_p, J_l, r, map);
+  if (!status.ok()) return status;
+  map_ = std::move(map);
+  H_pp_ = J_p.transpose() * J_p;
+  H_pl_ = J_p.transpose() * J_l;
+  H_ll_ = J_l.transpose() * J_l;
+  b_p_ = J_p.transpose() * r;
+  b_l_ = J_l.transpose() * r;
+  return Status::Ok();
+}
+
+template <typename Scalar>
+Status LandmarkBlockSc<Scalar>::dampedInverse(Mat3<Scalar>* H_ll_inv) const {
+  Mat3<Scalar> H_ll = H_ll_;
+  H_ll.diagonal() += damping_;
+  Eigen::LDLT<Mat3<Scalar>> ldlt(H_ll);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > Scalar(0)).all()) {
+    return Status::Error(Status::Code::kRankDeficient,
+                         "landmark Schur complement: H_ll is not positive definite");
+  }
+  *H_ll_inv = ldlt.solve(Mat3<Scalar>::Identity());
+  if (!H_ll_inv->allFinite()) {
+    return Status::Error(Status::Code::kNotFinite, "landmark Schur complement: non-finite H_ll⁻¹");
+  }
+  return Status::Ok();
+}
+
+template <typename Scalar>
+Status LandmarkBlockSc<Scalar>::addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const {
+  Mat3<Scalar> H_ll_inv;
+  Status status = dampedInverse(&H_ll_inv);
+  if (!status.ok()) return status;
+  const Mat<Scalar, Eigen::Dynamic, 3> H_pl_H_ll_inv = H_pl_ * H_ll_inv;
+  const MatX<Scalar> H_loc = H_pp_ - H_pl_H_ll_inv * H_pl_.transpose();
+  const VecX<Scalar> b_loc = b_p_ - H_pl_H_ll_inv * b_l_;
+  scatterReduced(map_, H_loc, b_loc, H, b);
+  return Status::Ok();
+}
+
+template <typename Scalar>
+Status LandmarkBlockSc<Scalar>::backSubstitute(const VecX<Scalar>& delta_rcs,
+                                               Vec3<Scalar>* delta_l) const {
+  Mat3<Scalar> H_ll_inv;
+  Status status = dampedInverse(&H_ll_inv);
+  if (!status.ok()) return status;
+  const VecX<Scalar> delta_p = gatherLocal(map_, delta_rcs);
+  *delta_l = -H_ll_inv * (b_l_ + H_pl_.transpose() * delta_p);
+  if (!delta_l->allFinite()) {
+    return Status::Error(Status::Code::kNotFinite, "landmark back-substitution: non-finite step");
+  }
+  return Status::Ok();
+}
+
+#define MARGLAB_INST(S)              \
+  template class LandmarkBlockNs<S>; \
+  template class LandmarkBlockSc<S>; \
+  template VecX<S> gatherLocal<S>(const PoseBlockMap&, const VecX<S>&);
+MARGLAB_INSTANTIATE(MARGLAB_INST)
+#undef MARGLAB_INST
+
+}  // namespace marglab

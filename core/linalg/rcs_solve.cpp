@@ -1,0 +1,41 @@
+#include "core/linalg/rcs_solve.h"
+
+#include <fmt/core.h>
+#include <Eigen/Cholesky>
+
+#include "core/common/scalar.h"
+
+namespace marglab {
+
+template <typename Scalar>
+DampedSolve<Scalar> solveDampedLdlt(MatX<Scalar> H, const VecX<Scalar>& b, Scalar lambda,
+                                    Scalar lambda_min) {
+  DampedSolve<Scalar> result;
+  if (!H.allFinite() || !b.allFinite()) {
+    result.status = Status::Error(Status::Code::kNotFinite,
+                                  "reduced camera system: H or b has a non-finite entry");
+    return result;
+  }
+  for (Eigen::Index i = 0; i < H.rows(); ++i) H(i, i) += lmDamping(H(i, i), lambda, lambda_min);
+  Eigen::LDLT<MatX<Scalar>> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > Scalar(0)).all()) {
+    result.status = Status::Error(
+        Status::Code::kSolveFailed,
+        fmt::format("reduced camera system: damped H ({}x{}) is not positive definite "
+                    "(min LDLT pivot {:.3e})",
+                    H.rows(), H.cols(), ldlt.vectorD().minCoeff()));
+    return result;
+  }
+  result.delta = -ldlt.solve(b);
+  if (!result.delta.allFinite()) {
+    result.status =
+        Status::Error(Status::Code::kNotFinite, "reduced camera system: non-finite step");
+  }
+  return result;
+}
+
+#define MARGLAB_INST(S) template DampedSolve<S> solveDampedLdlt<S>(MatX<S>, const VecX<S>&, S, S);
+MARGLAB_INSTANTIATE(MARGLAB_INST)
+#undef MARGLAB_INST
+
+}  // namespace marglab
