@@ -1,0 +1,78 @@
+// `marglab datasets list|check` through the real binary (MARGLAB_CLI): exit codes and messages.
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <sstream>
+
+#include "data_test_utils.h"
+
+namespace marglab {
+namespace {
+
+namespace fs = std::filesystem;
+using test::TempDir;
+
+struct CliResult {
+  int exit_code;
+  std::string output;  // stdout and stderr
+};
+
+CliResult runCli(const std::string& args) {
+  const std::string command = std::string("'") + MARGLAB_CLI + "' " + args + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return {-1, "popen failed"};
+  std::string output;
+  char buffer[4096];
+  while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+const fs::path kShipped = fs::path(MARGLAB_SOURCE_DIR) / "datasets";
+
+TEST(CliDatasets, CheckAllSucceeds) {
+  const CliResult result = runCli("datasets check --all");
+  EXPECT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find("ok    euroc/MH_01_easy"), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("ok    tumvi/corridor2          timestamps only"), std::string::npos)
+      << result.output;
+  EXPECT_EQ(result.output.find("FAIL"), std::string::npos) << result.output;
+}
+
+TEST(CliDatasets, CheckReportsCorruptedLineWithFileAndLine) {
+  TempDir dir;
+  const fs::path seq = dir.path() / "04";
+  fs::create_directories(seq);
+  fs::copy_file(kShipped / "kitti/04/calib.txt", seq / "calib.txt");
+  fs::copy_file(kShipped / "kitti/04/times.txt.gz", seq / "times.txt.gz");
+  std::istringstream poses(test::readGz((kShipped / "kitti/04/poses.txt.gz").string()));
+  std::string corrupted, line;
+  for (int n = 1; std::getline(poses, line); ++n) {
+    corrupted += (n == 17 ? line.substr(0, line.size() / 2) : line) + "\n";
+  }
+  const std::string poses_path = test::writeFile((seq / "poses.txt").string(), corrupted);
+
+  const CliResult result = runCli("datasets check '" + seq.string() + "'");
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find(poses_path + ":17: expected 12 columns"), std::string::npos)
+      << result.output;
+}
+
+TEST(CliDatasets, ListUsageAndUnknownName) {
+  const CliResult list = runCli("datasets list");
+  EXPECT_EQ(list.exit_code, 0) << list.output;
+  for (const char* name : {"euroc/MH_01_easy", "tumvi/room2", "kitti/10", "5986*"}) {
+    EXPECT_NE(list.output.find(name), std::string::npos) << name << "\n" << list.output;
+  }
+  EXPECT_EQ(runCli("datasets check").exit_code, 2);
+  EXPECT_EQ(runCli("datasets").exit_code, 2);
+  const CliResult unknown = runCli("datasets check euroc/nope");
+  EXPECT_EQ(unknown.exit_code, 1);
+  EXPECT_NE(unknown.output.find("euroc/nope: expected a sequence name"), std::string::npos)
+      << unknown.output;
+}
+
+}  // namespace
+}  // namespace marglab

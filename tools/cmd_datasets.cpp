@@ -1,0 +1,145 @@
+// `marglab datasets <sub-verb>`: the real datasets shipped in datasets/ (or a user's folder).
+//
+//   marglab datasets list                   table of the shipped sequences
+//   marglab datasets check [--all | SEQ...]  load + validate, one line per sequence; exit 1 on
+//   error
+//
+// Each sub-verb is one entry of kSubVerbs below: a name, a description and a setup function that
+// adds the sub-verb's options and returns its run function (as for top-level verbs).
+
+#include <fmt/core.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/common/error.h"
+#include "core/data/sequence.h"
+#include "tools/command.h"
+
+namespace marglab::cli {
+namespace {
+
+std::string calibrationSummary(const Sequence& seq) {
+  const CameraCalib& cam = seq.calib.cam0;
+  const std::string model = seq.kind == DatasetKind::kKitti ? "rectified" : cam.distortion_model;
+  return fmt::format("{}x{} {} b={:.3f}m", cam.width, cam.height, model, seq.calib.baseline());
+}
+
+std::string joined(const std::vector<std::string>& parts, const char* separator) {
+  std::string text;
+  for (const auto& part : parts) text += (text.empty() ? "" : separator) + part;
+  return text;
+}
+
+CommandRun setupList(CLI::App& app) {
+  (void)app;
+  return [] {
+    const std::vector<std::string> names = listSequences();
+    fmt::print("{:<24} {:>9} {:>9} {:>7} {:>4}  {:<35} {}\n", "sequence", "duration", "GT poses",
+               "frames", "IMU", "calibration (cam0, stereo baseline)", "notes");
+    int errors = 0;
+    for (const std::string& name : names) {
+      try {
+        const Sequence seq = loadSequence(name, LoadOptions{false});
+        const SequenceCheck check = checkSequence(seq);
+        std::string gt = seq.hasTrajectory() ? std::to_string(seq.gt.size()) : "-";
+        if (seq.gt_is_estimate) gt += "*";
+        fmt::print("{:<24} {:>8.1f}s {:>9} {:>7} {:>4}  {:<35} {}\n", name, check.duration_s, gt,
+                   check.frames, seq.imu_file.empty() ? "no" : "yes", calibrationSummary(seq),
+                   joined(check.notes, "; "));
+      } catch (const InputError& e) {
+        ++errors;
+        fmt::print("{:<24} ERROR {}\n", name, e.what());
+      }
+    }
+    fmt::print(
+        "\n{} sequences in {}\nduration = camera timestamps span; * = the trajectory is a VIO "
+        "estimate, not ground truth; IMU = real IMU recording shipped.\n",
+        names.size(), datasetsRoot());
+    return errors == 0 ? 0 : 1;
+  };
+}
+
+struct CheckOptions {
+  bool all = false;
+  std::vector<std::string> targets;
+};
+
+CommandRun setupCheck(CLI::App& app) {
+  auto options = std::make_shared<CheckOptions>();
+  app.add_flag("--all", options->all, "check every shipped sequence");
+  app.add_option("sequences", options->targets,
+                 "sequence names (see `marglab datasets list`) or folders in EuRoC/TUM-VI ASL, "
+                 "KITTI or shipped layout");
+  return [options] {
+    std::vector<std::string> targets = options->targets;
+    if (options->all) {
+      const std::vector<std::string> names = listSequences();
+      targets.insert(targets.begin(), names.begin(), names.end());
+    }
+    if (targets.empty()) throw UsageError("datasets check: give --all or sequence names / folders");
+    int failed = 0;
+    std::string first_error;
+    for (const std::string& target : targets) {
+      try {
+        const Sequence seq = loadSequence(target);
+        const SequenceCheck check = checkSequence(seq);
+        std::string summary;
+        if (check.timestamps_only) {
+          summary =
+              fmt::format("timestamps only: {} frames, {:.1f} s", check.frames, check.duration_s);
+        } else {
+          summary =
+              fmt::format("{} frames ({} in trajectory), {:.1f} s, {} poses ({})", check.frames,
+                          check.frames_in_gt, check.duration_s, seq.gt.size(), seq.gt_source);
+        }
+        if (seq.imu)
+          summary += fmt::format(", IMU {} @ {:.1f} Hz", seq.imu->size(), check.imu_rate_hz);
+        if (!check.notes.empty()) summary += " [" + joined(check.notes, "; ") + "]";
+        fmt::print("ok    {:<24} {}\n", seq.name, summary);
+      } catch (const InputError& e) {
+        ++failed;
+        if (first_error.empty()) first_error = e.what();
+        fmt::print("FAIL  {:<24} {}\n", target, e.what());
+      }
+    }
+    std::fflush(stdout);
+    if (failed > 0) {
+      fmt::print(stderr, "marglab: error: {} of {} sequences failed; first: {}\n", failed,
+                 targets.size(), first_error);
+      return 1;
+    }
+    return 0;
+  };
+}
+
+struct SubVerb {
+  const char* name;
+  const char* description;
+  CommandRun (*setup)(CLI::App&);
+};
+
+const SubVerb kSubVerbs[] = {
+    {"list", "table of the shipped sequences: duration, GT, frames, IMU, calibration", setupList},
+    {"check", "load and validate sequences (names or folders); exit 1 on bad input", setupCheck},
+};
+
+const bool kRegistered = registerCommand(
+    {"datasets", "the real datasets: list, check", 60, [](CLI::App& app) -> CommandRun {
+       app.require_subcommand(1);
+       auto runs = std::make_shared<std::vector<std::pair<CLI::App*, CommandRun>>>();
+       for (const SubVerb& verb : kSubVerbs) {
+         CLI::App* sub = app.add_subcommand(verb.name, verb.description);
+         runs->emplace_back(sub, verb.setup(*sub));
+       }
+       return [runs] {
+         for (auto& [sub, run] : *runs) {
+           if (sub->parsed()) return run();
+         }
+         return 2;
+       };
+     }});
+
+}  // namespace
+}  // namespace marglab::cli
