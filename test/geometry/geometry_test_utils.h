@@ -35,7 +35,7 @@ template <typename Scalar>
 constexpr Scalar kEps = std::numeric_limits<Scalar>::epsilon();
 
 // Rounding error of one evaluation of a geometry kernel, in units of ε·|f|.
-constexpr double kEvalUlps = 32.0;
+constexpr double kEvalUlps = 8.0;
 
 template <typename Scalar>
 Scalar fdStep() {
