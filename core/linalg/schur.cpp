@@ -91,10 +91,10 @@ LdltSqrt<Scalar> hessianToSqrtLdlt(const MatX<Scalar>& H, const VecX<Scalar>& b)
     }
   }
   const VecX<Scalar> sqrt_D = D.cwiseSqrt();
-  MatX<Scalar> Lt_P = MatX<Scalar>(ldlt.matrixU());  // Lᵀ
-  Lt_P = Lt_P * ldlt.transpositionsP();              // Lᵀ P
-  result.prior.J = sqrt_D.asDiagonal() * Lt_P;
-  VecX<Scalar> Pb = ldlt.transpositionsP() * b;
+  const Eigen::PermutationMatrix<Eigen::Dynamic> P(ldlt.transpositionsP());
+  const MatX<Scalar> Lt = ldlt.matrixU();
+  result.prior.J = sqrt_D.asDiagonal() * (Lt * P);
+  const VecX<Scalar> Pb = P * b;
   const VecX<Scalar> y = ldlt.matrixL().solve(Pb);  // L⁻¹ P b
   result.prior.r = VecX<Scalar>::Zero(n);
   for (Eigen::Index i = 0; i < n; ++i) {
