@@ -112,7 +112,7 @@ TYPED_TEST(SO3Test, JacobiansMatchLongDoubleSeries) {
     EXPECT_TRUE(matricesNear(leftJacobianSO3(phi), Jl, kEvalUlps * kEps<S>))
         << "phi " << phi.transpose();
     EXPECT_TRUE(matricesNear(rightJacobianSO3(phi), Jr, kEvalUlps * kEps<S>));
-    // |Jl⁻¹| ≤ π/2 ... the inverse's rounding is bounded by cond(Jl) ε ≤ (π/2)·|Jl| ε.
+    // The inverse rounds with cond(Jl) ε, and cond(Jl) ≤ π/2 for θ ≤ π (|Jl| ≤ 1, |Jl⁻¹| ≤ π/2).
     EXPECT_TRUE(
         matricesNear(leftJacobianInvSO3(phi), Mat3L(Jl.inverse()), kEvalUlps * kEps<S> * M_PI))
         << "phi " << phi.transpose();
