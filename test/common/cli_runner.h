@@ -1,0 +1,39 @@
+#pragma once
+// Runs the real `marglab` binary (path from the MARGLAB_CLI compile definition) in a shell and
+// captures its exit code and combined output, for the CLI tests of every module.
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+namespace marglab::test {
+
+struct CliResult {
+  int exit_code;
+  std::string output;  // stdout and stderr
+};
+
+inline CliResult runCli(const std::string& args) {
+  const std::string command = std::string("'") + MARGLAB_CLI + "' " + args + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return {-1, "popen failed"};
+  std::string output;
+  char buffer[4096];
+  while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+// The first interpreter among /usr/bin/python3 and `python3` on PATH that imports h5py and numpy;
+// empty if none does.
+inline std::string findPythonWithH5py() {
+  for (const std::string candidate : {"/usr/bin/python3", "python3"}) {
+    const std::string command = candidate + " -c 'import h5py, numpy' > /dev/null 2>&1";
+    if (std::system(command.c_str()) == 0) return candidate;
+  }
+  return {};
+}
+
+}  // namespace marglab::test
