@@ -149,6 +149,20 @@ Status LandmarkBlockNs<Scalar>::backSubstitute(const VecX<Scalar>& delta_rcs,
 }
 
 template <typename Scalar>
+Scalar LandmarkBlockNs<Scalar>::linearizedCostChange(const VecX<Scalar>& delta_rcs,
+                                                     const Vec3<Scalar>& delta_l) const {
+  const VecX<Scalar> delta_p = gatherLocal(map_, delta_rcs);
+  const Vec3<Scalar> top_r = undamped_top_.col(n_p_ + 3);
+  const Vec3<Scalar> top =
+      undamped_top_.leftCols(n_p_) * delta_p + undamped_top_.block(0, n_p_, 3, 3) * delta_l + top_r;
+  const auto Q2_Jp = storage_.block(3, 0, m_ - 3, n_p_);
+  const auto Q2_r = storage_.col(n_p_ + 3).segment(3, m_ - 3);
+  const VecX<Scalar> bottom = Q2_Jp * delta_p + Q2_r;
+  return Scalar(0.5) *
+         (top.squaredNorm() - top_r.squaredNorm() + bottom.squaredNorm() - Q2_r.squaredNorm());
+}
+
+template <typename Scalar>
 Status LandmarkBlockSc<Scalar>::setFromJacobians(const MatX<Scalar>& J_p,
                                                  const Mat<Scalar, Eigen::Dynamic, 3>& J_l,
                                                  const VecX<Scalar>& r, PoseBlockMap map) {
@@ -203,6 +217,15 @@ Status LandmarkBlockSc<Scalar>::backSubstitute(const VecX<Scalar>& delta_rcs,
     return Status::Error(Status::Code::kNotFinite, "landmark back-substitution: non-finite step");
   }
   return Status::Ok();
+}
+
+template <typename Scalar>
+Scalar LandmarkBlockSc<Scalar>::linearizedCostChange(const VecX<Scalar>& delta_rcs,
+                                                     const Vec3<Scalar>& delta_l) const {
+  const VecX<Scalar> delta_p = gatherLocal(map_, delta_rcs);
+  const Scalar quadratic = delta_p.dot(H_pp_ * delta_p) + Scalar(2) * delta_p.dot(H_pl_ * delta_l) +
+                           delta_l.dot(H_ll_ * delta_l);
+  return b_p_.dot(delta_p) + b_l_.dot(delta_l) + Scalar(0.5) * quadratic;
 }
 
 #define MARGLAB_INST(S)              \

@@ -62,6 +62,9 @@ class LandmarkBlockNs {
   void copyReducedRows(Eigen::Ref<MatX<Scalar>> stacked, int row) const;
   // δl = −R1⁻¹(Q1ᵀr + Q1ᵀJ_p δp) with δp the full reduced-camera-system increment.
   Status backSubstitute(const VecX<Scalar>& delta_rcs, Vec3<Scalar>* delta_l) const;
+  // Change of the undamped linearized cost ½‖J_p δp + J_l δl + r‖² − ½‖r‖², evaluated on the
+  // rotated rows (Q is orthogonal), for the LM gain ratio.
+  Scalar linearizedCostChange(const VecX<Scalar>& delta_rcs, const Vec3<Scalar>& delta_l) const;
   const PoseBlockMap& map() const { return map_; }
 
  private:
@@ -85,6 +88,8 @@ class LandmarkBlockSc {
   // H += H_pp − H_pl H_ll⁻¹ H_lp, b += b_p − H_pl H_ll⁻¹ b_l. Fails if H_ll + diag(d) is singular.
   Status addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const;
   Status backSubstitute(const VecX<Scalar>& delta_rcs, Vec3<Scalar>* delta_l) const;
+  // ½‖J δ + r‖² − ½‖r‖² = bᵀδ + ½ δᵀHδ with the undamped blocks, δ = (δp, δl).
+  Scalar linearizedCostChange(const VecX<Scalar>& delta_rcs, const Vec3<Scalar>& delta_l) const;
   const PoseBlockMap& map() const { return map_; }
 
  private:

@@ -1,0 +1,66 @@
+#pragma once
+// Every number of the estimator (DESIGN §3), in one struct, readable from and writable to TOML.
+// Precedence: defaults < config file < command line. The full effective config is written into
+// every results file (attribute config_toml), so a run can be repeated from its file.
+//
+// TOML layout (all keys optional; unknown keys are errors):
+//   [window]        max_kfs, max_states
+//   [residuals]     obs_std_px, huber_px
+//   [gauge]         prior_weight
+//   [keyframes]     connected_ratio, min_frames_after_kf (−1: dataset default), min_baseline_m,
+//                   marg_connected_share
+//   [lm]            max_iterations, lambda_init, lambda_min, lambda_max, stop_relative_cost,
+//                   stop_max_step, max_failed_solves
+//   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
+//                   scalar type)
+//   [failure]       max_position_error_m (−1: dataset default)
+//   [diagnostics]   enabled, store_prior_every (0: never; k: every k-th event), seed
+
+#include <cstdint>
+#include <string>
+
+#include "core/linalg/flat_qr.h"
+
+namespace marglab {
+
+struct EstimatorConfig {
+  // window
+  int max_kfs = 7;
+  int max_states = 3;
+  // residuals
+  double obs_std_px = 0.5;
+  double huber_px = 1.0;
+  // gauge
+  double gauge_prior_weight = 1e8;
+  // keyframes
+  double kf_connected_ratio = 0.7;
+  int min_frames_after_kf = -1;
+  double min_baseline_m = 0.05;
+  double marg_connected_share = 0.1;
+  // lm
+  int lm_max_iterations = 7;
+  double lambda_init = 1e-4;
+  double lambda_min = 1e-7;
+  double lambda_max = 1e2;
+  double stop_relative_cost = 1e-6;
+  double stop_max_step = 1e-4;
+  int max_failed_solves = 3;
+  // marginalization
+  RankThresholdMode qr_threshold_mode = RankThresholdMode::kAbsolute;
+  double qr_threshold = -1;
+  // failure
+  double max_position_error_m = -1;
+  // diagnostics
+  bool diagnostics = true;
+  int store_prior_every = 0;
+  std::uint64_t diagnostics_seed = 7;
+
+  // Overrides the fields present in a TOML file; throws InputError(file, line, what) on syntax
+  // errors, unknown keys and wrong types.
+  void loadToml(const std::string& path);
+  // The same from a string (name used in messages).
+  void loadTomlString(const std::string& text, const std::string& name);
+  std::string toToml() const;
+};
+
+}  // namespace marglab

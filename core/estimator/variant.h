@@ -1,0 +1,43 @@
+#pragma once
+// The ablation of DESIGN §2: a variant is `opt-marg-storage-precision`.
+//   opt      ns | sc    landmark elimination inside each LM iteration: nullspace projection
+//                       (in-place Householder QR of [J_p J_l r], keep the Q2ᵀ rows) or Schur
+//                       complement on 3×3 landmark blocks;
+//   marg     qr | sc    marginalization: landmarks by nullspace projection then frame variables
+//                       by the flat QR (paper §4.2), or everything by Schur complement on the
+//                       Hessian with a pseudo-inverse of H_μμ (eqs. 22–23);
+//   storage  sqrt | sq  prior stored as (J_m, r_m) (eq. 4) or (H_m, b_m) (eq. 3); `sc` + `sqrt`
+//                       factorizes the new prior by LDLT (√D Lᵀ P); `qr` requires `sqrt`;
+//   precision f32 | f64 the scalar type of the whole estimator.
+// The paper's columns: √VIO/√VO = ns-qr-sqrt, baseline = sc-sc-sq; ablation adds sc-qr-sqrt,
+// ns-sc-sqrt, sc-sc-sqrt — ten variants with both precisions.
+
+#include <string>
+#include <vector>
+
+namespace marglab {
+
+enum class OptElimination { kNullspace, kSchur };
+enum class MargMethod { kQr, kSchur };
+enum class PriorStorage { kSqrt, kHessian };
+enum class Precision { kF32, kF64 };
+
+struct Variant {
+  OptElimination opt = OptElimination::kNullspace;
+  MargMethod marg = MargMethod::kQr;
+  PriorStorage storage = PriorStorage::kSqrt;
+  Precision precision = Precision::kF32;
+
+  // "ns-qr-sqrt-f32"
+  std::string name() const;
+  // Name without the precision, e.g. "ns-qr-sqrt".
+  std::string method() const;
+  // Throws UsageError naming the part that is wrong and the accepted values.
+  static Variant parse(const std::string& text);
+  bool operator==(const Variant& other) const;
+};
+
+// The 10 variants of the paper's tables (DESIGN §2), in table order.
+std::vector<Variant> paperVariants();
+
+}  // namespace marglab
