@@ -192,7 +192,17 @@ PoseBlockMap VoEstimator<Scalar>::blockMap(const Linearized& lin,
 }
 
 template <typename Scalar>
-Status VoEstimator<Scalar>::computeStep(Scalar lambda, VecX<Scalar>* delta_poses) const {
+std::vector<int64_t> VoEstimator<Scalar>::keyframeIds() const {
+  std::vector<int64_t> ids;
+  for (const auto& [id, frame] : frames_) {
+    if (frame.is_keyframe) ids.push_back(id);
+  }
+  return ids;
+}
+
+template <typename Scalar>
+Status VoEstimator<Scalar>::computeStep(OptElimination elimination, Scalar lambda,
+                                        VecX<Scalar>* delta_poses) const {
   std::set<int64_t> system;
   std::map<int64_t, int> column_of;
   for (const auto& [id, frame] : frames_) {
@@ -207,7 +217,7 @@ Status VoEstimator<Scalar>::computeStep(Scalar lambda, VecX<Scalar>* delta_poses
     Linearized lin;
     if (!linearizeLandmark(id, lm, system, &lin)) continue;
     Vec3<Scalar> d;
-    if (variant_.opt == OptElimination::kNullspace) {
+    if (elimination == OptElimination::kNullspace) {
       LandmarkBlockNs<Scalar> block;
       Status s = block.setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, column_of));
       if (!s.ok()) return s;

@@ -104,9 +104,10 @@ class VoEstimator {
   int numLandmarks() const { return static_cast<int>(landmarks_.size()); }
   const MargPrior<Scalar>& prior() const { return prior_; }
   const MargPrior<Scalar>& shadowPrior() const { return shadow_prior_; }
-  // Linearizes the current window and returns the LM step of the first iteration with the
-  // configured elimination (for equivalence tests: ns vs sc on the same window).
-  Status computeStep(Scalar lambda, VecX<Scalar>* delta_poses) const;
+  std::vector<int64_t> keyframeIds() const;
+  // Linearizes the current window and returns the pose part of the LM step for damping λ with
+  // the given elimination (equivalence tests: ns vs sc on the same window).
+  Status computeStep(OptElimination elimination, Scalar lambda, VecX<Scalar>* delta_poses) const;
   // The prior that a marginalization of `frame_id` (with its hosted landmarks) would produce,
   // with `method`, on a copy of the current shadow prior (equivalence tests: qr vs sc).
   Status trialMarginalization(int64_t frame_id, MargMethod method, MatXd* H_m) const;
