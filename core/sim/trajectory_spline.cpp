@@ -155,8 +155,8 @@ TrajectorySplineOptions TrajectorySpline::defaultOptions(DatasetKind kind) {
       o.rotation_knot_dt_s = 0.01;
       break;
     case DatasetKind::kTumvi:
-      o.knot_dt_s = 0.1;
-      o.rotation_knot_dt_s = 0.05;
+      o.knot_dt_s = 0.2;
+      o.rotation_knot_dt_s = 0.2;
       break;
     case DatasetKind::kKitti:
       o.knot_dt_s = 0.1;
