@@ -1,0 +1,345 @@
+#include "core/sim/track_io.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <unordered_set>
+#include <vector>
+
+#include "core/common/error.h"
+#include "core/io/hdf5.h"
+
+namespace marglab {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+bool endsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// Checks the per-frame invariants shared by both readers; where() names the offending place.
+template <typename Where>
+void validateFrame(const std::string& path, const TrackFrame& frame, const Where& where) {
+  std::unordered_set<int64_t> ids;
+  for (std::size_t k = 0; k < frame.observations.size(); ++k) {
+    const StereoObservation& o = frame.observations[k];
+    if (o.track_id < 0) throw InputError(path, where(k).first, where(k).second + "track_id < 0");
+    if (!ids.insert(o.track_id).second) {
+      throw InputError(path, where(k).first,
+                       where(k).second + fmt::format("track_id {} occurs twice in frame t_ns {}",
+                                                     o.track_id, frame.t_ns));
+    }
+  }
+}
+
+}  // namespace
+
+// ---- HDF5 ---------------------------------------------------------------------------------------
+
+void writeTracksHdf5(const std::string& path, const TrackStream& stream, bool with_landmarks) {
+  std::vector<int64_t> t_ns, offsets{0}, track_id, landmark_id;
+  std::vector<double> u0, v0, u1, v1;
+  std::vector<uint8_t> has_right, is_outlier;
+  for (const TrackFrame& frame : stream.frames) {
+    t_ns.push_back(frame.t_ns);
+    for (const StereoObservation& o : frame.observations) {
+      track_id.push_back(o.track_id);
+      u0.push_back(o.uv0.x());
+      v0.push_back(o.uv0.y());
+      has_right.push_back(o.has_right ? 1 : 0);
+      u1.push_back(o.has_right ? o.uv1.x() : kNaN);
+      v1.push_back(o.has_right ? o.uv1.y() : kNaN);
+      landmark_id.push_back(o.landmark_id);
+      is_outlier.push_back(o.is_outlier ? 1 : 0);
+    }
+    offsets.push_back(static_cast<int64_t>(track_id.size()));
+  }
+
+  h5::File file = h5::File::create(path);
+  file.setAttr("format", std::string(kTrackFormatName));
+  file.setAttr("format_version", kTrackFormatVersion);
+  file.setAttr("sequence", stream.sequence);
+  file.setAttr("seed", static_cast<int64_t>(stream.seed));
+  // Chunked + shuffle/deflate: the columns compress well (monotonic ids, smooth pixels).
+  constexpr hsize_t kChunk = 1 << 16;
+  constexpr int kDeflate = 4;
+  h5::appendable<int64_t>(file, "frames/t_ns", kChunk, kDeflate).append(t_ns);
+  const h5::Group obs = file.group("observations");
+  h5::appendable<int64_t>(obs, "offsets", kChunk, kDeflate).append(offsets);
+  h5::appendable<int64_t>(obs, "track_id", kChunk, kDeflate).append(track_id);
+  h5::appendable<double>(obs, "u0", kChunk, kDeflate).append(u0);
+  h5::appendable<double>(obs, "v0", kChunk, kDeflate).append(v0);
+  h5::appendable<uint8_t>(obs, "has_right", kChunk, kDeflate).append(has_right);
+  h5::appendable<double>(obs, "u1", kChunk, kDeflate).append(u1);
+  h5::appendable<double>(obs, "v1", kChunk, kDeflate).append(v1);
+  h5::appendable<int64_t>(obs, "landmark_id", kChunk, kDeflate).append(landmark_id);
+  h5::appendable<uint8_t>(obs, "is_outlier", kChunk, kDeflate).append(is_outlier);
+  if (with_landmarks && !stream.landmarks_w.empty()) {
+    std::vector<double> xyz;
+    xyz.reserve(3 * stream.landmarks_w.size());
+    for (const Eigen::Vector3d& p : stream.landmarks_w)
+      xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
+    h5::appendableRows<double>(file, "landmarks_w", 3, kChunk, kDeflate).append(xyz);
+  }
+  file.commit();
+}
+
+TrackStream readTracksHdf5(const std::string& path) {
+  const h5::File file = h5::File::openReadOnly(path);
+  auto fail = [&](const std::string& what) { throw InputError(path, 0, what); };
+  if (!file.hasAttr("format") || file.attr<std::string>("format") != kTrackFormatName) {
+    fail(fmt::format("not a track file: attribute format = \"{}\" expected", kTrackFormatName));
+  }
+  const int version = file.attr<int>("format_version");
+  if (version != kTrackFormatVersion) {
+    fail(
+        fmt::format("format_version {} not supported (expected {})", version, kTrackFormatVersion));
+  }
+  TrackStream stream;
+  if (file.hasAttr("sequence")) stream.sequence = file.attr<std::string>("sequence");
+  if (file.hasAttr("seed")) stream.seed = static_cast<uint64_t>(file.attr<int64_t>("seed"));
+
+  const auto t_ns = file.readVector<int64_t>("frames/t_ns");
+  const h5::Group obs = file.openGroup("observations");
+  const auto offsets = obs.readVector<int64_t>("offsets");
+  const auto track_id = obs.readVector<int64_t>("track_id");
+  const auto u0 = obs.readVector<double>("u0");
+  const auto v0 = obs.readVector<double>("v0");
+  const auto has_right = obs.readVector<uint8_t>("has_right");
+  const auto u1 = obs.readVector<double>("u1");
+  const auto v1 = obs.readVector<double>("v1");
+  const std::size_t K = track_id.size();
+  const auto landmark_id = obs.exists("landmark_id") ? obs.readVector<int64_t>("landmark_id")
+                                                     : std::vector<int64_t>(K, -1);
+  const auto is_outlier =
+      obs.exists("is_outlier") ? obs.readVector<uint8_t>("is_outlier") : std::vector<uint8_t>(K, 0);
+
+  if (offsets.size() != t_ns.size() + 1) {
+    fail(fmt::format("/observations/offsets has {} entries, expected {} (frames + 1)",
+                     offsets.size(), t_ns.size() + 1));
+  }
+  const std::pair<const char*, std::size_t> columns[] = {{"u0", u0.size()},
+                                                         {"v0", v0.size()},
+                                                         {"has_right", has_right.size()},
+                                                         {"u1", u1.size()},
+                                                         {"v1", v1.size()},
+                                                         {"landmark_id", landmark_id.size()},
+                                                         {"is_outlier", is_outlier.size()}};
+  for (const auto& [name, size] : columns) {
+    if (size != K) {
+      fail(fmt::format("/observations/{} has {} rows, track_id has {}", name, size, K));
+    }
+  }
+  if (offsets.front() != 0 || offsets.back() != static_cast<int64_t>(K)) {
+    fail(fmt::format("/observations/offsets must start at 0 and end at {}", K));
+  }
+
+  if (file.exists("landmarks_w")) {
+    const auto xyz = file.readMatrix<double>("landmarks_w");
+    if (xyz.cols() != 3) fail("/landmarks_w: expected 3 columns");
+    for (Eigen::Index i = 0; i < xyz.rows(); ++i) stream.landmarks_w.push_back(xyz.row(i));
+  }
+
+  stream.frames.resize(t_ns.size());
+  for (std::size_t i = 0; i < t_ns.size(); ++i) {
+    if (i > 0 && t_ns[i] <= t_ns[i - 1]) {
+      fail(fmt::format("/frames/t_ns[{}] = {} is not after t_ns[{}] = {}", i, t_ns[i], i - 1,
+                       t_ns[i - 1]));
+    }
+    if (offsets[i + 1] < offsets[i] || offsets[i + 1] > static_cast<int64_t>(K)) {
+      fail(fmt::format("/observations/offsets[{}] = {} decreases or exceeds {}", i + 1,
+                       offsets[i + 1], K));
+    }
+    TrackFrame& frame = stream.frames[i];
+    frame.t_ns = t_ns[i];
+    for (auto k = static_cast<std::size_t>(offsets[i]);
+         k < static_cast<std::size_t>(offsets[i + 1]); ++k) {
+      if (!std::isfinite(u0[k]) || !std::isfinite(v0[k])) {
+        fail(fmt::format("/observations row {}: u0, v0 must be finite", k));
+      }
+      if (has_right[k] > 1) fail(fmt::format("/observations/has_right[{}] is not 0/1", k));
+      const bool right_finite = std::isfinite(u1[k]) && std::isfinite(v1[k]);
+      const bool right_nan = std::isnan(u1[k]) && std::isnan(v1[k]);
+      if (has_right[k] ? !right_finite : !right_nan) {
+        fail(
+            fmt::format("/observations row {}: u1, v1 must be finite when has_right = 1 and NaN "
+                        "when 0",
+                        k));
+      }
+      StereoObservation o;
+      o.track_id = track_id[k];
+      o.uv0 = Eigen::Vector2d(u0[k], v0[k]);
+      o.has_right = has_right[k] != 0;
+      if (o.has_right) o.uv1 = Eigen::Vector2d(u1[k], v1[k]);
+      o.landmark_id = landmark_id[k];
+      o.is_outlier = is_outlier[k] != 0;
+      if (!stream.landmarks_w.empty() &&
+          o.landmark_id >= static_cast<int64_t>(stream.landmarks_w.size())) {
+        fail(fmt::format("/observations/landmark_id[{}] = {} beyond /landmarks_w", k,
+                         o.landmark_id));
+      }
+      frame.observations.push_back(o);
+    }
+    validateFrame(path, frame, [&](std::size_t k) {
+      return std::make_pair(0, fmt::format("/observations row {}: ", offsets[i] + k));
+    });
+  }
+  return stream;
+}
+
+// ---- Text ---------------------------------------------------------------------------------------
+
+void writeTracksText(const std::string& path, const TrackStream& stream) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw InputError(path, 0, "cannot open for writing");
+  fmt::memory_buffer buffer;
+  fmt::format_to(std::back_inserter(buffer),
+                 "# {} text {}\n# sequence: {}\n# seed: {}\n"
+                 "# columns: t_ns track_id u0 v0 u1 v1 landmark_id is_outlier\n"
+                 "# pixels in the undistorted pinhole image; u1 v1 = nan nan: no right match\n",
+                 kTrackFormatName, kTrackFormatVersion, stream.sequence, stream.seed);
+  for (const TrackFrame& frame : stream.frames) {
+    if (frame.observations.empty()) fmt::format_to(std::back_inserter(buffer), "{}\n", frame.t_ns);
+    for (const StereoObservation& o : frame.observations) {
+      const double u1 = o.has_right ? o.uv1.x() : kNaN;
+      const double v1 = o.has_right ? o.uv1.y() : kNaN;
+      fmt::format_to(std::back_inserter(buffer), "{} {} {} {} {} {} {} {}\n", frame.t_ns,
+                     o.track_id, o.uv0.x(), o.uv0.y(), u1, v1, o.landmark_id, o.is_outlier ? 1 : 0);
+    }
+    if (buffer.size() > (1 << 20)) {
+      out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+      buffer.clear();
+    }
+  }
+  out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+  if (!out) throw InputError(path, 0, "write failed");
+}
+
+namespace {
+
+int64_t parseInt(const std::string& token, const std::string& path, int line, const char* what) {
+  errno = 0;
+  char* end = nullptr;
+  const long long v = std::strtoll(token.c_str(), &end, 10);
+  if (end == token.c_str() || *end != '\0' || errno == ERANGE) {
+    throw InputError(path, line, fmt::format("{}: expected an integer, got \"{}\"", what, token));
+  }
+  return v;
+}
+
+double parseDouble(const std::string& token, const std::string& path, int line, const char* what) {
+  char* end = nullptr;
+  const double v = std::strtod(token.c_str(), &end);
+  if (end == token.c_str() || *end != '\0') {
+    throw InputError(path, line, fmt::format("{}: expected a number, got \"{}\"", what, token));
+  }
+  return v;
+}
+
+}  // namespace
+
+TrackStream readTracksText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, "cannot open");
+  TrackStream stream;
+  std::vector<std::vector<int>> obs_lines;
+  std::string line;
+  std::vector<std::string> tokens;
+  for (int n = 1; std::getline(in, line); ++n) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const std::size_t start = line.find_first_not_of(" \t");
+    if (start == std::string::npos) continue;
+    if (line[start] == '#') {
+      const std::string comment = line.substr(start + 1);
+      std::istringstream cs(comment);
+      std::string key, value;
+      cs >> key >> value;
+      if (key == "sequence:") stream.sequence = value;
+      if (key == "seed:")
+        stream.seed = static_cast<uint64_t>(std::strtoull(value.c_str(), nullptr, 10));
+      continue;
+    }
+    tokens.clear();
+    std::istringstream ls(line);
+    for (std::string token; ls >> token;) tokens.push_back(token);
+    if (tokens.size() != 1 && tokens.size() != 6 && tokens.size() != 8) {
+      throw InputError(path, n,
+                       fmt::format("expected 6 or 8 columns (t_ns track_id u0 v0 u1 v1 "
+                                   "[landmark_id is_outlier]) or t_ns alone, got {}",
+                                   tokens.size()));
+    }
+    const int64_t t_ns = parseInt(tokens[0], path, n, "t_ns");
+    if (stream.frames.empty() || t_ns != stream.frames.back().t_ns) {
+      if (!stream.frames.empty() && t_ns < stream.frames.back().t_ns) {
+        throw InputError(path, n,
+                         fmt::format("t_ns {} is before the previous frame's {} (time must not "
+                                     "decrease)",
+                                     t_ns, stream.frames.back().t_ns));
+      }
+      stream.frames.push_back({t_ns, {}});
+      obs_lines.emplace_back();
+    }
+    if (tokens.size() == 1) continue;
+    StereoObservation o;
+    o.track_id = parseInt(tokens[1], path, n, "track_id");
+    o.uv0 = Eigen::Vector2d(parseDouble(tokens[2], path, n, "u0"),
+                            parseDouble(tokens[3], path, n, "v0"));
+    if (!std::isfinite(o.uv0.x()) || !std::isfinite(o.uv0.y())) {
+      throw InputError(path, n, "u0, v0 must be finite");
+    }
+    const double u1 = parseDouble(tokens[4], path, n, "u1");
+    const double v1 = parseDouble(tokens[5], path, n, "v1");
+    if (std::isfinite(u1) && std::isfinite(v1)) {
+      o.has_right = true;
+      o.uv1 = Eigen::Vector2d(u1, v1);
+    } else if (!(std::isnan(u1) && std::isnan(v1))) {
+      throw InputError(path, n, "u1, v1 must both be numbers or both nan (no right match)");
+    }
+    if (tokens.size() == 8) {
+      o.landmark_id = parseInt(tokens[6], path, n, "landmark_id");
+      const int64_t outlier = parseInt(tokens[7], path, n, "is_outlier");
+      if (outlier != 0 && outlier != 1) throw InputError(path, n, "is_outlier must be 0 or 1");
+      o.is_outlier = outlier == 1;
+    }
+    stream.frames.back().observations.push_back(o);
+    obs_lines.back().push_back(n);
+  }
+  for (std::size_t i = 0; i < stream.frames.size(); ++i) {
+    validateFrame(path, stream.frames[i],
+                  [&](std::size_t k) { return std::make_pair(obs_lines[i][k], std::string()); });
+  }
+  return stream;
+}
+
+// ---- Dispatch -----------------------------------------------------------------------------------
+
+void writeTrackFile(const std::string& path, const TrackStream& stream) {
+  if (endsWith(path, ".h5") || endsWith(path, ".hdf5")) {
+    writeTracksHdf5(path, stream);
+  } else {
+    writeTracksText(path, stream);
+  }
+}
+
+TrackStream readTrackFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, "cannot open");
+  char signature[8] = {};
+  in.read(signature, sizeof(signature));
+  constexpr char kHdf5Signature[8] = {'\x89', 'H', 'D', 'F', '\r', '\n', '\x1a', '\n'};
+  if (in.gcount() == 8 && std::equal(signature, signature + 8, kHdf5Signature)) {
+    return readTracksHdf5(path);
+  }
+  return readTracksText(path);
+}
+
+}  // namespace marglab

@@ -1,0 +1,185 @@
+// Track files (core/sim/track_io.h): exact round trips through HDF5 and text, format detection,
+// and InputError with file and line for bad input.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "core/io/hdf5.h"
+#include "core/sim/track_io.h"
+#include "data/data_test_utils.h"
+
+namespace marglab {
+namespace {
+
+using test::expectInputError;
+using test::TempDir;
+
+// A small stream with awkward values: an empty frame, no-right matches, outliers, negative and
+// non-representable decimals, a large seed.
+TrackStream sampleStream() {
+  TrackStream s;
+  s.sequence = "euroc/MH_01_easy";
+  s.seed = 18446744073709551557ULL;
+  s.landmarks_w = {{1.0 / 3, -2.5, 1e-7}, {4, 5, 6}, {-0.1, 0.2, 123456.789}};
+  int64_t t = 1403636579763555584;
+  for (int f = 0; f < 6; ++f, t += 50'000'000) {
+    TrackFrame frame;
+    frame.t_ns = t;
+    if (f != 2) {
+      for (int k = 0; k < 3; ++k) {
+        StereoObservation o;
+        o.track_id = f + k;
+        o.uv0 = Eigen::Vector2d(0.1 * f + 1.0 / 7 * k, 479.0 - std::sqrt(2.0) * k);
+        o.has_right = (f + k) % 3 != 0;
+        if (o.has_right) o.uv1 = o.uv0 - Eigen::Vector2d(10.0 / 3, -1e-13);
+        o.landmark_id = k;
+        o.is_outlier = (f + k) == 4;
+        frame.observations.push_back(o);
+      }
+    }
+    s.frames.push_back(frame);
+  }
+  return s;
+}
+
+void expectSameStream(const TrackStream& a, const TrackStream& b, bool landmarks) {
+  EXPECT_EQ(a.sequence, b.sequence);
+  EXPECT_EQ(a.seed, b.seed);
+  ASSERT_EQ(a.frames.size(), b.frames.size());
+  for (std::size_t i = 0; i < a.frames.size(); ++i) {
+    ASSERT_EQ(a.frames[i].t_ns, b.frames[i].t_ns);
+    const auto& x = a.frames[i].observations;
+    const auto& y = b.frames[i].observations;
+    ASSERT_EQ(x.size(), y.size()) << "frame " << i;
+    for (std::size_t k = 0; k < x.size(); ++k) {
+      EXPECT_EQ(x[k].track_id, y[k].track_id);
+      EXPECT_EQ(x[k].uv0, y[k].uv0);  // bit-exact
+      EXPECT_EQ(x[k].has_right, y[k].has_right);
+      EXPECT_EQ(x[k].uv1, y[k].uv1);
+      EXPECT_EQ(x[k].landmark_id, y[k].landmark_id);
+      EXPECT_EQ(x[k].is_outlier, y[k].is_outlier);
+    }
+  }
+  if (landmarks) {
+    EXPECT_EQ(a.landmarks_w, b.landmarks_w);
+  }
+}
+
+TEST(TrackIo, Hdf5RoundTripIsExact) {
+  TempDir dir;
+  const TrackStream stream = sampleStream();
+  const std::string path = dir.file("tracks.h5");
+  writeTrackFile(path, stream);
+  expectSameStream(stream, readTrackFile(path), true);
+  // The documented layout, as another reader would see it.
+  const h5::File file = h5::File::openReadOnly(path);
+  EXPECT_EQ(file.attr<std::string>("format"), "marglab-tracks");
+  EXPECT_EQ(file.attr<int>("format_version"), 1);
+  EXPECT_EQ(file.readVector<int64_t>("observations/offsets"),
+            (std::vector<int64_t>{0, 3, 6, 6, 9, 12, 15}));
+  EXPECT_TRUE(std::isnan(file.readVector<double>("observations/u1")[0]));
+  EXPECT_EQ(file.readMatrix<double>("landmarks_w").rows(), 3);
+}
+
+TEST(TrackIo, TextRoundTripIsExact) {
+  TempDir dir;
+  const TrackStream stream = sampleStream();
+  const std::string path = dir.file("tracks.txt");
+  writeTrackFile(path, stream);
+  const TrackStream back = readTrackFile(path);
+  expectSameStream(stream, back, false);
+  EXPECT_TRUE(back.landmarks_w.empty());
+}
+
+TEST(TrackIo, TextMinimalSixColumnsFromExternalFrontEnd) {
+  TempDir dir;
+  const std::string path = test::writeFile(dir.file("klt.txt"),
+                                           "# my KLT\n"
+                                           "100 0 10.5 20.25 5.5 20.25\n"
+                                           "100 1 30 40 nan nan\n"
+                                           "\n"
+                                           "200\n"
+                                           "300 0 11 21 6 21\r\n");
+  const TrackStream s = readTrackFile(path);
+  ASSERT_EQ(s.frames.size(), 3u);
+  EXPECT_EQ(s.frames[0].observations.size(), 2u);
+  EXPECT_TRUE(s.frames[0].observations[0].has_right);
+  EXPECT_FALSE(s.frames[0].observations[1].has_right);
+  EXPECT_EQ(s.frames[0].observations[1].landmark_id, -1);
+  EXPECT_TRUE(s.frames[1].observations.empty());
+  EXPECT_EQ(s.frames[2].observations[0].uv1, Eigen::Vector2d(6, 21));
+}
+
+TEST(TrackIo, TextBadInputNamesFileAndLine) {
+  TempDir dir;
+  struct Case {
+    const char* text;
+    int line;
+    const char* fragment;
+  };
+  const Case cases[] = {
+      {"# c\n100 0 1 2 3 4\n50 1 1 2 3 4\n", 3, "time must not decrease"},
+      {"100 0 1 2 3\n", 1, "expected 6 or 8 columns"},
+      {"100 0 1 2 3 4 5 6 7\n", 1, "expected 6 or 8 columns"},
+      {"100 0 nan 2 3 4\n", 1, "u0, v0 must be finite"},
+      {"100 0 1 inf 3 4\n", 1, "u0, v0 must be finite"},
+      {"100 0 1 2 nan 4\n", 1, "both be numbers or both nan"},
+      {"100 0 1 2 x 4\n", 1, "u1: expected a number"},
+      {"1e2 0 1 2 3 4\n", 1, "t_ns: expected an integer"},
+      {"100 0 1 2 3 4\n100 0 5 6 7 8\n", 2, "track_id 0 occurs twice"},
+      {"100 -1 1 2 3 4\n", 1, "track_id < 0"},
+      {"100 0 1 2 3 4 7 2\n", 1, "is_outlier must be 0 or 1"},
+  };
+  for (const Case& c : cases) {
+    const std::string path = test::writeFile(dir.file("bad.txt"), c.text);
+    SCOPED_TRACE(c.text);
+    expectInputError([&] { readTrackFile(path); }, path, c.line, c.fragment);
+  }
+  expectInputError([&] { readTrackFile(dir.file("missing.txt")); }, dir.file("missing.txt"), 0,
+                   "cannot open");
+}
+
+TEST(TrackIo, Hdf5BadInput) {
+  TempDir dir;
+  const std::string path = dir.file("bad.h5");
+  {
+    TrackStream s = sampleStream();
+    std::swap(s.frames[3].t_ns, s.frames[4].t_ns);
+    writeTracksHdf5(path, s);
+    expectInputError([&] { readTrackFile(path); }, path, 0, "/frames/t_ns[4]");
+  }
+  {
+    TrackStream s = sampleStream();
+    s.frames[1].observations[2].uv0.x() = std::numeric_limits<double>::quiet_NaN();
+    writeTracksHdf5(path, s);
+    expectInputError([&] { readTrackFile(path); }, path, 0, "row 5: u0, v0 must be finite");
+  }
+  {
+    h5::File file = h5::File::create(path);
+    file.setAttr("format", std::string("something else"));
+    file.commit();
+    expectInputError([&] { readTrackFile(path); }, path, 0, "not a track file");
+  }
+  {
+    TrackStream s = sampleStream();
+    writeTracksHdf5(path, s);
+    // Rewrite with a short column.
+    h5::File file = h5::File::create(path);
+    file.setAttr("format", std::string("marglab-tracks"));
+    file.setAttr("format_version", 1);
+    file.write<int64_t>("frames/t_ns", std::vector<int64_t>{1, 2});
+    file.write<int64_t>("observations/offsets", std::vector<int64_t>{0, 1, 2});
+    file.write<int64_t>("observations/track_id", std::vector<int64_t>{0, 0});
+    for (const char* name : {"u0", "v0", "u1", "v1"}) {
+      file.write<double>(std::string("observations/") + name, std::vector<double>{1, 2});
+    }
+    file.write<uint8_t>("observations/has_right", std::vector<uint8_t>{1});
+    file.commit();
+    expectInputError([&] { readTrackFile(path); }, path, 0, "/observations/has_right has 1 rows");
+  }
+}
+
+}  // namespace
+}  // namespace marglab
