@@ -14,7 +14,7 @@
 //   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
 //                   scalar type)
 //   [failure]       max_position_error_m (−1: dataset default)
-//   [diagnostics]   enabled, store_prior_every (0: never; k: every k-th event), seed
+//   [diagnostics]   enabled, store_prior_every (0: never; k: every k-th event, default 25), seed
 
 #include <cstdint>
 #include <string>
@@ -52,7 +52,7 @@ struct EstimatorConfig {
   double max_position_error_m = -1;
   // diagnostics
   bool diagnostics = true;
-  int store_prior_every = 0;
+  int store_prior_every = 25;
   std::uint64_t diagnostics_seed = 7;
 
   // Overrides the fields present in a TOML file; throws InputError(file, line, what) on syntax

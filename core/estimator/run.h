@@ -1,0 +1,54 @@
+#pragma once
+// One run of the harness: a real sequence (its ground truth drives the simulated stereo tracks),
+// one variant, one seed → one HDF5 results file (DESIGN §6) and a TUM trajectory next to it.
+//
+//   sequence → TrajectorySpline → world + simulated tracks (seeded) → VoEstimator<Scalar>
+//            → per frame: FrameRecord; per marginalization: diagnostics of the shadow prior
+//            → ResultsWriter::finish (ATE after SE(3) alignment) → atomic rename.
+//
+// The state is the left camera T_w_c0 (DESIGN §3, VO); it starts at the true first camera pose
+// (the same for every variant), and the ATE compares camera positions with the ground truth
+// expressed for cam0 (T_w_b T_b_c0). A run fails — status "failed" in the file, never a crash or
+// a missing file — when the estimator reports a numerical failure (non-finite cost or state,
+// repeated solve failure) or when the position error exceeds the dataset's bound.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "core/estimator/config.h"
+#include "core/estimator/variant.h"
+#include "core/io/results_file.h"
+
+namespace marglab {
+
+struct RunOptions {
+  std::string dataset;  // "kitti/10", "euroc/MH_01_easy", or a folder in original layout
+  Variant variant;
+  int max_frames = 0;  // 0: the whole sequence
+  std::uint64_t seed = 1;
+  EstimatorConfig config;
+  std::string output;  // results file (.h5); the TUM trajectory goes to <output minus .h5>.tum
+  // Fault injection for tests of the failure path: a NaN in the first measurement of this frame.
+  int inject_nan_frame = -1;
+  // Called after each frame with (frames done, total frames).
+  std::function<void(int, int)> progress;
+};
+
+struct RunOutcome {
+  RunStatus status = RunStatus::kOk;
+  std::int64_t failure_frame = -1;
+  std::string failure_reason;
+  SummaryValues summary;
+  std::string tum_path;
+  double mean_features_per_frame = 0;
+};
+
+// Throws InputError for bad input (unknown dataset, sequence without trajectory, unwritable
+// output); numerical failure is a result (status failed), not an exception.
+RunOutcome runSequence(const RunOptions& options);
+
+// The TUM path written next to a results file.
+std::string tumPathFor(const std::string& results_path);
+
+}  // namespace marglab
