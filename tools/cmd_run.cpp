@@ -2,12 +2,16 @@
 // Precedence of settings: defaults < --config FILE < command-line options.
 
 #include <fmt/core.h>
+#include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <memory>
 #include <optional>
 
 #include "core/common/error.h"
+#include "core/data/sequence.h"
 #include "core/estimator/run.h"
 #include "tools/command.h"
 
@@ -28,7 +32,18 @@ struct RunArgs {
   int inject_nan_frame = -1;
 };
 
+// A dataset argument is a shipped sequence name or an existing folder; anything else is a usage
+// error that lists the names.
+void checkDatasetArgument(const std::string& dataset) {
+  if (std::filesystem::is_directory(dataset)) return;
+  const std::vector<std::string> names = listSequences();
+  if (std::find(names.begin(), names.end(), dataset) != names.end()) return;
+  throw UsageError(fmt::format("unknown dataset '{}': expected a folder or one of {}", dataset,
+                               fmt::join(names, ", ")));
+}
+
 int runRun(const RunArgs& args) {
+  checkDatasetArgument(args.dataset);
   RunOptions options;
   options.dataset = args.dataset;
   options.variant = Variant::parse(args.variant);

@@ -82,7 +82,9 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
   const int total = static_cast<int>(stream.frames.size());
   std::int64_t marg_index = 0;
   double features = 0;
+  int processed = 0;
   for (int k = 0; k < total; ++k) {
+    ++processed;
     TrackFrame frame = stream.frames[k];
     if (k == options.inject_nan_frame && !frame.observations.empty()) {
       frame.observations.front().uv0.x() = std::numeric_limits<double>::quiet_NaN();
@@ -146,7 +148,7 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
       break;
     }
   }
-  outcome.mean_features_per_frame = total > 0 ? features / total : 0;
+  outcome.mean_features_per_frame = processed > 0 ? features / processed : 0;
   outcome.summary =
       writer.finish(RunSummary{}, outcome.status, outcome.failure_frame, outcome.failure_reason);
   outcome.tum_path = tumPathFor(options.output);
