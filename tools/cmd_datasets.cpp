@@ -3,18 +3,25 @@
 //   marglab datasets list                   table of the shipped sequences
 //   marglab datasets check [--all | SEQ...]  load + validate, one line per sequence; exit 1 on
 //   error
+//   marglab datasets simulate --dataset SEQ [--seed S] [--frames N] [--no-noise] -o FILE
+//                                           simulated stereo tracks along the GT spline -> track
+//                                           file (.h5 / .hdf5: HDF5, else text) + statistics
 //
 // Each sub-verb is one entry of kSubVerbs below: a name, a description and a setup function that
 // adds the sub-verb's options and returns its run function (as for top-level verbs).
 
 #include <fmt/core.h>
 
+#include <chrono>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
+#include "core/sim/feature_tracker.h"
+#include "core/sim/track_io.h"
+#include "core/sim/trajectory_spline.h"
 #include "tools/command.h"
 
 namespace marglab::cli {
@@ -114,6 +121,62 @@ CommandRun setupCheck(CLI::App& app) {
   };
 }
 
+struct SimulateOptions {
+  std::string dataset;
+  uint64_t seed = 0;
+  std::size_t frames = 0;
+  bool no_noise = false;
+  std::string output;
+};
+
+CommandRun setupSimulate(CLI::App& app) {
+  auto options = std::make_shared<SimulateOptions>();
+  app.add_option("--dataset", options->dataset, "sequence name or folder")->required();
+  app.add_option("--seed", options->seed, "random seed (world and tracks)");
+  app.add_option("--frames", options->frames, "simulate only the first N frames (0: all)");
+  app.add_flag("--no-noise", options->no_noise, "exact projections: no pixel noise, no outliers");
+  app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
+      ->required();
+  return [options] {
+    const auto start = std::chrono::steady_clock::now();
+    const Sequence seq = loadSequence(options->dataset, LoadOptions{false});
+    if (!seq.hasTrajectory()) {
+      throw InputError(
+          seq.directory, 0,
+          fmt::format("{}: no trajectory (timestamps only); cannot simulate tracks", seq.name));
+    }
+    const TrajectorySpline spline = TrajectorySpline::fromSequence(seq);
+    SimulationOptions sim = defaultSimulationOptions(seq, options->seed);
+    sim.tracker.max_frames = options->frames;
+    if (options->no_noise) {
+      sim.tracker.noise = false;
+      sim.tracker.outliers = false;
+    }
+    const TrackStream stream = simulateSequence(seq, spline, sim);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    writeTrackFile(options->output, stream);
+
+    const TrackStatistics s = trackStatistics(stream);
+    const Distribution& f = s.features_per_frame;
+    const Distribution& l = s.track_length;
+    fmt::print("sequence            {} (seed {}{})\n", seq.name, options->seed,
+               options->no_noise ? ", no noise" : "");
+    fmt::print("frames              {}\n", s.frames);
+    fmt::print("landmarks           {} world points\n", stream.landmarks_w.size());
+    fmt::print("features per frame  mean {:.1f}  median {:.0f}  min {:.0f}  max {:.0f}\n", f.mean,
+               f.median, f.min, f.max);
+    fmt::print(
+        "track length        mean {:.1f}  median {:.0f}  p90 {:.0f}  max {:.0f}  ({} tracks)\n",
+        l.mean, l.median, l.p90, l.max, s.tracks);
+    fmt::print("stereo share        {:.3f}\n", s.stereo_share);
+    fmt::print("outlier share       {:.4f}\n", s.outlier_share);
+    fmt::print("simulation time     {:.2f} s (load, spline, world, tracks)\n", seconds);
+    fmt::print("wrote               {}\n", options->output);
+    return 0;
+  };
+}
+
 struct SubVerb {
   const char* name;
   const char* description;
@@ -123,10 +186,12 @@ struct SubVerb {
 const SubVerb kSubVerbs[] = {
     {"list", "table of the shipped sequences: duration, GT, frames, IMU, calibration", setupList},
     {"check", "load and validate sequences (names or folders); exit 1 on bad input", setupCheck},
+    {"simulate", "simulated stereo feature tracks along a sequence's trajectory -> track file",
+     setupSimulate},
 };
 
 const bool kRegistered = registerCommand(
-    {"datasets", "the real datasets: list, check", 60, [](CLI::App& app) -> CommandRun {
+    {"datasets", "the real datasets: list, check, simulate", 60, [](CLI::App& app) -> CommandRun {
        app.require_subcommand(1);
        auto runs = std::make_shared<std::vector<std::pair<CLI::App*, CommandRun>>>();
        for (const SubVerb& verb : kSubVerbs) {

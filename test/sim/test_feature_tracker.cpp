@@ -11,6 +11,7 @@
 #include "core/common/error.h"
 #include "core/data/sequence.h"
 #include "core/sim/feature_tracker.h"
+#include "core/sim/trajectory_spline.h"
 #include "sim_test_utils.h"
 
 namespace marglab {
@@ -206,6 +207,24 @@ TEST(TrackStatistics, Distribution) {
   EXPECT_DOUBLE_EQ(d.p90, 9);
   EXPECT_DOUBLE_EQ(d.min, 1);
   EXPECT_DOUBLE_EQ(d.max, 10);
+}
+
+// The real EuRoC MH_01 trajectory (GT spline), first 300 frames: the DESIGN §5 targets.
+TEST(SimulateSequence, EurocMh01PrefixStatistics) {
+  const Sequence seq = loadSequence("euroc/MH_01_easy", LoadOptions{false});
+  const TrajectorySpline spline = TrajectorySpline::fromSequence(seq);
+  SimulationOptions options = defaultSimulationOptions(seq, 1);
+  options.tracker.max_frames = 300;
+  const TrackStream stream = simulateSequence(seq, spline, options);
+  EXPECT_EQ(stream.sequence, "euroc/MH_01_easy");
+  ASSERT_EQ(stream.frames.size(), 300u);
+  const auto [first, last] = framesWithinTrajectory(seq);
+  (void)last;
+  EXPECT_GE(stream.frames.front().t_ns, seq.cam_t_ns[first]);
+  const TrackStatistics s = trackStatistics(stream);
+  EXPECT_GE(s.features_per_frame.mean, 100);
+  EXPECT_LE(s.features_per_frame.mean, 250);
+  EXPECT_GE(s.track_length.median, 5);
 }
 
 TEST(SimulateSequence, RefusesSequenceWithoutTrajectory) {

@@ -1,0 +1,70 @@
+// `marglab datasets simulate` through the real binary (MARGLAB_CLI): exit codes, printed
+// statistics, and the track file it writes.
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <string>
+
+#include "core/sim/track_io.h"
+#include "data/data_test_utils.h"
+
+namespace marglab {
+namespace {
+
+struct CliResult {
+  int exit_code;
+  std::string output;  // stdout and stderr
+};
+
+CliResult runCli(const std::string& args) {
+  const std::string command = std::string("'") + MARGLAB_CLI + "' " + args + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return {-1, "popen failed"};
+  std::string output;
+  char buffer[4096];
+  while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+TEST(CliSimulate, ShortPrefixWritesTracksAndPrintsStatistics) {
+  test::TempDir dir;
+  const std::string path = dir.file("mh01.h5");
+  const CliResult result = runCli(
+      "datasets simulate --dataset euroc/MH_01_easy --seed 3 --frames 100 -o '" + path + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  for (const char* line :
+       {"frames              100\n", "features per frame  mean ", "track length ", "stereo share ",
+        "outlier share ", "simulation time "}) {
+    EXPECT_NE(result.output.find(line), std::string::npos) << line << "\n" << result.output;
+  }
+  const TrackStream stream = readTrackFile(path);
+  EXPECT_EQ(stream.frames.size(), 100u);
+  EXPECT_EQ(stream.sequence, "euroc/MH_01_easy");
+  EXPECT_EQ(stream.seed, 3u);
+  EXPECT_FALSE(stream.landmarks_w.empty());
+
+  // Text output, noise-free, same seed: the same tracks (ids, stereo matches), exact pixels.
+  const std::string text = dir.file("mh01.txt");
+  const CliResult exact = runCli(
+      "datasets simulate --dataset euroc/MH_01_easy --seed 3 --frames 20 "
+      "--no-noise -o '" +
+      text + "'");
+  ASSERT_EQ(exact.exit_code, 0) << exact.output;
+  EXPECT_EQ(readTrackFile(text).frames.size(), 20u);
+}
+
+TEST(CliSimulate, ErrorsAndUsage) {
+  test::TempDir dir;
+  const CliResult no_gt =
+      runCli("datasets simulate --dataset tumvi/corridor2 -o '" + dir.file("x.h5") + "'");
+  EXPECT_EQ(no_gt.exit_code, 1) << no_gt.output;
+  EXPECT_NE(no_gt.output.find("no trajectory"), std::string::npos) << no_gt.output;
+  EXPECT_EQ(runCli("datasets simulate --dataset euroc/MH_01_easy").exit_code, 2);
+  EXPECT_EQ(runCli("datasets simulate --dataset euroc/nope -o x.h5").exit_code, 1);
+}
+
+}  // namespace
+}  // namespace marglab
