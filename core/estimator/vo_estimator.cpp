@@ -267,6 +267,9 @@ Status VoEstimator<Scalar>::optimize(FrameResult* result) {
   const Scalar lambda_max = static_cast<Scalar>(config_.lambda_max);
   auto pose_of = [this](int64_t f) { return poseOf(f); };
 
+  // λ restarts at its initial value for every frame (as Basalt's optimize does).
+  lambda_ = static_cast<Scalar>(config_.lambda_init);
+  nu_ = Scalar(2);
   Scalar cost = totalCost();
   result->cost_initial = static_cast<double>(cost);
   if (!std::isfinite(cost)) {

@@ -28,16 +28,36 @@ Status checkInput(const MatX<Scalar>& J_p, const Mat<Scalar, Eigen::Dynamic, 3>&
   return Status::Ok();
 }
 
-template <typename Scalar>
-void scatterReduced(const PoseBlockMap& map, const MatX<Scalar>& H_loc, const VecX<Scalar>& b_loc,
-                    MatX<Scalar>& H, VecX<Scalar>& b) {
+// Adds a local system whose H_loc holds only its lower triangle (from a symmetric rank update,
+// half the flops of a full product) to both triangles of the global H. PD is the pose block size
+// when known at compile time (fixed-size block copies), Eigen::Dynamic otherwise.
+template <int PD, typename Scalar>
+void scatterReducedBlocks(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
+                          const VecX<Scalar>& b_loc, MatX<Scalar>& H, VecX<Scalar>& b) {
   const int pd = map.pose_dim;
   const int n_blocks = static_cast<int>(map.rcs_offset.size());
   for (int i = 0; i < n_blocks; ++i) {
-    b.segment(map.rcs_offset[i], pd) += b_loc.segment(i * pd, pd);
-    for (int j = 0; j < n_blocks; ++j) {
-      H.block(map.rcs_offset[i], map.rcs_offset[j], pd, pd) += H_loc.block(i * pd, j * pd, pd, pd);
+    const int oi = map.rcs_offset[i];
+    b.template segment<PD>(oi, pd) += b_loc.template segment<PD>(i * pd, pd);
+    H.template block<PD, PD>(oi, oi, pd, pd) +=
+        H_loc_lower.template block<PD, PD>(i * pd, i * pd, pd, pd)
+            .template selfadjointView<Eigen::Lower>();
+    for (int j = 0; j < i; ++j) {
+      const int oj = map.rcs_offset[j];
+      const auto block = H_loc_lower.template block<PD, PD>(i * pd, j * pd, pd, pd);
+      H.template block<PD, PD>(oi, oj, pd, pd) += block;
+      H.template block<PD, PD>(oj, oi, pd, pd) += block.transpose();
     }
+  }
+}
+
+template <typename Scalar>
+void scatterReduced(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
+                    const VecX<Scalar>& b_loc, MatX<Scalar>& H, VecX<Scalar>& b) {
+  if (map.pose_dim == 6) {
+    scatterReducedBlocks<6>(map, H_loc_lower, b_loc, H, b);
+  } else {
+    scatterReducedBlocks<Eigen::Dynamic>(map, H_loc_lower, b_loc, H, b);
   }
 }
 
@@ -115,7 +135,8 @@ void LandmarkBlockNs<Scalar>::setLandmarkDamping(const Vec3<Scalar>& d) {
 template <typename Scalar>
 void LandmarkBlockNs<Scalar>::addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const {
   const auto Jr = reducedJp();
-  const MatX<Scalar> H_loc = Jr.transpose() * Jr;
+  MatX<Scalar> H_loc = MatX<Scalar>::Zero(n_p_, n_p_);
+  H_loc.template selfadjointView<Eigen::Lower>().rankUpdate(Jr.transpose());
   const VecX<Scalar> b_loc = Jr.transpose() * reducedR();
   scatterReduced(map_, H_loc, b_loc, H, b);
 }
@@ -169,7 +190,9 @@ Status LandmarkBlockSc<Scalar>::setFromJacobians(const MatX<Scalar>& J_p,
   Status status = checkInput(J_p, J_l, r, map);
   if (!status.ok()) return status;
   map_ = std::move(map);
-  H_pp_ = J_p.transpose() * J_p;
+  // Lower triangle only: the symmetric rank update halves the flops of the full product.
+  H_pp_.setZero(J_p.cols(), J_p.cols());
+  H_pp_.template selfadjointView<Eigen::Lower>().rankUpdate(J_p.transpose());
   H_pl_ = J_p.transpose() * J_l;
   H_ll_ = J_l.transpose() * J_l;
   b_p_ = J_p.transpose() * r;
@@ -178,29 +201,28 @@ Status LandmarkBlockSc<Scalar>::setFromJacobians(const MatX<Scalar>& J_p,
 }
 
 template <typename Scalar>
-Status LandmarkBlockSc<Scalar>::dampedInverse(Mat3<Scalar>* H_ll_inv) const {
+Status LandmarkBlockSc<Scalar>::dampedFactor(Eigen::LLT<Mat3<Scalar>>* llt) const {
   Mat3<Scalar> H_ll = H_ll_;
   H_ll.diagonal() += damping_;
-  Eigen::LDLT<Mat3<Scalar>> ldlt(H_ll);
-  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > Scalar(0)).all()) {
+  llt->compute(H_ll);
+  if (llt->info() != Eigen::Success || !llt->matrixLLT().allFinite()) {
     return Status::Error(Status::Code::kRankDeficient,
                          "landmark Schur complement: H_ll is not positive definite");
-  }
-  *H_ll_inv = ldlt.solve(Mat3<Scalar>::Identity());
-  if (!H_ll_inv->allFinite()) {
-    return Status::Error(Status::Code::kNotFinite, "landmark Schur complement: non-finite H_ll⁻¹");
   }
   return Status::Ok();
 }
 
 template <typename Scalar>
 Status LandmarkBlockSc<Scalar>::addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const {
-  Mat3<Scalar> H_ll_inv;
-  Status status = dampedInverse(&H_ll_inv);
+  Eigen::LLT<Mat3<Scalar>> llt;
+  Status status = dampedFactor(&llt);
   if (!status.ok()) return status;
-  const Mat<Scalar, Eigen::Dynamic, 3> H_pl_H_ll_inv = H_pl_ * H_ll_inv;
-  const MatX<Scalar> H_loc = H_pp_ - H_pl_H_ll_inv * H_pl_.transpose();
-  const VecX<Scalar> b_loc = b_p_ - H_pl_H_ll_inv * b_l_;
+  // H_pl H_ll⁻¹ H_lp = MᵀM with M = L⁻¹ H_lp, H_ll = L Lᵀ.
+  const Mat<Scalar, 3, Eigen::Dynamic> M =
+      llt.matrixL().solve(Mat<Scalar, 3, Eigen::Dynamic>(H_pl_.transpose()));
+  MatX<Scalar> H_loc = H_pp_;
+  H_loc.template selfadjointView<Eigen::Lower>().rankUpdate(M.transpose(), Scalar(-1));
+  const VecX<Scalar> b_loc = b_p_ - M.transpose() * llt.matrixL().solve(b_l_);
   scatterReduced(map_, H_loc, b_loc, H, b);
   return Status::Ok();
 }
@@ -208,11 +230,11 @@ Status LandmarkBlockSc<Scalar>::addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>
 template <typename Scalar>
 Status LandmarkBlockSc<Scalar>::backSubstitute(const VecX<Scalar>& delta_rcs,
                                                Vec3<Scalar>* delta_l) const {
-  Mat3<Scalar> H_ll_inv;
-  Status status = dampedInverse(&H_ll_inv);
+  Eigen::LLT<Mat3<Scalar>> llt;
+  Status status = dampedFactor(&llt);
   if (!status.ok()) return status;
   const VecX<Scalar> delta_p = gatherLocal(map_, delta_rcs);
-  *delta_l = -H_ll_inv * (b_l_ + H_pl_.transpose() * delta_p);
+  *delta_l = -llt.solve(b_l_ + H_pl_.transpose() * delta_p);
   if (!delta_l->allFinite()) {
     return Status::Error(Status::Code::kNotFinite, "landmark back-substitution: non-finite step");
   }
@@ -223,8 +245,8 @@ template <typename Scalar>
 Scalar LandmarkBlockSc<Scalar>::linearizedCostChange(const VecX<Scalar>& delta_rcs,
                                                      const Vec3<Scalar>& delta_l) const {
   const VecX<Scalar> delta_p = gatherLocal(map_, delta_rcs);
-  const Scalar quadratic = delta_p.dot(H_pp_ * delta_p) + Scalar(2) * delta_p.dot(H_pl_ * delta_l) +
-                           delta_l.dot(H_ll_ * delta_l);
+  const Scalar quadratic = delta_p.dot(H_pp_.template selfadjointView<Eigen::Lower>() * delta_p) +
+                           Scalar(2) * delta_p.dot(H_pl_ * delta_l) + delta_l.dot(H_ll_ * delta_l);
   return b_p_.dot(delta_p) + b_l_.dot(delta_l) + Scalar(0.5) * quadratic;
 }
 

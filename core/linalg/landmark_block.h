@@ -25,6 +25,7 @@
 // Both give the same reduced system in exact arithmetic: (Q2ᵀJ_p)ᵀ(Q2ᵀJ_p) = H_red since
 // Q2Q2ᵀ = I − J_l(J_lᵀJ_l)⁻¹J_lᵀ; the square-root form avoids squaring the condition number.
 
+#include <Eigen/Cholesky>
 #include <vector>
 
 #include "core/common/eigen_types.h"
@@ -93,9 +94,9 @@ class LandmarkBlockSc {
   const PoseBlockMap& map() const { return map_; }
 
  private:
-  Status dampedInverse(Mat3<Scalar>* H_ll_inv) const;
+  Status dampedFactor(Eigen::LLT<Mat3<Scalar>>* llt) const;
   PoseBlockMap map_;
-  MatX<Scalar> H_pp_;
+  MatX<Scalar> H_pp_;  // lower triangle
   Mat<Scalar, Eigen::Dynamic, 3> H_pl_;
   Mat3<Scalar> H_ll_ = Mat3<Scalar>::Zero();
   VecX<Scalar> b_p_;

@@ -258,3 +258,38 @@ TYPED_TEST(LandmarkBlockTest, DampedSolveFailsAsStatusOnIndefiniteSystem) {
 
 }  // namespace
 }  // namespace marglab
+
+namespace marglab {
+namespace {
+
+// The LM model decrease: both eliminations against ½‖J_p δp + J_l δl + r‖² − ½‖r‖², damped or not.
+TYPED_TEST(LandmarkBlockTest, LinearizedCostChangeIsTheUndampedModel) {
+  using Scalar = TypeParam;
+  std::mt19937_64 rng(36);
+  const auto lm = makeLandmarks(rng, 1).front();
+  const VecXd delta_rcs = test::randomGaussian(rng, kRcsSize, 1);
+  const Eigen::Vector3d delta_l = test::randomGaussian(rng, 3, 1);
+  const VecXd dp = gatherLocal(lm.map, delta_rcs);
+  const double expected =
+      0.5 * ((lm.J_p * dp + lm.J_l * delta_l + lm.r).squaredNorm() - lm.r.squaredNorm());
+  LandmarkBlockNs<Scalar> ns;
+  LandmarkBlockSc<Scalar> sc;
+  ASSERT_TRUE(
+      ns.setFromJacobians(lm.J_p.cast<Scalar>(), lm.J_l.cast<Scalar>(), lm.r.cast<Scalar>(), lm.map)
+          .ok());
+  ASSERT_TRUE(
+      sc.setFromJacobians(lm.J_p.cast<Scalar>(), lm.J_l.cast<Scalar>(), lm.r.cast<Scalar>(), lm.map)
+          .ok());
+  ns.setLandmarkDamping(Vec3<Scalar>::Constant(Scalar(2)));
+  sc.setLandmarkDamping(Vec3<Scalar>::Constant(Scalar(2)));
+  const double scale =
+      0.5 * (lm.J_p * dp + lm.J_l * delta_l + lm.r).squaredNorm() + 0.5 * lm.r.squaredNorm();
+  const double tol = 100 * lm.r.size() * eps<Scalar>() * scale;
+  EXPECT_NEAR(ns.linearizedCostChange(delta_rcs.cast<Scalar>(), delta_l.cast<Scalar>()), expected,
+              tol);
+  EXPECT_NEAR(sc.linearizedCostChange(delta_rcs.cast<Scalar>(), delta_l.cast<Scalar>()), expected,
+              tol);
+}
+
+}  // namespace
+}  // namespace marglab
