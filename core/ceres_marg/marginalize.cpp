@@ -57,16 +57,23 @@ struct SqrtPriorResult {
   Status status;
 };
 
+// Eigenvalue cut-off for the Hessian-based methods. Absolute: τ². Relative: t · s with
+// t = max(τ², n·ε) and s = max_i ‖J_:,i‖² = max_i H_ii, the scale of the input Hessian. τ² is the
+// QR threshold moved to the eigenvalue (squared singular value) scale; n·ε is the floor below which
+// eigenvalues of a Hessian formed and Schur-complemented in double precision are rounding noise,
+// so a gauge direction of x_b is recognized as such (as the QR recognizes it) instead of being
+// kept as a direction of spurious information.
+double eigenvalueCut(const MarginalizationOptions& opt, int n, double hessian_scale) {
+  const double tau_sq = opt.threshold * opt.threshold;
+  if (opt.threshold_mode == RankThresholdMode::kAbsolute) return tau_sq;
+  return std::max(tau_sq, NumericTraits<double>::pinvRelativeTolerance(n)) * hessian_scale;
+}
+
 // Eq. 37: Λ_t = U D Uᵀ  →  R̃ = D^{1/2} Uᵀ, r̃ = D^{-1/2} Uᵀ g_t over eigenvalues λ > cut, in
 // decreasing order.
-void hessianToSqrtEig(const MatXd& Lambda_t, const VecXd& g_t, const MarginalizationOptions& opt,
-                      SqrtPriorResult* out) {
+void hessianToSqrtEig(const MatXd& Lambda_t, const VecXd& g_t, double cut, SqrtPriorResult* out) {
   const Eigen::SelfAdjointEigenSolver<MatXd> eig(Lambda_t);
   const VecXd& lambda = eig.eigenvalues();  // increasing
-  const double tau_sq = opt.threshold * opt.threshold;
-  const double lambda_max = lambda.size() > 0 ? lambda.cwiseAbs().maxCoeff() : 0.0;
-  const double cut =
-      opt.threshold_mode == RankThresholdMode::kRelative ? tau_sq * lambda_max : tau_sq;
   int rank = 0;
   for (Eigen::Index i = 0; i < lambda.size(); ++i) rank += lambda[i] > cut ? 1 : 0;
   out->R.resize(rank, Lambda_t.cols());
@@ -102,14 +109,16 @@ SqrtPriorResult viaSchur(const MatXd& J, const VecXd& f, int n_m,
   SqrtPriorResult out;
   const MatXd H = J.transpose() * J;
   const VecXd b = J.transpose() * f;
+  const double cut =
+      eigenvalueCut(opt, static_cast<int>(H.rows()), H.rows() > 0 ? H.diagonal().maxCoeff() : 0.0);
   PinvOptions<double> pinv;
-  pinv.mode = opt.threshold_mode;
-  pinv.threshold = opt.threshold * opt.threshold;
+  pinv.mode = RankThresholdMode::kAbsolute;
+  pinv.threshold = cut;
   const SchurMarginalization<double> sc = schurMarginalize<double>(H, b, n_m, pinv);
   out.status = sc.status;
   out.marg_rank = sc.marg_rank;
   if (!sc.status.ok()) return out;
-  hessianToSqrtEig(sc.prior.H, sc.prior.b, opt, &out);
+  hessianToSqrtEig(sc.prior.H, sc.prior.b, cut, &out);
   return out;
 }
 
@@ -130,6 +139,7 @@ SqrtPriorResult viaSparseSchur(const ceres::CRSMatrix& crs, const VecXd& f, int 
       }
     }
   }
+  VecXd column_norms_sq = VecXd::Zero(n_m);
   SparseRowMatrix J_m(crs.num_rows, n_m);
   J_m.setFromTriplets(triplets.begin(), triplets.end());
   J_m.makeCompressed();
@@ -145,7 +155,14 @@ SqrtPriorResult viaSparseSchur(const ceres::CRSMatrix& crs, const VecXd& f, int 
   if (!out.status.ok()) return out;
   const MatXd Lambda_t = J_b.transpose() * J_b - rhs.leftCols(n_b).transpose() * X.leftCols(n_b);
   const VecXd g_t = J_b.transpose() * f - rhs.leftCols(n_b).transpose() * X.col(n_b);
-  hessianToSqrtEig(Lambda_t.selfadjointView<Eigen::Lower>(), g_t, opt, &out);
+  double hessian_scale = J_b.size() > 0 ? J_b.colwise().squaredNorm().maxCoeff() : 0.0;
+  for (int row = 0; row < J_m.outerSize(); ++row) {
+    for (SparseRowMatrix::InnerIterator it(J_m, row); it; ++it) {
+      column_norms_sq[it.col()] += it.value() * it.value();
+    }
+  }
+  if (n_m > 0) hessian_scale = std::max(hessian_scale, column_norms_sq.maxCoeff());
+  hessianToSqrtEig(Lambda_t, g_t, eigenvalueCut(opt, crs.num_cols, hessian_scale), &out);
   return out;
 }
 

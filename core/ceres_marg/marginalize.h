@@ -26,8 +26,10 @@
 // methods, stated on the Jacobian (singular-value scale):
 //   kQr:  flat QR column test β ≤ τ (absolute) or β ≤ τ‖A(:,k)‖ (relative);
 //   kSchur / kSparseSchur:  eigenvalues of Λ_mm (pseudo-inverse) and of Λ_t (square root) count as
-//         zero when λ ≤ τ² (absolute) or λ ≤ τ² · λ_max (relative) — eigenvalues of a Hessian are
-//         squared singular values.
+//         zero when λ ≤ τ² (absolute) or λ ≤ max(τ², n·ε) · max_i Λ_ii (relative) — eigenvalues of
+//         a Hessian are squared singular values, and below n·ε of its scale they are rounding
+//         noise of forming and Schur-complementing it in double (n = n_m + n_b). The sparse
+//         route uses a Cholesky of Λ_mm, no cut-off there.
 // Default: relative, τ = √ε (scale invariant; Ceres problems are not whitened to O(1)).
 //
 // Linearization points: x_m is linearized where it is. x_b defaults to its current value; entries

@@ -1,0 +1,415 @@
+// `marglab massspring`: the mass-spring experiment of Levine's marginalization primer (§6,
+// Table 1, Fig. 3): single-stage Gauss–Newton against two-stage optimization with marginalization
+// (core/massspring), on one grid and over a range of grid sizes. Prints tables (or JSON with
+// --json), writes an HDF5 file with -o, and a figure of the final state to notebooks-out/ through
+// tools/scripts/plot_massspring.py.
+
+#include <fmt/core.h>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/common/error.h"
+#include "core/io/hdf5.h"
+#include "core/massspring/mass_spring.h"
+#include "tools/command.h"
+
+namespace marglab {
+namespace {
+
+using ceres_marg::Method;
+using massspring::MassSpringSystem;
+
+struct Options {
+  int grid = 5;
+  std::string sizes = "5,10,20,50,100";
+  int iterations = 10;
+  std::string method = "sparse-schur";
+  int reps = 0;  // 0: automatic
+  std::string output;
+  bool json = false;
+  bool no_plot = false;
+  std::string plot_dir = "notebooks-out";
+};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n == 0 ? 0.0 : (n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
+}
+
+double maxAbsDiff(const std::vector<double>& a, const std::vector<double>& b) {
+  double d = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, std::abs(a[i] - b[i]));
+  return d;
+}
+
+struct SingleRow {
+  massspring::SingleStageResult last;
+  double ms = 0;
+};
+
+struct TwoRow {
+  Method method = Method::kQr;
+  massspring::TwoStageResult last;
+  double marg_ms = 0, stage1_ms = 0, stage2_ms = 0, total_ms = 0;
+  double max_abs_diff = 0;
+};
+
+SingleRow runSingle(const MassSpringSystem& system, int iterations, int reps) {
+  SingleRow row;
+  std::vector<double> ms;
+  for (int r = 0; r < reps; ++r) {
+    row.last = massspring::solveSingleStage(system, iterations);
+    ms.push_back(row.last.solve_ms);
+  }
+  row.ms = median(ms);
+  return row;
+}
+
+TwoRow runTwo(const MassSpringSystem& system, int iterations, int reps, Method method,
+              const SingleRow& single) {
+  TwoRow row;
+  row.method = method;
+  std::vector<double> marg, s1, s2, total;
+  for (int r = 0; r < reps; ++r) {
+    row.last = massspring::solveTwoStage(system, iterations, method);
+    if (!row.last.status.ok()) {
+      throw InputError("massspring", 0,
+                       fmt::format("two-stage ({}) failed: {}", ceres_marg::toString(method),
+                                   row.last.status.toString()));
+    }
+    marg.push_back(row.last.marginalize_ms);
+    s1.push_back(row.last.stage1_ms);
+    s2.push_back(row.last.stage2_ms);
+    total.push_back(row.last.total_ms);
+  }
+  row.marg_ms = median(marg);
+  row.stage1_ms = median(s1);
+  row.stage2_ms = median(s2);
+  row.total_ms = median(total);
+  row.max_abs_diff = maxAbsDiff(row.last.x, single.last.x);
+  return row;
+}
+
+int autoReps(int n) { return std::clamp(2500 / (n * n), 1, 20); }
+
+// Dense QR / dense Schur build an N × (n_m + n_b) dense Jacobian: only for small grids.
+bool denseFeasible(int n) { return n <= 30; }
+
+std::string jsonDoubles(const std::vector<double>& v) {
+  return fmt::format("[{}]", fmt::join(v, ","));
+}
+
+std::string plotJson(const MassSpringSystem& system, const std::vector<double>& final_x) {
+  std::vector<int> springs;
+  for (const auto& s : system.springs) {
+    springs.insert(springs.end(), {s.i, s.j, s.p});
+  }
+  std::vector<double> anchors;
+  std::vector<int> anchor_mass;
+  for (const auto& a : system.anchors) {
+    anchors.insert(anchors.end(), {a.point.x(), a.point.y()});
+    anchor_mass.push_back(a.mass);
+  }
+  std::vector<int> nonlinear;
+  for (int i = 0; i < system.num_masses; ++i)
+    nonlinear.push_back(system.in_nonlinear_set[i] ? 1 : 0);
+  return fmt::format(
+      "{{\"n\":{},\"initial\":{},\"final\":{},\"springs\":[{}],\"energy_initial\":{},"
+      "\"energy_final\":{},\"anchors\":{},\"anchor_mass\":[{}],\"nonlinear\":[{}]}}\n",
+      system.spec.n, jsonDoubles(system.initial), jsonDoubles(final_x), fmt::join(springs, ","),
+      jsonDoubles(system.springEnergies(system.initial)),
+      jsonDoubles(system.springEnergies(final_x)), jsonDoubles(anchors),
+      fmt::join(anchor_mass, ","), fmt::join(nonlinear, ","));
+}
+
+std::string findPythonWithMatplotlib() {
+  for (const std::string candidate : {"/usr/bin/python3", "python3"}) {
+    const std::string command = candidate + " -c 'import matplotlib' > /dev/null 2>&1";
+    if (std::system(command.c_str()) == 0) return candidate;
+  }
+  return {};
+}
+
+// Returns a line to print (what was written, or why not).
+std::string writeFigure(const Options& opt, const MassSpringSystem& system,
+                        const std::vector<double>& final_x) {
+  const std::string script = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts/plot_massspring.py";
+  if (access(script.c_str(), R_OK) != 0) return "figure skipped: " + script + " not found";
+  const std::string python = findPythonWithMatplotlib();
+  if (python.empty()) {
+    return "figure skipped: no Python with matplotlib among /usr/bin/python3 and python3 "
+           "(install it: apt-get install python3-matplotlib, or pip install matplotlib)";
+  }
+  char tmp[] = "/tmp/marglab-massspring-XXXXXX";
+  const int fd = mkstemp(tmp);
+  if (fd < 0) return "figure skipped: cannot create a temporary file";
+  const std::string data = plotJson(system, final_x);
+  const bool written = write(fd, data.data(), data.size()) == static_cast<ssize_t>(data.size());
+  close(fd);
+  std::string message;
+  if (!written) {
+    message = "figure skipped: cannot write the temporary file";
+  } else {
+    const std::string command =
+        fmt::format("'{}' '{}' '{}' '{}' 2>&1", python, script, tmp, opt.plot_dir + "/massspring");
+    message = std::system(command.c_str()) == 0
+                  ? fmt::format("figure: {0}/massspring.png, {0}/massspring.pdf", opt.plot_dir)
+                  : "figure failed: " + command;
+  }
+  std::remove(tmp);
+  return message;
+}
+
+struct ScalingRow {
+  int n = 0;
+  int masses = 0;
+  SingleRow single;
+  TwoRow two;
+  int reps = 0;
+};
+
+int runMassSpring(const Options& opt, bool sizes_given, bool grid_given) {
+  Method method;
+  if (!ceres_marg::parseMethod(opt.method, &method)) {
+    throw UsageError("--method must be qr, schur or sparse-schur, not '" + opt.method + "'");
+  }
+  if (opt.grid < 4)
+    throw UsageError("--grid must be at least 4 (the corner sets must not overlap)");
+  if (opt.iterations < 1) throw UsageError("--iterations must be at least 1");
+  std::vector<int> sizes;
+  if (sizes_given || !grid_given) {
+    std::stringstream in(opt.sizes);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+      if (item.empty()) continue;
+      char* end = nullptr;
+      const long v = std::strtol(item.c_str(), &end, 10);
+      if (*end != '\0' || v < 4 || v > 1000) {
+        throw UsageError("--sizes: '" + item + "' is not a grid size in 4..1000");
+      }
+      sizes.push_back(static_cast<int>(v));
+    }
+  }
+  if (!denseFeasible(opt.grid) && method != Method::kSparseSchur) {
+    throw UsageError(fmt::format(
+        "--method {} builds a dense Jacobian; use sparse-schur above {}x{}", opt.method, 30, 30));
+  }
+
+  massspring::GridSpec spec;
+  spec.n = opt.grid;
+  const MassSpringSystem system = MassSpringSystem::grid(spec);
+  const int reps = opt.reps > 0 ? opt.reps : autoReps(opt.grid);
+  const SingleRow single = runSingle(system, opt.iterations, reps);
+  std::vector<TwoRow> twos;
+  for (Method m : {Method::kQr, Method::kSchur, Method::kSparseSchur}) {
+    if (m != method && !denseFeasible(opt.grid)) continue;
+    twos.push_back(runTwo(system, opt.iterations, reps, m, single));
+  }
+  const TwoRow& main_two =
+      *std::find_if(twos.begin(), twos.end(), [&](const TwoRow& t) { return t.method == method; });
+
+  std::vector<ScalingRow> scaling;
+  for (int n : sizes) {
+    if (!opt.json && cli::stderrIsTerminal()) fmt::print(stderr, "\rscaling: {}x{} ...   ", n, n);
+    massspring::GridSpec s = spec;
+    s.n = n;
+    const MassSpringSystem sys = MassSpringSystem::grid(s);
+    ScalingRow row;
+    row.n = n;
+    row.masses = sys.num_masses;
+    row.reps = opt.reps > 0 ? opt.reps : autoReps(n);
+    row.single = runSingle(sys, opt.iterations, row.reps);
+    row.two = runTwo(sys, opt.iterations, row.reps, method, row.single);
+    scaling.push_back(row);
+  }
+  if (!opt.json && cli::stderrIsTerminal() && !sizes.empty()) fmt::print(stderr, "\r{:40}\r", "");
+
+  std::string figure;
+  if (!opt.no_plot) figure = writeFigure(opt, system, main_two.last.x);
+
+  const double speedup = single.ms / main_two.total_ms;
+  if (opt.json) {
+    std::vector<std::string> methods, rows;
+    for (const TwoRow& t : twos) {
+      methods.push_back(fmt::format(
+          "\"{}\":{{\"marginalize_ms\":{:.6g},\"stage1_ms\":{:.6g},\"stage2_ms\":{:.6g},"
+          "\"two_stage_ms\":{:.6g},\"speedup\":{:.6g},\"max_abs_diff\":{:.3e},\"prior_rows\":{},"
+          "\"prior_condition\":{:.6g}}}",
+          ceres_marg::toString(t.method), t.marg_ms, t.stage1_ms, t.stage2_ms, t.total_ms,
+          single.ms / t.total_ms, t.max_abs_diff, t.last.marginalization.prior_rows,
+          t.last.marginalization.condition_number));
+    }
+    for (const ScalingRow& r : scaling) {
+      rows.push_back(fmt::format(
+          "{{\"grid\":{},\"masses\":{},\"reps\":{},\"single_stage_ms\":{:.6g},"
+          "\"marginalize_ms\":{:.6g},\"stage1_ms\":{:.6g},\"stage2_ms\":{:.6g},"
+          "\"two_stage_ms\":{:.6g},\"speedup\":{:.6g},\"max_abs_diff\":{:.3e}}}",
+          r.n, r.masses, r.reps, r.single.ms, r.two.marg_ms, r.two.stage1_ms, r.two.stage2_ms,
+          r.two.total_ms, r.single.ms / r.two.total_ms, r.two.max_abs_diff));
+    }
+    fmt::print(
+        "{{\"grid\":{},\"masses\":{},\"nonlinear_masses\":{},\"iterations\":{},\"reps\":{},"
+        "\"method\":\"{}\",\"single_stage_ms\":{:.6g},\"two_stage_ms\":{:.6g},\"speedup\":{:.6g},"
+        "\"max_abs_diff\":{:.3e},\"final_energy\":{:.12g},\"two_stage\":{{{}}},\"scaling\":[{}]"
+        "}}\n",
+        opt.grid, system.num_masses, system.nonlinearMasses(), opt.iterations, reps,
+        ceres_marg::toString(method), single.ms, main_two.total_ms, speedup, main_two.max_abs_diff,
+        single.last.final_cost, fmt::join(methods, ","), fmt::join(rows, ","));
+    if (!figure.empty()) fmt::print(stderr, "{}\n", figure);
+  } else {
+    fmt::print(
+        "marglab massspring: {0}x{0} grid (primer §6), {1} masses, {2} in N (touched by p = 4 "
+        "springs), {3} springs + {4} anchors\n",
+        opt.grid, system.num_masses, system.nonlinearMasses(), system.springs.size(),
+        system.anchors.size());
+    fmt::print(
+        "Gauss-Newton, {} iterations in both methods; times are medians of {} runs (problem "
+        "construction not timed)\n",
+        opt.iterations, reps);
+    fmt::print(
+        "single stage: all masses, sparse normal Cholesky; two-stage: marginalize the {} masses "
+        "outside N, {} iterations on N (dense normal Cholesky), recover the rest by CHOLMOD\n\n",
+        system.num_masses - system.nonlinearMasses(), opt.iterations);
+    fmt::print("| {:<26} | {:>9} | {:>9} | {:>9} | {:>9} | {:>7} | {:>12} | {:>9} |\n", "method",
+               "marg ms", "stage1 ms", "stage2 ms", "total ms", "speedup", "max|dx|", "prior");
+    fmt::print("|{:-<28}|{:->11}|{:->11}|{:->11}|{:->11}|{:->9}|{:->14}|{:->11}|\n", "", "", "", "",
+               "", "", "", "");
+    fmt::print("| {:<26} | {:>9} | {:>9} | {:>9} | {:>9.3f} | {:>7} | {:>12} | {:>9} |\n",
+               "single stage", "", "", "", single.ms, "1.0", "", "");
+    for (const TwoRow& t : twos) {
+      fmt::print(
+          "| {:<26} | {:>9.3f} | {:>9.3f} | {:>9.3f} | {:>9.3f} | {:>7.1f} | {:>12.2e} | "
+          "{:>4}x{:<4} |\n",
+          fmt::format("two-stage, {}{}", ceres_marg::toString(t.method),
+                      t.method == method ? " *" : ""),
+          t.marg_ms, t.stage1_ms, t.stage2_ms, t.total_ms, single.ms / t.total_ms, t.max_abs_diff,
+          t.last.marginalization.prior_rows, t.last.marginalization.blanket_dim);
+    }
+    fmt::print(
+        "\nfinal energy {:.10g} (single) vs {:.10g} (two-stage); max|dx| is the largest coordinate "
+        "difference of the two final states. * = --method\n",
+        single.last.final_cost, main_two.last.final_cost);
+    if (!scaling.empty()) {
+      fmt::print("\nscaling (two-stage with {}):\n\n", ceres_marg::toString(method));
+      fmt::print(
+          "| {:>9} | {:>6} | {:>4} | {:>10} | {:>9} | {:>9} | {:>9} | {:>10} | {:>7} | {:>9} |\n",
+          "grid", "masses", "reps", "single ms", "marg ms", "stage1 ms", "stage2 ms", "2-stage ms",
+          "speedup", "max|dx|");
+      fmt::print("|{:->11}|{:->8}|{:->6}|{:->12}|{:->11}|{:->11}|{:->11}|{:->12}|{:->9}|{:->11}|\n",
+                 "", "", "", "", "", "", "", "", "", "");
+      for (const ScalingRow& r : scaling) {
+        fmt::print(
+            "| {:>9} | {:>6} | {:>4} | {:>10.3f} | {:>9.3f} | {:>9.3f} | {:>9.3f} | {:>10.3f} | "
+            "{:>7.1f} | {:>9.1e} |\n",
+            fmt::format("{0}x{0}", r.n), r.masses, r.reps, r.single.ms, r.two.marg_ms,
+            r.two.stage1_ms, r.two.stage2_ms, r.two.total_ms, r.single.ms / r.two.total_ms,
+            r.two.max_abs_diff);
+      }
+    }
+    if (!figure.empty()) fmt::print("\n{}\n", figure);
+  }
+
+  if (!opt.output.empty()) {
+    h5::File file = h5::File::create(opt.output);
+    file.setAttr("experiment", "massspring");
+    file.setAttr("grid", opt.grid);
+    file.setAttr("iterations", opt.iterations);
+    file.setAttr("reps", reps);
+    file.setAttr("method", ceres_marg::toString(method));
+    file.setAttr("single_stage_ms", single.ms);
+    file.setAttr("two_stage_ms", main_two.total_ms);
+    file.setAttr("speedup", speedup);
+    file.setAttr("max_abs_diff", main_two.max_abs_diff);
+    const auto asRows = [](const std::vector<double>& x) {
+      return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>>(
+          x.data(), static_cast<Eigen::Index>(x.size() / 2), 2);
+    };
+    const h5::Group state = file.group("state");
+    state.writeMatrix("rest", asRows(system.rest));
+    state.writeMatrix("initial", asRows(system.initial));
+    state.writeMatrix("single_stage", asRows(single.last.x));
+    state.writeMatrix("two_stage", asRows(main_two.last.x));
+    std::vector<std::int32_t> springs;
+    for (const auto& s : system.springs) springs.insert(springs.end(), {s.i, s.j, s.p});
+    state.write("springs", springs.data(), system.springs.size(), 3);
+    state.write("energy_final", system.springEnergies(single.last.x));
+    const h5::Group methods = file.group("two_stage");
+    for (const TwoRow& t : twos) {
+      const h5::Group g = methods.group(ceres_marg::toString(t.method));
+      g.setAttr("marginalize_ms", t.marg_ms);
+      g.setAttr("stage1_ms", t.stage1_ms);
+      g.setAttr("stage2_ms", t.stage2_ms);
+      g.setAttr("total_ms", t.total_ms);
+      g.setAttr("max_abs_diff", t.max_abs_diff);
+      g.setAttr("prior_rows", t.last.marginalization.prior_rows);
+    }
+    if (!scaling.empty()) {
+      const h5::Group g = file.group("scaling");
+      std::vector<std::int64_t> grid, masses;
+      std::vector<double> single_ms, marg_ms, s1, s2, total, diff;
+      for (const ScalingRow& r : scaling) {
+        grid.push_back(r.n);
+        masses.push_back(r.masses);
+        single_ms.push_back(r.single.ms);
+        marg_ms.push_back(r.two.marg_ms);
+        s1.push_back(r.two.stage1_ms);
+        s2.push_back(r.two.stage2_ms);
+        total.push_back(r.two.total_ms);
+        diff.push_back(r.two.max_abs_diff);
+      }
+      g.write("grid", grid);
+      g.write("masses", masses);
+      g.write("single_stage_ms", single_ms);
+      g.write("marginalize_ms", marg_ms);
+      g.write("stage1_ms", s1);
+      g.write("stage2_ms", s2);
+      g.write("two_stage_ms", total);
+      g.write("max_abs_diff", diff);
+    }
+    file.commit();
+  }
+  return 0;
+}
+
+const bool kRegistered = cli::registerCommand(
+    {"massspring",
+     "Mass-spring experiment (primer §6): single-stage Gauss-Newton vs two-stage with "
+     "marginalization",
+     80, [](CLI::App& sub) -> cli::CommandRun {
+       auto opt = std::make_shared<Options>();
+       CLI::Option* grid =
+           sub.add_option("--grid", opt->grid, "Masses per side of the compared grid (>= 4)")
+               ->capture_default_str();
+       CLI::Option* sizes =
+           sub.add_option("--sizes", opt->sizes,
+                          "Comma-separated grid sizes of the scaling table (default when --grid is "
+                          "not given; with --grid only if given)")
+               ->capture_default_str();
+       sub.add_option("--iterations", opt->iterations, "Gauss-Newton iterations")
+           ->capture_default_str();
+       sub.add_option("--method", opt->method, "Marginalization: qr, schur or sparse-schur")
+           ->capture_default_str();
+       sub.add_option("--reps", opt->reps, "Timing repetitions (0: automatic, median reported)")
+           ->capture_default_str();
+       sub.add_option("-o,--output", opt->output, "Write the states and timings to FILE.h5");
+       sub.add_flag("--json", opt->json, "Print one JSON object instead of tables");
+       sub.add_flag("--no-plot", opt->no_plot, "Do not write the figure");
+       sub.add_option("--plot-dir", opt->plot_dir, "Directory of the figure")
+           ->capture_default_str();
+       return [opt, grid, sizes] {
+         return runMassSpring(*opt, sizes->count() > 0, grid->count() > 0);
+       };
+     }});
+
+}  // namespace
+}  // namespace marglab
