@@ -16,7 +16,8 @@
 // starting from (I, 0, 0). Exact when ω_b is constant within each piece and the world-frame
 // specific force R_w_b f = a_w − g_w is constant (e.g. constant body rate and constant world
 // acceleration with frames at sample times); otherwise first-order accurate in the sample period.
-// Splitting at an interior time and composing the two halves reproduces the whole exactly.
+// Splitting at an interior time and composing the two halves reproduces the whole deltas exactly
+// (and the covariance when the split is at a sample time, see below).
 //
 // Relation to the states (Forster eq. 33), Δt = t_j − t_i, g = g_w:
 //   ΔR = R_iᵀ R_j,  Δv = R_iᵀ (v_j − v_i − g Δt),  Δp = R_iᵀ (p_j − p_i − v_i Δt − ½ g Δt²).
@@ -30,8 +31,11 @@
 //       [ 0   Exp(ω_k δt)ᵀ       0    ]         [ Jr(ω_k δt) δt ]         [ 0          ]
 //       [ 0  −ΔR_k f_k^ δt       I    ]         [ 0            ]         [ ΔR_k δt    ]
 //   Σ_{k+1} = A Σ_k Aᵀ + σ_g,d² B_g B_gᵀ + σ_a,d² B_a B_aᵀ,   Σ_0 = 0.
-// (ΔR_k ΔR_kᵀ = I makes the accel term independent of ΔR_k.) A sample split over two pieces is
-// counted with its full sample variance σ²/Δt_s in each piece, scaled by that piece's δt.
+// (ΔR_k ΔR_kᵀ = I makes the accel term independent of ΔR_k.) Each piece draws its sample's noise
+// n_k with the full sample variance σ²/Δt_s, scaled through B by the piece's δt. This is exact for
+// a piece that is a whole sample interval or the partial first/last piece of this interval; a
+// sample split between two preintegrations (or two integrateUntil calls) is treated as two
+// independent draws, i.e. the correlation of neighbouring factors is ignored, as usual.
 //
 // Bias Jacobians for the first-order correction (Forster eq. 44, appendix B):
 //   ΔR(b_g) ≈ ΔR̄ Exp(J_R^g δb_g),  Δv(b) ≈ Δv̄ + J_v^g δb_g + J_v^a δb_a,
