@@ -1,0 +1,227 @@
+#pragma once
+// The results file of one run (DESIGN §6): HDF5, written by the estimator through ResultsWriter,
+// read by eigdump / tables / plots through ResultsReader, and from Python with h5py or pandas
+// (tools/scripts/check_results.py validates a file independently).
+//
+// Schema, schema_version = 1 (all times in seconds unless the name ends in _ns; t_ns are int64
+// nanoseconds of the dataset clock; positions in metres, world frame of the estimate / GT):
+//
+// /  attributes
+//   schema_version  int64   1
+//   marglab_version str     MARGLAB_VERSION_STRING;  git_sha str  MARGLAB_GIT_SHA (build time)
+//   created_utc     str     ISO-8601, e.g. "2024-05-01T12:34:56Z"
+//   dataset, sequence, variant, precision ("f32"|"f64"), mode ("vo"|"vio")   str
+//   seed            int64   simulation seed (bit pattern of the uint64)
+//   config_toml     str     the full effective estimator config (TOML)
+//   qr_threshold_mode str ("absolute"|"relative"|""), qr_threshold f64 (the value used, NaN: n/a)
+//   status          str     "ok" | "failed"
+//   failure_frame   int64   row of /frames where the run failed, −1 when ok
+//   failure_reason  str     "" when ok
+//   + RunMetadata::extra (str)
+// /frames  one row per processed frame (extendible, chunked along time):
+//   t_ns int64 (n) · is_keyframe uint8 (n) · n_landmarks, n_observations, lm_iterations int32 (n)
+//   cost_initial, cost_final f64 (n)       ½‖r‖² of the window before / after this frame's LM
+//   t_opt_s, t_marg_s f64 (n)              wall time of optimization / marginalization [s]
+//   p_est f64 (n,3)  estimated position of this frame right after its optimize + marginalize
+//   q_est f64 (n,4)  its orientation, quaternion in order x y z w (attribute "order")
+//   p_gt  f64 (n,3)  ground-truth position at t_ns (interpolated), NaN rows when none
+//   ate_error f64 (n) ‖p_gt − (R p_est + t)‖ after the final alignment (see /summary), NaN for
+//                    rows without GT or with non-finite p_est. Written by finish(): the writer
+//                    keeps p_est / p_gt in memory (48 bytes per frame) and aligns once at the end.
+// /marg  one row per marginalization event:
+//   frame_index int64   row of /frames of the frame whose processing marginalized
+//   t_ns int64          its timestamp
+//   prior_cols, prior_rows, rank, n_negative int32   n, rows of J_m (= n for squared storage),
+//                        numerical rank and #λ < −τ of H_m (core/diagnostics/prior_analysis.h)
+//   sigma_min, sigma_max, eig_tolerance f64          λ_min, λ_max, τ
+//   dEm f64 (m,7)       ΔE_m along x, y, z, roll, pitch, yaw, random (attribute "columns")
+// /marg/eigenvalues     ragged: values f64 [K] + offsets int64 [M+1]; event k's ascending
+//                       eigenvalues are values[offsets[k]:offsets[k+1]]
+// /marg/priors/<k>/     optional, the full double prior of event k (k = row of /marg):
+//   H_m (n,n), b_m (n), and for square-root storage J_m (rows,n), r_m (rows);
+//   layout_kind int32 (0 pose, 1 velocity, 2 bias_gyro, 3 bias_accel; attribute "kind_names"),
+//   layout_frame_id int64, layout_offset int32, layout_dim int32 — one row per variable block;
+//   attribute storage "sqrt"|"sq".
+// /summary  attributes
+//   ate_rmse f64 [m] (NaN without GT), n_ate_pairs, n_frames, n_marg int64,
+//   duration_s f64 (last − first t_ns of /frames), t_opt_total_s, t_marg_total_s f64,
+//   wall_time_s f64 (RunSummary, or t_opt_total_s + t_marg_total_s when not given),
+//   realtime_factor f64 = duration_s / wall_time_s (> 1: faster than real time),
+//   R_gt_est f64[9] (row-major), t_gt_est f64[3]: the alignment p_gt ≈ R p_est + t.
+//
+// Atomicity: the file is written under a temporary name and renamed onto the path by finish()
+// (h5::File::commit). A ResultsWriter destroyed without finish() (exception, crash path) leaves
+// no file at the path, so a sweep never counts an unfinished run as done. A run that fails
+// numerically still calls finish() with RunStatus::kFailed and gets a complete file.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/common/eigen_types.h"
+#include "core/diagnostics/diagnostics.h"
+#include "core/io/hdf5.h"
+
+namespace marglab {
+
+inline constexpr int kResultsSchemaVersion = 1;
+
+struct RunMetadata {
+  std::string dataset;    // "euroc"
+  std::string sequence;   // "MH_01_easy"
+  std::string variant;    // "ns-qr-sqrt-f32"
+  std::string precision;  // "f32" | "f64"
+  std::string mode;       // "vo" | "vio"
+  std::uint64_t seed = 0;
+  std::string config_toml;
+  std::string qr_threshold_mode;  // "absolute" | "relative" | "" (no flat QR)
+  double qr_threshold = std::numeric_limits<double>::quiet_NaN();
+  std::vector<std::pair<std::string, std::string>> extra;  // more root string attributes
+};
+
+struct FrameRecord {
+  std::int64_t t_ns = 0;
+  bool is_keyframe = false;
+  int n_landmarks = 0;
+  int n_observations = 0;
+  int lm_iterations = 0;
+  double cost_initial = 0.0;
+  double cost_final = 0.0;
+  double t_opt_s = 0.0;
+  double t_marg_s = 0.0;
+  Eigen::Vector3d p_est = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q_est = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d p_gt = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+};
+
+struct MargRecord {
+  std::int64_t frame_index = 0;
+  std::int64_t t_ns = 0;
+  int prior_cols = 0;
+  int prior_rows = 0;
+  int rank = 0;
+  int n_negative = 0;
+  double sigma_min = 0.0;
+  double sigma_max = 0.0;
+  double eig_tolerance = 0.0;
+  Vec7d dEm = Vec7d::Zero();
+  VecXd eigenvalues;  // ascending, size prior_cols
+};
+
+// Fills a MargRecord from the diagnostics of one event (prior_cols = eigenvalues.size()).
+MargRecord makeMargRecord(std::int64_t frame_index, std::int64_t t_ns, int prior_rows,
+                          const PriorDiagnostics& diagnostics);
+
+// The full prior of one event (/marg/priors/<k>); J_m, r_m empty for squared storage.
+struct StoredPrior {
+  PriorLayout layout;
+  MatXd H_m;
+  VecXd b_m;
+  MatXd J_m;
+  VecXd r_m;
+};
+
+struct RunSummary {
+  double wall_time_s = std::numeric_limits<double>::quiet_NaN();  // NaN: t_opt + t_marg totals
+};
+
+enum class RunStatus { kOk, kFailed };
+const char* runStatusName(RunStatus status);  // "ok", "failed"
+
+// What finish() wrote to /summary (and what ResultsReader::summary() reads).
+struct SummaryValues {
+  double ate_rmse = std::numeric_limits<double>::quiet_NaN();
+  std::int64_t n_ate_pairs = 0;
+  std::int64_t n_frames = 0;
+  std::int64_t n_marg = 0;
+  double duration_s = 0.0;
+  double t_opt_total_s = 0.0;
+  double t_marg_total_s = 0.0;
+  double wall_time_s = 0.0;
+  double realtime_factor = std::numeric_limits<double>::quiet_NaN();
+  Eigen::Matrix3d R_gt_est = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d t_gt_est = Eigen::Vector3d::Zero();
+};
+
+class ResultsWriter {
+ public:
+  // Starts the file (temporary name) and writes the root metadata. Throws InputError.
+  static ResultsWriter create(const std::string& path, const RunMetadata& metadata);
+  ResultsWriter(ResultsWriter&&) noexcept;
+  ResultsWriter& operator=(ResultsWriter&&) noexcept;
+  ~ResultsWriter();  // without finish(): the temporary is deleted, nothing appears at path
+
+  void appendFrame(const FrameRecord& frame);
+  void appendMarg(const MargRecord& marg);  // marg.eigenvalues becomes the next ragged row
+  // The full double prior of marginalization event k (the /marg row of the same event); at most
+  // once per k. J_m and r_m (both or neither) for square-root storage.
+  void appendPriorMatrices(std::int64_t k, const PriorLayout& layout, const MatXd& H_m,
+                           const VecXd& b_m, const MatXd* J_m = nullptr,
+                           const VecXd* r_m = nullptr);
+  // Computes ATE and the /summary attributes, writes /frames/ate_error and the status, then
+  // commits (atomic rename). The writer is closed afterwards (appends throw).
+  SummaryValues finish(const RunSummary& summary, RunStatus status = RunStatus::kOk,
+                       std::int64_t failure_frame = -1, const std::string& failure_reason = "");
+
+  std::size_t frameCount() const;
+  std::size_t margCount() const;
+  const std::string& path() const;
+
+ private:
+  struct Impl;
+  explicit ResultsWriter(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+struct RunInfo {
+  std::int64_t schema_version = 0;
+  std::string marglab_version;
+  std::string git_sha;
+  std::string created_utc;
+  RunMetadata metadata;
+  std::string status;  // "ok" | "failed"
+  std::int64_t failure_frame = -1;
+  std::string failure_reason;
+};
+
+struct FrameColumns {
+  std::vector<std::int64_t> t_ns;
+  std::vector<std::uint8_t> is_keyframe;
+  std::vector<std::int32_t> n_landmarks, n_observations, lm_iterations;
+  std::vector<double> cost_initial, cost_final, t_opt_s, t_marg_s, ate_error;
+  std::vector<Eigen::Vector3d> p_est, p_gt;
+  std::vector<Eigen::Quaterniond> q_est;
+  std::size_t size() const { return t_ns.size(); }
+};
+
+// Read access; every failure (missing file, not a results file, newer schema, missing object)
+// throws InputError naming the file.
+class ResultsReader {
+ public:
+  explicit ResultsReader(const std::string& path);
+  const std::string& path() const { return path_; }
+  const RunInfo& info() const { return info_; }
+  FrameColumns frames() const;
+  std::size_t margCount() const;
+  std::vector<MargRecord> margs(bool with_eigenvalues = true) const;
+  MargRecord marg(std::size_t k) const;  // with eigenvalues; InputError when k ≥ margCount()
+  VecXd eigenvalues(std::size_t k) const;
+  std::vector<std::int64_t> storedPriors() const;  // ascending event indices
+  std::optional<StoredPrior> prior(std::int64_t k) const;
+  SummaryValues summary() const;
+  const h5::File& file() const { return file_; }
+
+ private:
+  std::string path_;
+  h5::File file_;
+  RunInfo info_;
+};
+
+}  // namespace marglab

@@ -1,0 +1,153 @@
+#!/usr/bin/env python3
+"""Independent check of a marglab results file (schema_version 1, DESIGN.md section 6).
+
+Usage: check_results.py RUN.h5
+
+Checks that every attribute and dataset of the schema exists with consistent shapes, that the
+ragged /marg/eigenvalues agree with /marg (one ascending row of prior_cols values per event), and
+recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
+Umeyama/Kabsch alignment without scale (reflection fix diag(1, 1, det(U V^T))), comparing it with
+/summary ate_rmse and /frames/ate_error. Prints "OK ..." and exits 0, or lists every problem and
+exits 1 (2 for usage errors). Needs only numpy and h5py.
+"""
+import sys
+
+import h5py
+import numpy as np
+
+ROOT_ATTRS = ["schema_version", "marglab_version", "git_sha", "created_utc", "dataset",
+              "sequence", "variant", "precision", "seed", "config_toml", "status",
+              "failure_frame", "failure_reason"]
+FRAME_1D = ["t_ns", "is_keyframe", "n_landmarks", "n_observations", "lm_iterations",
+            "cost_initial", "cost_final", "t_opt_s", "t_marg_s", "ate_error"]
+FRAME_2D = {"p_est": 3, "q_est": 4, "p_gt": 3}
+MARG_1D = ["frame_index", "t_ns", "prior_cols", "prior_rows", "rank", "sigma_min", "sigma_max",
+           "n_negative"]
+SUMMARY_ATTRS = ["ate_rmse", "n_frames", "duration_s", "t_opt_total_s", "t_marg_total_s",
+                 "realtime_factor"]
+
+
+def umeyama_rmse(src, dst):
+    mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
+    sigma = (dst - mu_d).T @ (src - mu_s) / len(src)
+    u, _, vt = np.linalg.svd(sigma)
+    s = np.diag([1.0, 1.0, np.sign(np.linalg.det(u) * np.linalg.det(vt)) or 1.0])
+    rot = u @ s @ vt
+    trans = mu_d - rot @ mu_s
+    err = np.linalg.norm(dst - (src @ rot.T + trans), axis=1)
+    return float(np.sqrt(np.mean(err ** 2))), err
+
+
+def close(a, b, scale):
+    return abs(a - b) <= 1e-9 * max(scale, 1e-3)
+
+
+def check(path):
+    problems = []
+    with h5py.File(path, "r") as f:
+        for name in ROOT_ATTRS:
+            if name not in f.attrs:
+                problems.append(f"missing root attribute {name}")
+        if f.attrs.get("schema_version") != 1:
+            problems.append(f"schema_version {f.attrs.get('schema_version')} != 1")
+        if f.attrs.get("status") not in ("ok", "failed"):
+            problems.append(f"status {f.attrs.get('status')!r} is neither ok nor failed")
+        for group in ["frames", "marg", "marg/eigenvalues", "summary"]:
+            if group not in f:
+                problems.append(f"missing group /{group}")
+        if problems:
+            return problems
+
+        fr = f["frames"]
+        n = fr["t_ns"].shape[0] if "t_ns" in fr else -1
+        for name in FRAME_1D:
+            if name not in fr:
+                problems.append(f"missing /frames/{name}")
+            elif fr[name].shape != (n,):
+                problems.append(f"/frames/{name} has shape {fr[name].shape}, expected ({n},)")
+        for name, cols in FRAME_2D.items():
+            if name not in fr:
+                problems.append(f"missing /frames/{name}")
+            elif fr[name].shape != (n, cols):
+                problems.append(f"/frames/{name} has shape {fr[name].shape}, expected ({n}, {cols})")
+
+        mg = f["marg"]
+        m = mg["frame_index"].shape[0] if "frame_index" in mg else -1
+        for name in MARG_1D:
+            if name not in mg:
+                problems.append(f"missing /marg/{name}")
+            elif mg[name].shape != (m,):
+                problems.append(f"/marg/{name} has shape {mg[name].shape}, expected ({m},)")
+        if "dEm" not in mg or mg["dEm"].shape != (m, 7):
+            problems.append("missing /marg/dEm or shape != (M, 7)")
+        eg = mg["eigenvalues"]
+        if "values" not in eg or "offsets" not in eg:
+            problems.append("missing /marg/eigenvalues/values or offsets")
+        else:
+            offsets = eg["offsets"][:]
+            values = eg["values"][:]
+            if offsets.shape != (m + 1,) or offsets[0] != 0 or offsets[-1] != values.shape[0]:
+                problems.append("/marg/eigenvalues/offsets inconsistent with /marg and values")
+            elif "prior_cols" in mg:
+                counts = np.diff(offsets)
+                if not np.array_equal(counts, mg["prior_cols"][:]):
+                    problems.append("eigenvalue counts differ from /marg/prior_cols")
+                for k in range(m):
+                    row = values[offsets[k]:offsets[k + 1]]
+                    finite = row[np.isfinite(row)]
+                    if finite.size and np.any(np.diff(finite) < 0):
+                        problems.append(f"eigenvalues of event {k} are not ascending")
+                    if finite.size and "sigma_min" in mg and finite.size == row.size:
+                        if finite[0] != mg["sigma_min"][k] or finite[-1] != mg["sigma_max"][k]:
+                            problems.append(f"sigma_min/max of event {k} differ from its eigenvalues")
+
+        summary = f["summary"].attrs
+        for name in SUMMARY_ATTRS:
+            if name not in summary:
+                problems.append(f"missing /summary attribute {name}")
+        if problems:
+            return problems
+        if summary["n_frames"] != n:
+            problems.append(f"/summary n_frames {summary['n_frames']} != {n} rows")
+
+        p_est, p_gt = fr["p_est"][:], fr["p_gt"][:]
+        ok = np.all(np.isfinite(p_est), axis=1) & np.all(np.isfinite(p_gt), axis=1)
+        stored_rmse = float(summary["ate_rmse"])
+        ate_error = fr["ate_error"][:]
+        if not ok.any():
+            if not np.isnan(stored_rmse):
+                problems.append(f"no GT pairs but ate_rmse = {stored_rmse}")
+        else:
+            rmse, err = umeyama_rmse(p_est[ok], p_gt[ok])
+            scale = float(np.abs(p_gt[ok]).max())
+            if not close(rmse, stored_rmse, scale):
+                problems.append(f"ATE mismatch: numpy {rmse:.12g} vs /summary {stored_rmse:.12g}")
+            if not np.allclose(err, ate_error[ok], rtol=0, atol=1e-9 * max(scale, 1e-3)):
+                problems.append("per-frame /frames/ate_error differs from the numpy alignment")
+            if not np.all(np.isnan(ate_error[~ok])):
+                problems.append("/frames/ate_error is not NaN where there is no GT pair")
+        print(f"ATE (numpy Umeyama, {int(ok.sum())} pairs): "
+              f"{umeyama_rmse(p_est[ok], p_gt[ok])[0] if ok.any() else float('nan'):.9g} m, "
+              f"file: {stored_rmse:.9g} m")
+    return problems
+
+
+def main(argv):
+    if len(argv) != 2:
+        print(__doc__.strip().splitlines()[2], file=sys.stderr)
+        return 2
+    try:
+        problems = check(argv[1])
+    except (OSError, KeyError) as e:
+        print(f"{argv[1]}: cannot read: {e}", file=sys.stderr)
+        return 1
+    if problems:
+        for p in problems:
+            print(f"{argv[1]}: {p}", file=sys.stderr)
+        return 1
+    print(f"OK {argv[1]}: schema_version 1, all datasets present, ATE consistent")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
