@@ -337,9 +337,10 @@ MarginalizationSummary marginalize(ceres::Problem* problem, const std::vector<do
   }
   summary.evaluate_ms = msSince(eval_start);
   if (!evaluated) {
-    summary.status = Status::Error(Status::Code::kSolveFailed,
-                                   "marginalize: Ceres failed to evaluate the residual blocks of "
-                                   "the marginalized variables");
+    summary.status = Status::Error(
+        Status::Code::kNotFinite,
+        "marginalize: Ceres could not evaluate the residual blocks of the marginalized variables "
+        "(a cost function failed or returned a non-finite residual or Jacobian)");
     return summary;
   }
   const VecXd f =
