@@ -654,7 +654,8 @@ Status VoEstimator<Scalar>::marginalize(int64_t current, FrameResult* result) {
                                landmarks, &event.qr_rank);
       if (!status.ok()) return status;
       event.frame_ids = shadow_prior_.frame_ids;
-      for (int64_t f : event.frame_ids) event.T_w_c.push_back(poseOf(f).template cast<double>());
+      // Gauge directions at the linearization points: the prior's nullspace lies there (FEJ).
+      for (const SE3S& T : shadow_prior_.x0) event.T_w_c.push_back(T.template cast<double>());
       const VecX<Scalar> delta = shadow_prior_.delta([this](int64_t f) { return poseOf(f); });
       if (shadow_prior_.storage == PriorStorage::kSqrt) {
         event.J_m = shadow_prior_.sqrt.J.template cast<double>();

@@ -58,7 +58,7 @@ namespace marglab {
 // One marginalization event of the shadow (gauge-free) prior, in double, for diagnostics.
 struct MargEvent {
   std::vector<int64_t> frame_ids;  // prior layout (6 dof per frame)
-  std::vector<SE3<double>> T_w_c;  // current pose of each layout frame
+  std::vector<SE3<double>> T_w_c;  // linearization point of each layout frame
   MatXd H_m;                       // prior Hessian (J_mᵀJ_m formed in double for sqrt)
   VecXd b_m;                       // gradient at the current state
   MatXd J_m;                       // square-root storage only

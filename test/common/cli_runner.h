@@ -15,8 +15,9 @@ struct CliResult {
   std::string output;  // stdout and stderr
 };
 
-inline CliResult runCli(const std::string& args) {
-  const std::string command = std::string("'") + MARGLAB_CLI + "' " + args + " 2>&1";
+// Runs a shell command line, capturing stdout and stderr.
+inline CliResult runShell(const std::string& command_line) {
+  const std::string command = command_line + " 2>&1";
   FILE* pipe = popen(command.c_str(), "r");
   if (pipe == nullptr) return {-1, "popen failed"};
   std::string output;
@@ -24,6 +25,10 @@ inline CliResult runCli(const std::string& args) {
   while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
   const int status = pclose(pipe);
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+inline CliResult runCli(const std::string& args) {
+  return runShell(std::string("'") + MARGLAB_CLI + "' " + args);
 }
 
 // The first interpreter among /usr/bin/python3 and `python3` on PATH that imports h5py and numpy;

@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 
+#include "core/diagnostics/diagnostics.h"
 #include "core/estimator/vo_estimator.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
@@ -168,6 +169,19 @@ TEST(VoEstimatorGauge, GaugeFreePriorHasASixDimensionalNullspace) {
   EXPECT_LT(gauge, 1e-9 * scale) << ev.transpose();
   // A clear gap to the observable directions.
   EXPECT_GT(ev[6], 1e4 * gauge) << ev.transpose();
+
+  // ΔE_m (eq. 27) along the 6 gauge directions is tiny against the random direction.
+  PriorLayout layout;
+  GaugeState state;
+  for (size_t i = 0; i < last->frame_ids.size(); ++i) {
+    layout.push_back({PriorVariableKind::kPose, last->frame_ids[i], static_cast<int>(6 * i)});
+    state.T_w_i[last->frame_ids[i]] = last->T_w_c[i];
+  }
+  const PriorDiagnostics diagnostics = diagnoseSqrtPrior(last->J_m, last->r_m, layout, state, 11);
+  for (int d = kGaugeX; d <= kGaugeYaw; ++d) {
+    EXPECT_LT(std::abs(diagnostics.dEm[d]), 1e-6 * std::abs(diagnostics.dEm[kGaugeRandom]))
+        << kGaugeDirectionNames[d] << ": " << diagnostics.dEm.transpose();
+  }
 }
 
 }  // namespace

@@ -1,0 +1,136 @@
+// `marglab run` and `marglab eigdump` as a user runs them on the shipped KITTI 10 prefix: the
+// results file follows the schema (checked by the independent numpy script), a NaN measurement
+// ends the run as `failed` with frame and reason in a complete file, and usage errors exit 2.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+#include "common/cli_runner.h"
+#include "core/io/results_file.h"
+
+namespace marglab {
+namespace {
+
+namespace fs = std::filesystem;
+using test::runCli;
+
+class RunCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("marglab_run_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+            "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  fs::path dir_;
+};
+
+TEST_F(RunCliTest, WritesAResultsFileThatFollowsTheSchema) {
+  const std::string out = path("k10.h5");
+  const auto result = runCli(
+      "run --dataset kitti/10 --variant ns-qr-sqrt-f32 --frames 80 "
+      "--store-prior-every 5 -o '" +
+      out + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  for (const char* line : {"status            ok", "ATE RMSE", "real-time factor", "time opt"}) {
+    EXPECT_NE(result.output.find(line), std::string::npos) << line << "\n" << result.output;
+  }
+  ASSERT_TRUE(fs::exists(out));
+  EXPECT_TRUE(fs::exists(path("k10.tum")));
+
+  const ResultsReader reader(out);
+  EXPECT_EQ(reader.info().status, "ok");
+  EXPECT_EQ(reader.info().metadata.variant, "ns-qr-sqrt-f32");
+  EXPECT_NE(reader.info().metadata.config_toml.find("max_kfs = 7"), std::string::npos);
+  EXPECT_EQ(reader.frames().size(), 80u);
+  EXPECT_GT(reader.margCount(), 10u);
+  // Every marginalization of the gauge-free VO prior keeps |σ_min| tiny relative to σ_max.
+  for (const MargRecord& marg : reader.margs(false)) {
+    EXPECT_LT(std::abs(marg.sigma_min), 1e-3 * marg.sigma_max) << marg.frame_index;
+  }
+
+  const std::string python = test::findPythonWithH5py();
+  if (python.empty()) {
+    GTEST_SKIP() << "h5py not found (tried /usr/bin/python3 and python3): schema check skipped";
+  }
+  const auto check = test::runShell(python + " '" + MARGLAB_SOURCE_DIR +
+                                    "/tools/scripts/check_results.py' '" + out + "'");
+  EXPECT_EQ(check.exit_code, 0) << check.output;
+  EXPECT_NE(check.output.find("OK"), std::string::npos) << check.output;
+}
+
+TEST_F(RunCliTest, EigdumpPrintsThePriorsEigenvalues) {
+  const std::string out = path("k10.h5");
+  ASSERT_EQ(runCli("run --dataset kitti/10 --variant ns-qr-sqrt-f64 --frames 40 "
+                   "--store-prior-every 10 -o '" +
+                   out + "'")
+                .exit_code,
+            0);
+  const auto dump = runCli("eigdump '" + out + "' --marg 10");
+  EXPECT_EQ(dump.exit_code, 0) << dump.output;
+  const auto csv = runCli("eigdump '" + out + "' --marg 10 --csv");
+  EXPECT_EQ(csv.exit_code, 0) << csv.output;
+  const ResultsReader reader(out);
+  EXPECT_EQ(std::count(csv.output.begin(), csv.output.end(), '\n'),
+            static_cast<long>(reader.eigenvalues(10).size()) + 1)
+      << csv.output;
+  const auto matrix = runCli("eigdump '" + out + "' --marg 10 --matrix");
+  EXPECT_EQ(matrix.exit_code, 0) << matrix.output;
+  EXPECT_NE(matrix.output.find("J_m"), std::string::npos) << matrix.output;
+  EXPECT_NE(runCli("eigdump '" + out + "' --marg 100000").exit_code, 0);
+}
+
+TEST_F(RunCliTest, NanMeasurementEndsTheRunAsFailedWithACompleteFile) {
+  const std::string out = path("nan.h5");
+  const auto result = runCli(
+      "run --dataset kitti/10 --variant sc-sc-sq-f64 --frames 40 "
+      "--inject-nan-frame 20 -o '" +
+      out + "'");
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find("FAILED at frame 20"), std::string::npos) << result.output;
+  const ResultsReader reader(out);
+  EXPECT_EQ(reader.info().status, "failed");
+  EXPECT_EQ(reader.info().failure_frame, 20);
+  EXPECT_NE(reader.info().failure_reason.find("not finite"), std::string::npos)
+      << reader.info().failure_reason;
+  EXPECT_EQ(reader.frames().size(), 21u);
+}
+
+TEST_F(RunCliTest, UsageErrorsExitWithTwoAndWriteNothing) {
+  const std::string out = path("none.h5");
+  for (const std::string& args :
+       {"run --dataset kitti/10 --variant ns-qr-sqrt-f16 -o '" + out + "'",
+        "run --dataset kitti/99 --variant ns-qr-sqrt-f32 -o '" + out + "'",
+        "run --dataset kitti/10 --variant ns-qr-sq-f32 -o '" + out + "'",
+        "run --dataset kitti/10 --variant ns-qr-sqrt-f32 --no-such-option -o '" + out + "'"}) {
+    const auto result = runCli(args);
+    EXPECT_EQ(result.exit_code, 2) << args << "\n" << result.output;
+  }
+  EXPECT_FALSE(fs::exists(out));
+  const auto no_gt =
+      runCli("run --dataset tumvi/slides1 --variant ns-qr-sqrt-f32 -o '" + out + "'");
+  EXPECT_EQ(no_gt.exit_code, 1) << no_gt.output;
+  EXPECT_NE(no_gt.output.find("no trajectory"), std::string::npos) << no_gt.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST_F(RunCliTest, BadConfigNamesFileAndLine) {
+  const std::string config = path("bad.toml");
+  {
+    std::ofstream file(config);
+    file << "[lm]\nmax_iterations = 5\nlambda_init = \"big\"\n";
+  }
+  const auto result = runCli("run --dataset kitti/10 --variant ns-qr-sqrt-f32 --config '" + config +
+                             "' -o '" + path("x.h5") + "'");
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find(config + ":3:"), std::string::npos) << result.output;
+}
+
+}  // namespace
+}  // namespace marglab
