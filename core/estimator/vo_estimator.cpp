@@ -32,6 +32,24 @@ struct ReducedSystem {
   VecX<Scalar> b;
 };
 
+// Adds the prior's Hessian and gradient at δ to a system whose pose columns are column_of.
+template <typename Scalar>
+void addPrior(const MargPrior<Scalar>& prior, const VecX<Scalar>& delta,
+              const std::map<int64_t, int>& column_of, MatX<Scalar>& H, VecX<Scalar>& b) {
+  constexpr int kPoseDim = MargPrior<Scalar>::kPoseDim;
+  MatX<Scalar> Hp;
+  VecX<Scalar> bp;
+  prior.linearize(delta, &Hp, &bp);
+  for (size_t i = 0; i < prior.frame_ids.size(); ++i) {
+    const int ci = column_of.at(prior.frame_ids[i]);
+    b.template segment<kPoseDim>(ci) += bp.template segment<kPoseDim>(kPoseDim * i);
+    for (size_t j = 0; j < prior.frame_ids.size(); ++j) {
+      H.template block<kPoseDim, kPoseDim>(ci, column_of.at(prior.frame_ids[j])) +=
+          Hp.template block<kPoseDim, kPoseDim>(kPoseDim * i, kPoseDim * j);
+    }
+  }
+}
+
 }  // namespace
 
 template <typename Scalar>
@@ -237,17 +255,7 @@ Status VoEstimator<Scalar>::computeStep(OptElimination elimination, Scalar lambd
     }
   }
   if (!prior_.empty()) {
-    MatX<Scalar> Hp;
-    VecX<Scalar> bp;
-    prior_.linearize(prior_.delta([this](int64_t f) { return poseOf(f); }), &Hp, &bp);
-    for (size_t i = 0; i < prior_.frame_ids.size(); ++i) {
-      const int ci = column_of.at(prior_.frame_ids[i]);
-      b.template segment<kPoseDim>(ci) += bp.template segment<kPoseDim>(kPoseDim * i);
-      for (size_t j = 0; j < prior_.frame_ids.size(); ++j) {
-        H.template block<kPoseDim, kPoseDim>(ci, column_of.at(prior_.frame_ids[j])) +=
-            Hp.template block<kPoseDim, kPoseDim>(kPoseDim * i, kPoseDim * j);
-      }
-    }
+    addPrior(prior_, prior_.delta([this](int64_t f) { return poseOf(f); }), column_of, H, b);
   }
   const DampedSolve<Scalar> solve = solveDampedLdlt<Scalar>(H, b, lambda, lambda_min);
   *delta_poses = solve.delta;
@@ -287,17 +295,7 @@ Status VoEstimator<Scalar>::optimize(FrameResult* result) {
     VecX<Scalar> prior_delta;
     if (!prior_.empty()) {
       prior_delta = prior_.delta(pose_of);
-      MatX<Scalar> Hp;
-      VecX<Scalar> bp;
-      prior_.linearize(prior_delta, &Hp, &bp);
-      for (size_t i = 0; i < prior_.frame_ids.size(); ++i) {
-        const int ci = column_of.at(prior_.frame_ids[i]);
-        rs.b_prior.template segment<kPoseDim>(ci) = bp.template segment<kPoseDim>(kPoseDim * i);
-        for (size_t j = 0; j < prior_.frame_ids.size(); ++j) {
-          rs.H_prior.template block<kPoseDim, kPoseDim>(ci, column_of.at(prior_.frame_ids[j])) =
-              Hp.template block<kPoseDim, kPoseDim>(kPoseDim * i, kPoseDim * j);
-        }
-      }
+      addPrior(prior_, prior_delta, column_of, rs.H_prior, rs.b_prior);
     }
     for (const Linearized& lin : lins) {
       if (variant_.opt == OptElimination::kNullspace) {
@@ -567,19 +565,7 @@ Status VoEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior, MargMethod
       // A landmark whose H_ll is singular carries no usable pose information: skip it.
       block.addToReducedSystem(H, b);
     }
-    if (!prior.empty()) {
-      MatX<Scalar> Hp;
-      VecX<Scalar> bp;
-      prior.linearize(old_delta, &Hp, &bp);
-      for (size_t i = 0; i < prior.frame_ids.size(); ++i) {
-        const int ci = column_of.at(prior.frame_ids[i]);
-        b.template segment<kPoseDim>(ci) += bp.template segment<kPoseDim>(kPoseDim * i);
-        for (size_t j = 0; j < prior.frame_ids.size(); ++j) {
-          H.template block<kPoseDim, kPoseDim>(ci, column_of.at(prior.frame_ids[j])) +=
-              Hp.template block<kPoseDim, kPoseDim>(kPoseDim * i, kPoseDim * j);
-        }
-      }
-    }
+    if (!prior.empty()) addPrior(prior, old_delta, column_of, H, b);
     SchurMarginalization<Scalar> sc = schurMarginalize<Scalar>(H, b, n_marg);
     if (!sc.status.ok()) return sc.status;
     const VecX<Scalar> b_m = sc.prior.b - sc.prior.H * new_delta;

@@ -1,11 +1,11 @@
 // `marglab datasets list|check` through the real binary (MARGLAB_CLI): exit codes and messages.
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <cstdio>
 #include <sstream>
 
+#include "common/cli_runner.h"
 #include "data_test_utils.h"
 
 namespace marglab {
@@ -14,21 +14,8 @@ namespace {
 namespace fs = std::filesystem;
 using test::TempDir;
 
-struct CliResult {
-  int exit_code;
-  std::string output;  // stdout and stderr
-};
-
-CliResult runCli(const std::string& args) {
-  const std::string command = std::string("'") + MARGLAB_CLI + "' " + args + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return {-1, "popen failed"};
-  std::string output;
-  char buffer[4096];
-  while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
-}
+using test::CliResult;
+using test::runCli;
 
 const fs::path kShipped = fs::path(MARGLAB_SOURCE_DIR) / "datasets";
 

@@ -3,7 +3,9 @@
 #include "core/io/hdf5.h"
 
 #include <gtest/gtest.h>
+
 #include <unistd.h>
+#include "common/cli_runner.h"
 
 #include <cstdint>
 #include <filesystem>
@@ -462,14 +464,7 @@ TEST_F(Hdf5Test, ThreadsWriteSeparateFilesAndFailQuietly) {
   EXPECT_EQ(File::openReadOnly(file("thread1.h5")).readVector<double>("t")[199], 200.0);
 }
 
-// The first interpreter among /usr/bin/python3 and `python3` that imports h5py and numpy.
-std::string findPythonWithH5py() {
-  for (const std::string candidate : {"/usr/bin/python3", "python3"}) {
-    const std::string command = candidate + " -c 'import h5py, numpy' > /dev/null 2>&1";
-    if (std::system(command.c_str()) == 0) return candidate;
-  }
-  return {};
-}
+using test::findPythonWithH5py;
 
 TEST_F(Hdf5Test, ReadableFromH5py) {
   const std::string python = findPythonWithH5py();

@@ -2,32 +2,19 @@
 // statistics, and the track file it writes.
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <cstdio>
 #include <string>
 
+#include "common/cli_runner.h"
 #include "core/sim/track_io.h"
 #include "data/data_test_utils.h"
 
 namespace marglab {
 namespace {
 
-struct CliResult {
-  int exit_code;
-  std::string output;  // stdout and stderr
-};
-
-CliResult runCli(const std::string& args) {
-  const std::string command = std::string("'") + MARGLAB_CLI + "' " + args + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return {-1, "popen failed"};
-  std::string output;
-  char buffer[4096];
-  while (fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
-}
+using test::CliResult;
+using test::runCli;
 
 TEST(CliSimulate, ShortPrefixWritesTracksAndPrintsStatistics) {
   test::TempDir dir;
