@@ -132,6 +132,7 @@ bool VoEstimator<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm
   out->cost = 0;
   const SE3S& T_w_h = frames_.at(lm.host).T_w_c;
   const SE3S T_w_h_jac = jacobianPoseOf(lm.host);
+  const bool host_linearized = frames_.at(lm.host).linearized;
   for (const auto& [frame_id, obs] : lm.obs) {
     if (system_frames.count(frame_id) == 0) continue;
     const bool in_host = frame_id == lm.host;
@@ -144,10 +145,14 @@ bool VoEstimator<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm
         T_ct_h = T_i_ct.inverse();
         T_ct_h_jac = T_ct_h;
       } else {
-        const SE3S& T_w_t = frames_.at(frame_id).T_w_c;
-        T_ct_h = relativePose<Scalar>(T_w_h, SE3S(), T_w_t, T_i_ct);
+        const Frame& target = frames_.at(frame_id);
         T_ct_h_jac = relativePose<Scalar>(T_w_h_jac, SE3S(), jacobianPoseOf(frame_id), T_i_ct,
                                           &D_rel_h, &D_rel_t);
+        // The residual needs its own relative pose only when a first estimate differs from the
+        // current one.
+        T_ct_h = host_linearized || target.linearized
+                     ? relativePose<Scalar>(T_w_h, SE3S(), target.T_w_c, T_i_ct)
+                     : T_ct_h_jac;
       }
       Mat<Scalar, 3, 3> D_q_l;
       Mat<Scalar, 3, 6> D_q_T;
