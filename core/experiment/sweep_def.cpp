@@ -1,0 +1,453 @@
+#include "core/experiment/sweep_def.h"
+
+#include <fmt/core.h>
+#include <fmt/format.h>
+
+#include <toml++/toml.h>
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "core/common/error.h"
+#include "core/data/sequence.h"
+#include "core/estimator/config.h"
+#include "core/estimator/variant.h"
+
+namespace marglab::experiment {
+namespace {
+
+namespace fs = std::filesystem;
+
+int lineOf(const toml::node& node) { return static_cast<int>(node.source().begin.line); }
+
+// Options `marglab sweep` sets itself for every run.
+const char* const kReservedRunOptions[] = {"--dataset", "--variant", "--frames", "--seed",
+                                           "--config",  "-o",        "--output"};
+
+bool validName(const std::string& name) {
+  return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
+  });
+}
+
+// The text after "FILE:LINE: " of an InputError made for an in-memory string named `name`.
+std::string stripLocation(const InputError& e) {
+  const std::string what = e.what();
+  std::string prefix = e.file() + ":";
+  if (e.line() > 0) prefix += std::to_string(e.line()) + ":";
+  prefix += " ";
+  return what.rfind(prefix, 0) == 0 ? what.substr(prefix.size()) : what;
+}
+
+void mergeInto(toml::table& dst, const toml::table& src) {
+  for (const auto& [key, node] : src) {
+    toml::table* dst_table = dst[key].as_table();
+    const toml::table* src_table = node.as_table();
+    if (dst_table != nullptr && src_table != nullptr) {
+      mergeInto(*dst_table, *src_table);
+    } else {
+      node.visit([&, k = key](const auto& value) { dst.insert_or_assign(k, value); });
+    }
+  }
+}
+
+std::string toTomlText(const toml::table& table) {
+  if (table.empty()) return {};
+  std::ostringstream os;
+  os << table << "\n";
+  return os.str();
+}
+
+class Parser {
+ public:
+  Parser(std::string name, std::string base_dir, const ParseOptions& options)
+      : name_(std::move(name)), base_dir_(std::move(base_dir)), options_(options) {
+    sequences_ = options.known_sequences_given ? options.known_sequences : listSequences();
+  }
+
+  SweepPlan parse(const std::string& text) {
+    toml::table root;
+    try {
+      root = toml::parse(text, name_);
+    } catch (const toml::parse_error& e) {
+      throw InputError(name_, lineOf0(e.source()), std::string(e.description()));
+    }
+    SweepPlan plan;
+    plan.source_file = name_;
+    checkKeys(root, {"name", "description", "group"}, "the sweep");
+    plan.name = requiredString(root, "name", "the sweep", 1);
+    if (!validName(plan.name)) {
+      throw error(*root.get("name"), "name must use only letters, digits, '_', '-', '.'");
+    }
+    plan.description = optionalString(root, "description").value_or("");
+    const toml::node* groups = root.get("group");
+    if (groups == nullptr) throw InputError(name_, 0, "no [[group]]: the sweep has no runs");
+    const toml::array* array = groups->as_array();
+    if (array == nullptr || !array->is_array_of_tables() || array->empty()) {
+      throw error(*groups, "group must be an array of tables ([[group]])");
+    }
+    std::set<std::string> group_names;
+    for (const toml::node& node : *array) {
+      const toml::table& group = *node.as_table();
+      parseGroup(group, &plan);
+      if (!group_names.insert(plan.runs.empty() ? "" : plan.runs.back().group).second) {
+        throw error(*group.get("name"), "duplicate group name '" + plan.runs.back().group + "'");
+      }
+    }
+    return plan;
+  }
+
+ private:
+  static int lineOf0(const toml::source_region& region) {
+    return static_cast<int>(region.begin.line);
+  }
+
+  InputError error(const toml::node& node, const std::string& what) const {
+    return InputError(name_, lineOf(node), what);
+  }
+
+  void checkKeys(const toml::table& table, std::initializer_list<const char*> allowed,
+                 const std::string& where) const {
+    for (const auto& [key, node] : table) {
+      const std::string k(key.str());
+      if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return k == a; })) {
+        std::vector<std::string> names(allowed.begin(), allowed.end());
+        throw InputError(name_, static_cast<int>(key.source().begin.line),
+                         fmt::format("unknown key '{}' in {} (expected one of: {})", k, where,
+                                     fmt::join(names, ", ")));
+      }
+    }
+  }
+
+  std::string requiredString(const toml::table& table, const char* key, const std::string& where,
+                             int line) const {
+    const toml::node* node = table.get(key);
+    if (node == nullptr) {
+      throw InputError(name_, line, fmt::format("{} needs a {} = \"...\"", where, key));
+    }
+    if (!node->is_string()) throw error(*node, fmt::format("{} must be a string", key));
+    return **node->as_string();
+  }
+
+  std::optional<std::string> optionalString(const toml::table& table, const char* key) const {
+    const toml::node* node = table.get(key);
+    if (node == nullptr) return std::nullopt;
+    if (!node->is_string()) throw error(*node, fmt::format("{} must be a string", key));
+    return **node->as_string();
+  }
+
+  std::vector<const toml::node*> nonEmptyArray(const toml::table& table, const char* key,
+                                               const std::string& where, int line) const {
+    const toml::node* node = table.get(key);
+    if (node == nullptr)
+      throw InputError(name_, line, fmt::format("{} needs {} = [...]", where, key));
+    const toml::array* array = node->as_array();
+    if (array == nullptr) throw error(*node, fmt::format("{} must be an array", key));
+    if (array->empty()) throw error(*node, fmt::format("{} is empty", key));
+    std::vector<const toml::node*> items;
+    for (const toml::node& item : *array) items.push_back(&item);
+    return items;
+  }
+
+  std::vector<std::string> stringArray(const toml::table& table, const char* key) const {
+    std::vector<std::string> out;
+    const toml::node* node = table.get(key);
+    if (node == nullptr) return out;
+    const toml::array* array = node->as_array();
+    if (array == nullptr) throw error(*node, fmt::format("{} must be an array of strings", key));
+    for (const toml::node& item : *array) {
+      if (!item.is_string()) throw error(item, fmt::format("{} must hold strings", key));
+      out.push_back(**item.as_string());
+    }
+    return out;
+  }
+
+  // The `args` of a group or override: checked for reserved options and by the run checker.
+  std::vector<std::string> runArgs(const toml::table& table) const {
+    std::vector<std::string> args = stringArray(table, "args");
+    if (args.empty()) return args;
+    const toml::node& node = *table.get("args");
+    for (const std::string& arg : args) {
+      const std::string option = arg.substr(0, arg.find('='));
+      for (const char* reserved : kReservedRunOptions) {
+        if (option == reserved) {
+          throw error(node, fmt::format("args: {} is set by the sweep itself (use datasets, "
+                                        "variants, frames, seeds or config)",
+                                        reserved));
+        }
+      }
+    }
+    if (options_.check_run_args) {
+      const std::string problem = options_.check_run_args(args);
+      if (!problem.empty())
+        throw error(node, "args are not valid `marglab run` options: " + problem);
+    }
+    return args;
+  }
+
+  // An inline [config] table: validated key by key against EstimatorConfig, so that an error
+  // names the line of the offending key.
+  toml::table configTable(const toml::table& table) const {
+    const toml::node* node = table.get("config");
+    if (node == nullptr) return {};
+    const toml::table* config = node->as_table();
+    if (config == nullptr) throw error(*node, "config must be a table, e.g. [group.config]");
+    for (const auto& [section_key, section_node] : *config) {
+      const toml::table* section = section_node.as_table();
+      if (section == nullptr) {
+        throw error(section_node,
+                    fmt::format("config.{} must be a table (a config section)", section_key.str()));
+      }
+      for (const auto& [key, value] : *section) {
+        toml::table single;
+        toml::table inner;
+        value.visit([&, k = key](const auto& v) { inner.insert_or_assign(k, v); });
+        single.insert_or_assign(section_key, inner);
+        try {
+          EstimatorConfig probe;
+          probe.loadTomlString(toTomlText(single), "config");
+        } catch (const InputError& e) {
+          throw error(value, "config: " + stripLocation(e));
+        }
+      }
+    }
+    return *config;
+  }
+
+  std::string resolveDataset(const toml::node& node) const {
+    if (!node.is_string()) throw error(node, "datasets must hold strings");
+    const std::string dataset = **node.as_string();
+    if (std::find(sequences_.begin(), sequences_.end(), dataset) != sequences_.end()) {
+      return dataset;
+    }
+    fs::path path(dataset);
+    if (path.is_relative()) path = fs::path(base_dir_) / path;
+    if (fs::is_directory(path)) return fs::absolute(path).lexically_normal().string();
+    throw error(node, fmt::format("unknown dataset '{}': not a shipped sequence (see `marglab "
+                                  "datasets list`) nor a folder",
+                                  dataset));
+  }
+
+  void parseGroup(const toml::table& group, SweepPlan* plan) {
+    const int line = lineOf(group);
+    checkKeys(group,
+              {"name", "datasets", "variants", "seeds", "frames", "timeout_s", "args",
+               "config_file", "config", "override"},
+              "a [[group]]");
+    const std::string group_name = requiredString(group, "name", "a [[group]]", line);
+    if (!validName(group_name)) {
+      throw error(*group.get("name"), "group name must use only letters, digits, '_', '-', '.'");
+    }
+    std::vector<std::string> datasets;
+    for (const toml::node* node : nonEmptyArray(group, "datasets", "a [[group]]", line)) {
+      datasets.push_back(resolveDataset(*node));
+    }
+    std::vector<std::string> variants;
+    for (const toml::node* node : nonEmptyArray(group, "variants", "a [[group]]", line)) {
+      if (!node->is_string()) throw error(*node, "variants must hold strings");
+      try {
+        for (const std::string& v : expandVariantEntry(**node->as_string())) {
+          if (std::find(variants.begin(), variants.end(), v) == variants.end()) {
+            variants.push_back(v);
+          }
+        }
+      } catch (const UsageError& e) {
+        throw error(*node, e.what());
+      }
+    }
+    std::vector<std::uint64_t> seeds{1};
+    if (group.get("seeds") != nullptr) {
+      seeds.clear();
+      for (const toml::node* node : nonEmptyArray(group, "seeds", "a [[group]]", line)) {
+        const auto seed = node->value<std::int64_t>();
+        if (!node->is_integer() || !seed || *seed < 0) {
+          throw error(*node, "seeds must be non-negative integers");
+        }
+        if (std::find(seeds.begin(), seeds.end(), *seed) != seeds.end()) {
+          throw error(*node, fmt::format("seed {} is listed twice", *seed));
+        }
+        seeds.push_back(static_cast<std::uint64_t>(*seed));
+      }
+    }
+    int frames = 0;
+    if (const toml::node* node = group.get("frames")) {
+      const auto v = node->value<std::int64_t>();
+      if (!node->is_integer() || !v || *v < 0 || *v > 100000000) {
+        throw error(*node, "frames must be an integer >= 0 (0: the whole sequence)");
+      }
+      frames = static_cast<int>(*v);
+    }
+    double timeout_s = 0;
+    if (const toml::node* node = group.get("timeout_s")) {
+      const auto v = node->value<double>();
+      if (!v || *v < 0) throw error(*node, "timeout_s must be a number >= 0 (0: no limit)");
+      timeout_s = *v;
+    }
+    const std::vector<std::string> group_args = runArgs(group);
+
+    toml::table group_config;
+    if (const toml::node* node = group.get("config_file")) {
+      if (!node->is_string()) throw error(*node, "config_file must be a string");
+      fs::path path(**node->as_string());
+      if (path.is_relative()) path = fs::path(base_dir_) / path;
+      if (!fs::is_regular_file(path)) {
+        throw error(*node, "config_file " + path.string() + " does not exist");
+      }
+      EstimatorConfig probe;
+      probe.loadToml(path.string());  // its own errors name its own lines
+      try {
+        group_config = toml::parse_file(path.string());
+      } catch (const toml::parse_error& e) {
+        throw InputError(path.string(), lineOf0(e.source()), std::string(e.description()));
+      }
+    }
+    mergeInto(group_config, configTable(group));
+
+    struct Override {
+      std::string name;
+      std::vector<std::string> args;
+      toml::table config;
+    };
+    std::vector<Override> overrides;
+    if (const toml::node* node = group.get("override")) {
+      const toml::array* array = node->as_array();
+      if (array == nullptr || !array->is_array_of_tables() || array->empty()) {
+        throw error(*node, "override must be an array of tables ([[group.override]])");
+      }
+      for (const toml::node& item : *array) {
+        const toml::table& table = *item.as_table();
+        checkKeys(table, {"name", "args", "config"}, "a [[group.override]]");
+        Override o;
+        o.name = requiredString(table, "name", "a [[group.override]]", lineOf(table));
+        if (!validName(o.name)) {
+          throw error(*table.get("name"),
+                      "override name must use only letters, digits, '_', '-', '.'");
+        }
+        for (const Override& other : overrides) {
+          if (other.name == o.name) {
+            throw error(*table.get("name"), "duplicate override name '" + o.name + "'");
+          }
+        }
+        o.args = runArgs(table);
+        o.config = configTable(table);
+        overrides.push_back(std::move(o));
+      }
+    } else {
+      overrides.push_back({});
+    }
+
+    for (const std::string& dataset : datasets) {
+      for (const std::string& variant : variants) {
+        for (const std::uint64_t seed : seeds) {
+          for (const Override& o : overrides) {
+            PlannedRun run;
+            run.group = group_name;
+            run.dataset = dataset;
+            run.variant = variant;
+            run.seed = seed;
+            run.frames = frames;
+            run.timeout_s = timeout_s;
+            run.override_name = o.name;
+            run.extra_args = group_args;
+            run.extra_args.insert(run.extra_args.end(), o.args.begin(), o.args.end());
+            toml::table config = group_config;
+            mergeInto(config, o.config);
+            run.config_toml = toTomlText(config);
+            run.line = line;
+            run.id = fmt::format("{}__{}__{}__s{}", group_name, slug(dataset), variant, seed);
+            if (!o.name.empty()) run.id += "__" + o.name;
+            for (const PlannedRun& other : plan->runs) {
+              if (other.id == run.id) {
+                throw InputError(name_, line,
+                                 fmt::format("run {} is planned twice (lines {} and {}): a "
+                                             "dataset, variant or seed is listed twice",
+                                             run.id, other.line, line));
+              }
+            }
+            plan->runs.push_back(std::move(run));
+          }
+        }
+      }
+    }
+  }
+
+  std::string name_;
+  std::string base_dir_;
+  const ParseOptions& options_;
+  std::vector<std::string> sequences_;
+};
+
+}  // namespace
+
+std::string slug(const std::string& text) {
+  std::string out = text;
+  for (char& c : out) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' || c == '-')) c = '-';
+  }
+  while (!out.empty() && out.front() == '-') out.erase(out.begin());
+  return out;
+}
+
+std::vector<std::string> expandVariantEntry(const std::string& entry) {
+  std::vector<std::string> out;
+  if (entry == "paper") {
+    for (const Variant& v : paperVariants()) out.push_back(v.name());
+  } else if (entry == "headline") {
+    out = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64", "sc-sc-sq-f32"};
+  } else if (entry == "ablation") {
+    for (const char* method : {"ns-qr-sqrt", "sc-qr-sqrt", "ns-sc-sqrt", "sc-sc-sqrt"}) {
+      for (const char* precision : {"f64", "f32"}) {
+        out.push_back(std::string(method) + "-" + precision);
+      }
+    }
+  } else {
+    try {
+      out.push_back(Variant::parse(entry).name());
+    } catch (const UsageError& e) {
+      throw UsageError(fmt::format("{} (or a set: paper, headline, ablation)", e.what()));
+    }
+  }
+  return out;
+}
+
+SweepPlan parseSweep(const std::string& text, const std::string& name, const std::string& base_dir,
+                     const ParseOptions& options) {
+  return Parser(name, base_dir, options).parse(text);
+}
+
+SweepPlan loadSweepFile(const std::string& path, const ParseOptions& options) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, 0, "cannot read the sweep file");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  const std::string base = fs::absolute(fs::path(path)).parent_path().string();
+  return parseSweep(buffer.str(), path, base, options);
+}
+
+std::vector<std::string> runArguments(const PlannedRun& run, const std::string& results_path,
+                                      const std::string& config_path) {
+  std::vector<std::string> args = {"run",
+                                   "--dataset",
+                                   run.dataset,
+                                   "--variant",
+                                   run.variant,
+                                   "--seed",
+                                   std::to_string(run.seed)};
+  if (run.frames > 0) {
+    args.push_back("--frames");
+    args.push_back(std::to_string(run.frames));
+  }
+  if (!run.config_toml.empty()) {
+    args.push_back("--config");
+    args.push_back(config_path);
+  }
+  args.insert(args.end(), run.extra_args.begin(), run.extra_args.end());
+  args.push_back("-o");
+  args.push_back(results_path);
+  return args;
+}
+
+}  // namespace marglab::experiment

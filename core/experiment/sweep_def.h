@@ -1,0 +1,94 @@
+#pragma once
+// Sweep definitions (experiments/*.toml) and their expansion into a run plan.
+//
+// A sweep is a named list of groups; each group is the cross product
+//   datasets × variants × seeds × overrides
+// of `marglab run` invocations. Every run of the plan gets a stable id
+//   <group>__<dataset slug>__<variant>__s<seed>[__<override>]
+// (dataset slug: "kitti/10" → "kitti-10"), which names its results file, log and config.
+//
+//   name        = "quick"                       # required; default output folder results/<name>
+//   description = "..."                         # optional
+//   [[group]]
+//   name        = "vo"                          # required, [A-Za-z0-9_.-]+
+//   datasets    = ["kitti/10", "kitti/05"]      # shipped names (`marglab datasets list`) or
+//   folders
+//                                               # (relative to the sweep file)
+//   variants    = ["headline", "sc-qr-sqrt-f32"] # variant names or sets: paper (10), headline (4:
+//                                               # ns-qr-sqrt, sc-sc-sq × f32/f64), ablation (8:
+//                                               # the square-root-storage variants of Tables 4/6)
+//   seeds       = [1]                           # optional, default [1]
+//   frames      = 600                           # optional, 0 (default): the whole sequence
+//   timeout_s   = 0                             # optional wall-time limit per run (0: none)
+//   args        = ["--no-diagnostics"]          # optional extra `marglab run` options
+//   config_file = "my.toml"                     # optional estimator config (relative to the file)
+//   [group.config]                              # optional inline config overrides, same layout
+//   lm = { max_iterations = 5 }                 # as `marglab run --config` (EstimatorConfig)
+//   [[group.override]]                          # optional; without, one unnamed override
+//   name   = "relqr"                            # required in an override
+//   args   = ["--qr-threshold-mode", "relative"]
+//   config = { marginalization = { qr_threshold = 1e-6 } }
+//
+// Everything is validated when the file is read — unknown keys, wrong types, unknown variants and
+// datasets, `run` options that `marglab run` rejects, config keys EstimatorConfig rejects,
+// duplicate run ids — and each error is an InputError naming the file and line, so that no run
+// starts from a broken sweep. Config layers merge as: config_file < group config < override config
+// (tables merged key by key) and reach the run as one --config file.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace marglab::experiment {
+
+struct PlannedRun {
+  std::string id;       // unique within the sweep, safe as a file name
+  std::string group;    // group name
+  std::string dataset;  // as `marglab run --dataset` takes it (folders resolved to absolute)
+  std::string variant;  // canonical variant name, e.g. "ns-qr-sqrt-f32"
+  std::uint64_t seed = 1;
+  int frames = 0;                       // 0: whole sequence
+  double timeout_s = 0;                 // 0: none
+  std::string override_name;            // "" for the unnamed override
+  std::vector<std::string> extra_args;  // group args, then override args
+  std::string config_toml;              // merged config overrides (TOML text), "" when none
+  int line = 0;                         // line of the group in the sweep file (for messages)
+};
+
+struct SweepPlan {
+  std::string name;
+  std::string description;
+  std::string source_file;  // the sweep file as given
+  std::vector<PlannedRun> runs;
+};
+
+// Checks extra `marglab run` options; returns "" when fine, else what is wrong. The CLI passes a
+// checker that parses them with the real `run` verb; the library default accepts everything.
+using RunArgsChecker = std::function<std::string(const std::vector<std::string>& args)>;
+
+struct ParseOptions {
+  RunArgsChecker check_run_args;
+  // The sequences a dataset name may be (default: listSequences()).
+  std::vector<std::string> known_sequences;
+  bool known_sequences_given = false;
+};
+
+// Reads and validates a sweep file; throws InputError(file, line, what).
+SweepPlan loadSweepFile(const std::string& path, const ParseOptions& options = {});
+// The same from text (`name` is used in messages; relative folders resolve against base_dir).
+SweepPlan parseSweep(const std::string& text, const std::string& name, const std::string& base_dir,
+                     const ParseOptions& options = {});
+
+// The variants a `variants` entry stands for (a set name or one variant); throws UsageError.
+std::vector<std::string> expandVariantEntry(const std::string& entry);
+
+// "kitti/10" → "kitti-10"; anything outside [A-Za-z0-9_.-] becomes '-'.
+std::string slug(const std::string& text);
+
+// The `marglab run` arguments of a planned run (without the program name), with the results file
+// and, when config_toml is non-empty, the config file it was written to.
+std::vector<std::string> runArguments(const PlannedRun& run, const std::string& results_path,
+                                      const std::string& config_path);
+
+}  // namespace marglab::experiment

@@ -1,0 +1,204 @@
+#include "core/experiment/sweep_index.h"
+
+#include <fmt/core.h>
+#include <fmt/format.h>
+
+#include <unistd.h>
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "core/common/error.h"
+
+namespace marglab::experiment {
+
+namespace fs = std::filesystem;
+
+const std::string& IndexRow::get(const std::string& column) const {
+  static const std::string kEmpty;
+  const auto it = values.find(column);
+  return it == values.end() ? kEmpty : it->second;
+}
+
+void IndexRow::setNumber(const std::string& column, double value) {
+  values[column] = std::isfinite(value) ? fmt::format("{:.17g}", value)
+                   : std::isnan(value)  ? std::string()
+                   : value > 0          ? "inf"
+                                        : "-inf";
+}
+
+double IndexRow::number(const std::string& column) const {
+  const std::string& text = get(column);
+  if (text.empty()) return std::numeric_limits<double>::quiet_NaN();
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (end == text.c_str() || *end != '\0') return std::numeric_limits<double>::quiet_NaN();
+  return v;
+}
+
+const std::vector<std::string>& indexColumns() {
+  static const std::vector<std::string> columns = {"id",
+                                                   "group",
+                                                   "dataset",
+                                                   "variant",
+                                                   "method",
+                                                   "precision",
+                                                   "seed",
+                                                   "frames",
+                                                   "override",
+                                                   "status",
+                                                   "failure_kind",
+                                                   "failure_frame",
+                                                   "reason",
+                                                   "exit_code",
+                                                   "signal",
+                                                   "reused",
+                                                   "wall_s",
+                                                   "n_frames",
+                                                   "ate_rmse",
+                                                   "duration_s",
+                                                   "t_opt_total_s",
+                                                   "t_marg_total_s",
+                                                   "wall_time_s",
+                                                   "realtime_factor",
+                                                   "results",
+                                                   "log",
+                                                   "config",
+                                                   "command",
+                                                   "pid",
+                                                   "started_utc"};
+  return columns;
+}
+
+std::string csvField(const std::string& value) {
+  if (value.find_first_of(",\"\n\r") == std::string::npos) return value;
+  std::string out = "\"";
+  for (char c : value) {
+    if (c == '"') out += '"';
+    out += c;
+  }
+  return out + "\"";
+}
+
+std::vector<std::vector<std::string>> parseCsv(const std::string& text, const std::string& name) {
+  std::vector<std::vector<std::string>> rows;
+  std::vector<std::string> row;
+  std::string field;
+  bool quoted = false;
+  bool field_started = false;
+  int line = 1;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quoted) {
+      if (c == '"') {
+        if (i + 1 < text.size() && text[i + 1] == '"') {
+          field += '"';
+          ++i;
+        } else {
+          quoted = false;
+        }
+      } else {
+        if (c == '\n') ++line;
+        field += c;
+      }
+      continue;
+    }
+    if (c == '"') {
+      if (field_started && !field.empty()) {
+        throw InputError(name, line, "a quote inside an unquoted CSV field");
+      }
+      quoted = true;
+      field_started = true;
+    } else if (c == ',') {
+      row.push_back(std::move(field));
+      field.clear();
+      field_started = false;
+    } else if (c == '\n' || c == '\r') {
+      if (c == '\r' && i + 1 < text.size() && text[i + 1] == '\n') ++i;
+      row.push_back(std::move(field));
+      field.clear();
+      field_started = false;
+      rows.push_back(std::move(row));
+      row.clear();
+      ++line;
+    } else {
+      field += c;
+      field_started = true;
+    }
+  }
+  if (quoted) throw InputError(name, line, "unterminated quoted CSV field");
+  if (field_started || !row.empty()) {
+    row.push_back(std::move(field));
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+void writeFileAtomically(const std::string& path, const std::string& text) {
+  const fs::path target(path);
+  if (target.has_parent_path()) fs::create_directories(target.parent_path());
+  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw InputError(path, 0, "cannot write " + tmp + ": " + std::strerror(errno));
+    out << text;
+    out.flush();
+    if (!out) throw InputError(path, 0, "cannot write " + tmp);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    std::remove(tmp.c_str());
+    throw InputError(path, 0, "cannot rename " + tmp + ": " + why);
+  }
+}
+
+void writeIndex(const std::string& path, const std::vector<IndexRow>& rows) {
+  std::string text;
+  const auto& columns = indexColumns();
+  for (std::size_t c = 0; c < columns.size(); ++c) {
+    text += (c ? "," : "") + columns[c];
+  }
+  text += "\n";
+  for (const IndexRow& row : rows) {
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+      if (c) text += ',';
+      text += csvField(row.get(columns[c]));
+    }
+    text += "\n";
+  }
+  writeFileAtomically(path, text);
+}
+
+std::vector<IndexRow> readIndex(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, "cannot read the sweep index (is this a sweep folder?)");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  const auto table = parseCsv(buffer.str(), path);
+  if (table.empty()) throw InputError(path, 0, "empty index");
+  const std::vector<std::string>& header = table.front();
+  if (std::find(header.begin(), header.end(), "id") == header.end()) {
+    throw InputError(path, 1, "the header has no 'id' column");
+  }
+  std::vector<IndexRow> rows;
+  for (std::size_t r = 1; r < table.size(); ++r) {
+    if (table[r].size() == 1 && table[r][0].empty()) continue;  // blank line
+    if (table[r].size() != header.size()) {
+      throw InputError(path, static_cast<int>(r + 1),
+                       fmt::format("{} fields, the header has {}", table[r].size(), header.size()));
+    }
+    IndexRow row;
+    for (std::size_t c = 0; c < header.size(); ++c) row.values[header[c]] = table[r][c];
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+}  // namespace marglab::experiment

@@ -1,0 +1,51 @@
+#pragma once
+// The index of a sweep: results/<name>/index.csv, one row per planned run, rewritten atomically
+// (temporary + rename) whenever a run starts or ends, so that a reader (pandas, `marglab tables`,
+// `marglab plot`, `sweep --resume`) never sees a half-written index.
+//
+// Columns (paths relative to the sweep folder; empty cells for unknown values):
+//   id, group, dataset, variant, method, precision, seed, frames (requested, 0: all), override,
+//   status        pending | running | ok | failed
+//   failure_kind  "" | numerical (the estimator failed: complete results file, status failed) |
+//                 signal | exit (the process died / exited without a complete results file) |
+//                 timeout | interrupted (the sweep was stopped) | error (could not start)
+//   failure_frame, reason, exit_code, signal,
+//   reused        1 when --resume kept a complete results file from an earlier invocation
+//   wall_s        wall time of the `marglab run` process (simulation and diagnostics included)
+//   n_frames, ate_rmse, duration_s, t_opt_total_s, t_marg_total_s, wall_time_s, realtime_factor
+//                 copied from the results file's /summary (convenience; tables read the HDF5)
+//   results, log, config, command (the exact `marglab run` command line), pid, started_utc
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace marglab::experiment {
+
+struct IndexRow {
+  std::map<std::string, std::string> values;  // column → cell text
+
+  const std::string& get(const std::string& column) const;  // "" when absent
+  void set(const std::string& column, const std::string& value) { values[column] = value; }
+  void setNumber(const std::string& column, double value);  // %.17g; "" for NaN
+  // The cell as a number; NaN when empty or not a number.
+  double number(const std::string& column) const;
+};
+
+// The column order of index.csv.
+const std::vector<std::string>& indexColumns();
+
+// Writes the rows as CSV (RFC 4180 quoting) through `path`.tmp + rename.
+void writeIndex(const std::string& path, const std::vector<IndexRow>& rows);
+// Reads an index.csv; throws InputError(path, line, what) on malformed CSV.
+std::vector<IndexRow> readIndex(const std::string& path);
+
+// CSV helpers (shared with the tables' CSV output).
+std::string csvField(const std::string& value);
+std::vector<std::vector<std::string>> parseCsv(const std::string& text, const std::string& name);
+
+// Writes text to path through a temporary sibling and rename (creates parent folders).
+void writeFileAtomically(const std::string& path, const std::string& text);
+
+}  // namespace marglab::experiment

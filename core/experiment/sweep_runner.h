@@ -1,0 +1,63 @@
+#pragma once
+// Executes a sweep plan: every run is a child process (fork + exec of the marglab binary, verb
+// `run`) with its own log, so that a crash — even SIGKILL — only fails that run. The sweep folder:
+//
+//   <out>/index.csv          one row per planned run (sweep_index.h), rewritten atomically
+//   <out>/sweep.toml         a copy of the sweep file that was run
+//   <out>/runs/<id>.h5       results file (DESIGN §6; atomic: absent unless complete) + <id>.tum
+//   <out>/runs/<id>.cmd      the run's fingerprint: its command line and config overrides
+//   <out>/configs/<id>.toml  config overrides of the run (only when it has some)
+//   <out>/logs/<id>.log      stdout and stderr of the run
+//
+// Runs start in <out>, so the index's `command` column can be pasted there to repeat one run.
+// Longest runs (by frames) start first. Scheduling order does not change any result: each run
+// is deterministic for its seed.
+//
+// --resume keeps a run whose results file is complete (opens as a results file with a status
+// attribute, ok or failed) and whose fingerprint equals the planned one; everything else —
+// missing, partial (a killed run leaves at most a temporary, which is removed), crashed, or planned
+// differently — is run again. A numerically failed run (status failed in a complete file) is a
+// result, not a crash: it is deterministic and kept.
+
+#include <cstdio>
+#include <functional>
+#include <string>
+
+#include "core/experiment/sweep_def.h"
+
+namespace marglab::experiment {
+
+struct SweepOptions {
+  std::string out_dir;
+  int jobs = 0;              // 0: number of cores
+  bool resume = false;       // keep complete runs of an earlier invocation
+  bool force = false;        // discard an earlier sweep in out_dir (runs, logs, configs, index)
+  std::string executable;    // marglab binary; "" = /proc/self/exe
+  bool status_line = false;  // live status line on stderr (a terminal); else one line per run
+  std::FILE* out = stdout;   // per-run lines and the final summary
+};
+
+struct SweepSummary {
+  int planned = 0;
+  int ok = 0;
+  int failed_numerical = 0;  // complete results file with status failed
+  int failed_process = 0;    // signal / exit without results / timeout / could not start
+  int reused = 0;            // kept by --resume
+  int not_run = 0;           // still pending after an interruption
+  bool interrupted = false;
+  double wall_s = 0;
+  std::string index_path;
+};
+
+// Throws UsageError when out_dir holds another sweep and neither resume nor force is set;
+// InputError when files cannot be written.
+SweepSummary runSweep(const SweepPlan& plan, const std::string& sweep_file_text,
+                      const SweepOptions& options);
+
+// The fingerprint stored in runs/<id>.cmd.
+std::string runFingerprint(const PlannedRun& run);
+
+// A command line with shell quoting where needed.
+std::string shellJoin(const std::vector<std::string>& args);
+
+}  // namespace marglab::experiment

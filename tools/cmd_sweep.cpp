@@ -1,0 +1,122 @@
+// `marglab sweep FILE`: validates a sweep definition (experiments/*.toml), then runs every run of
+// it as an isolated child process and keeps results/<name>/index.csv up to date.
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "core/common/error.h"
+#include "core/experiment/sweep_def.h"
+#include "core/experiment/sweep_runner.h"
+#include "tools/command.h"
+
+namespace marglab {
+namespace cli {
+
+// Checks extra `marglab run` options of a sweep by parsing them with the real `run` verb, so that
+// a typo in a sweep file fails before any run starts. Also used by `marglab reproduce`.
+experiment::ParseOptions sweepParseOptions() {
+  experiment::ParseOptions options;
+  options.check_run_args = [](const std::vector<std::string>& extra) -> std::string {
+    const auto& commands = registeredCommands();
+    const auto it = std::find_if(commands.begin(), commands.end(),
+                                 [](const CommandSpec& c) { return c.name == "run"; });
+    if (it == commands.end()) return {};
+    CLI::App app{"run"};
+    it->setup(app);
+    std::vector<std::string> args = {"--dataset",      "kitti/10", "--variant",
+                                     "ns-qr-sqrt-f32", "-o",       "/dev/null"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    std::reverse(args.begin(), args.end());  // CLI11 takes the arguments in reverse order
+    try {
+      app.parse(args);
+    } catch (const CLI::ParseError& e) {
+      return e.what();
+    }
+    return {};
+  };
+  return options;
+}
+
+// Runs a validated plan and prints the summary; the exit code of `sweep` and `reproduce`.
+int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& sweep_file,
+                      const experiment::SweepOptions& options) {
+  std::ifstream in(sweep_file);
+  std::stringstream text;
+  text << in.rdbuf();
+  fmt::print("sweep {}: {} runs -> {}\n", plan.name, plan.runs.size(), options.out_dir);
+  std::fflush(stdout);
+  const experiment::SweepSummary s = experiment::runSweep(plan, text.str(), options);
+  fmt::print("sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{} in {:.1f} s\n",
+             plan.name, s.ok, s.failed_numerical, s.failed_process,
+             s.reused ? fmt::format(" ({} kept from an earlier invocation)", s.reused) : "",
+             s.not_run ? fmt::format(", {} not run", s.not_run) : "", s.wall_s);
+  fmt::print("  index {}\n", s.index_path);
+  if (s.interrupted) {
+    fmt::print("  interrupted: continue with --resume\n");
+    return 130;
+  }
+  // Numerical failures are results (tables show them as x); a run that crashed is an error.
+  return s.failed_process > 0 ? 1 : 0;
+}
+
+}  // namespace cli
+
+namespace {
+
+struct SweepArgs {
+  std::string file;
+  int jobs = 0;
+  bool resume = false;
+  bool force = false;
+  bool dry_run = false;
+  std::string out;
+};
+
+int runSweepCommand(const SweepArgs& args) {
+  const experiment::SweepPlan plan = experiment::loadSweepFile(args.file, cli::sweepParseOptions());
+  const std::string out = args.out.empty() ? "results/" + plan.name : args.out;
+  if (args.dry_run) {
+    fmt::print("sweep {} ({}): {} runs, would write {}\n", plan.name, args.file, plan.runs.size(),
+               out);
+    for (const auto& run : plan.runs) {
+      fmt::print("  {}\n    marglab {}\n", run.id,
+                 experiment::shellJoin(experiment::runArguments(
+                     run, "runs/" + run.id + ".h5",
+                     run.config_toml.empty() ? "" : "configs/" + run.id + ".toml")));
+    }
+    return 0;
+  }
+  experiment::SweepOptions options;
+  options.out_dir = out;
+  options.jobs = args.jobs;
+  options.resume = args.resume;
+  options.force = args.force;
+  options.status_line = cli::stderrIsTerminal();
+  return cli::runSweepAndReport(plan, args.file, options);
+}
+
+const bool kRegistered = cli::registerCommand(
+    {"sweep", "Run a sweep definition (experiments/*.toml): every run isolated, indexed", 20,
+     [](CLI::App& sub) -> cli::CommandRun {
+       auto args = std::make_shared<SweepArgs>();
+       sub.add_option("file", args->file, "Sweep definition (TOML), e.g. experiments/quick.toml")
+           ->required()
+           ->check(CLI::ExistingFile);
+       sub.add_option("-j,--jobs", args->jobs, "Runs in parallel (0: number of cores)")
+           ->capture_default_str()
+           ->check(CLI::NonNegativeNumber);
+       sub.add_flag("--resume", args->resume,
+                    "Keep runs whose results file is complete and planned the same; redo the rest");
+       sub.add_flag("--force", args->force, "Discard an earlier sweep in the output folder");
+       sub.add_option("-o,--out", args->out, "Output folder (default: results/<sweep name>)");
+       sub.add_flag("--dry-run", args->dry_run, "Validate and list the runs without running them");
+       return [args] { return runSweepCommand(*args); };
+     }});
+
+}  // namespace
+}  // namespace marglab
