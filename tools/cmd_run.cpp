@@ -21,6 +21,8 @@ namespace {
 struct RunArgs {
   std::string dataset;
   std::string variant;
+  std::string mode = "auto";
+  std::string imu = "synthetic";
   int frames = 0;
   std::uint64_t seed = 1;
   std::string config_file;
@@ -47,6 +49,10 @@ int runRun(const RunArgs& args) {
   RunOptions options;
   options.dataset = args.dataset;
   options.variant = Variant::parse(args.variant);
+  options.mode = args.mode == "vo"    ? RunMode::kVo
+                 : args.mode == "vio" ? RunMode::kVio
+                                      : RunMode::kAuto;
+  options.imu = args.imu == "real" ? ImuSource::kReal : ImuSource::kSynthetic;
   options.max_frames = args.frames;
   options.seed = args.seed;
   options.output = args.output;
@@ -75,7 +81,8 @@ int runRun(const RunArgs& args) {
   if (terminal) fmt::print(stderr, "\n");
 
   const SummaryValues& s = outcome.summary;
-  fmt::print("marglab run {} {} (seed {})\n", args.dataset, options.variant.name(), args.seed);
+  fmt::print("marglab run {} {} {} (seed {}{})\n", args.dataset, outcome.vio ? "VIO" : "VO",
+             options.variant.name(), args.seed, outcome.vio ? ", IMU " + args.imu : "");
   fmt::print(
       "  status            {}\n",
       outcome.status == RunStatus::kOk
@@ -103,6 +110,15 @@ const bool kRegistered = cli::registerCommand(
                       "opt-marg-storage-precision, e.g. ns-qr-sqrt-f32 (opt ns|sc, marg qr|sc, "
                       "storage sqrt|sq, precision f32|f64)")
            ->required();
+       sub.add_option("--mode", args->mode,
+                      "vo (stereo), vio (stereo + IMU) or auto: vio where the dataset has an IMU "
+                      "(EuRoC, TUM-VI), vo on KITTI")
+           ->check(CLI::IsMember({"auto", "vo", "vio"}))
+           ->capture_default_str();
+       sub.add_option("--imu", args->imu,
+                      "VIO: synthetic IMU from the trajectory, or the sequence's real recording")
+           ->check(CLI::IsMember({"synthetic", "real"}))
+           ->capture_default_str();
        sub.add_option("--frames", args->frames, "Process only the first N frames (0: all)")
            ->capture_default_str()
            ->check(CLI::NonNegativeNumber);

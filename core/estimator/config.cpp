@@ -31,6 +31,8 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
   I("window", "max_states", &c.max_states);
   D("residuals", "huber_px", &c.huber_px);
   D("gauge", "prior_weight", &c.gauge_prior_weight);
+  D("gauge", "prior_bias_gyro", &c.gauge_prior_bias_gyro);
+  D("gauge", "prior_bias_accel", &c.gauge_prior_bias_accel);
   D("keyframes", "connected_ratio", &c.kf_connected_ratio);
   I("keyframes", "min_frames_after_kf", &c.min_frames_after_kf);
   D("keyframes", "min_baseline_m", &c.min_baseline_m);

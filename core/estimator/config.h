@@ -6,7 +6,8 @@
 // TOML layout (all keys optional; unknown keys are errors):
 //   [window]        max_kfs, max_states
 //   [residuals]     obs_std_px, huber_px
-//   [gauge]         prior_weight
+//   [gauge]         prior_weight (VO: 6 pose dof; VIO: position and yaw), prior_bias_gyro,
+//                   prior_bias_accel (VIO: first state's biases)
 //   [keyframes]     connected_ratio, min_frames_after_kf (−1: dataset default), min_baseline_m,
 //                   marg_connected_share
 //   [lm]            max_iterations, lambda_init, lambda_min, lambda_max, stop_relative_cost,
@@ -32,6 +33,8 @@ struct EstimatorConfig {
   double huber_px = 1.0;
   // gauge
   double gauge_prior_weight = 1e8;
+  double gauge_prior_bias_gyro = 1e2;
+  double gauge_prior_bias_accel = 1e1;
   // keyframes
   double kf_connected_ratio = 0.7;
   int min_frames_after_kf = -1;

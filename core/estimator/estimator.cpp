@@ -1,12 +1,14 @@
-#include "core/estimator/vo_estimator.h"
+#include "core/estimator/estimator.h"
 
 #include <fmt/core.h>
 
 #include <algorithm>
 #include <cmath>
 
+#include "core/common/error.h"
 #include "core/common/scalar.h"
 #include "core/geometry/stereographic.h"
+#include "core/imu/preintegration.h"
 #include "core/linalg/flat_qr.h"
 #include "core/linalg/landmark_block.h"
 #include "core/linalg/rcs_solve.h"
@@ -26,77 +28,144 @@ template <typename Scalar>
 struct ReducedSystem {
   std::vector<LandmarkBlockNs<Scalar>> ns;
   std::vector<LandmarkBlockSc<Scalar>> sc;
-  MatX<Scalar> H_prior;
-  VecX<Scalar> b_prior;
+  MatX<Scalar> H_fixed;  // IMU terms and prior: independent of the landmark damping
+  VecX<Scalar> b_fixed;
   MatX<Scalar> H;
   VecX<Scalar> b;
 };
 
-// Adds the prior's Hessian and gradient at δ to a system whose pose columns are column_of.
+// Adds H_blocks / b_blocks, laid out as `vars` at `offsets`, to a system with columns column_of.
 template <typename Scalar>
-void addPrior(const MargPrior<Scalar>& prior, const VecX<Scalar>& delta,
-              const std::map<int64_t, int>& column_of, MatX<Scalar>& H, VecX<Scalar>& b) {
-  constexpr int kPoseDim = MargPrior<Scalar>::kPoseDim;
-  MatX<Scalar> Hp;
-  VecX<Scalar> bp;
-  prior.linearize(delta, &Hp, &bp);
-  for (size_t i = 0; i < prior.frame_ids.size(); ++i) {
-    const int ci = column_of.at(prior.frame_ids[i]);
-    b.template segment<kPoseDim>(ci) += bp.template segment<kPoseDim>(kPoseDim * i);
-    for (size_t j = 0; j < prior.frame_ids.size(); ++j) {
-      H.template block<kPoseDim, kPoseDim>(ci, column_of.at(prior.frame_ids[j])) +=
-          Hp.template block<kPoseDim, kPoseDim>(kPoseDim * i, kPoseDim * j);
+void scatterBlocks(const std::vector<std::pair<VarKey, int>>& vars, const MatX<Scalar>& H_blocks,
+                   const VecX<Scalar>& b_blocks, const std::map<VarKey, int>& column_of,
+                   MatX<Scalar>& H, VecX<Scalar>& b) {
+  for (const auto& [var_i, off_i] : vars) {
+    const int ci = column_of.at(var_i);
+    const int ni = stateBlockDim(var_i.block);
+    b.segment(ci, ni) += b_blocks.segment(off_i, ni);
+    for (const auto& [var_j, off_j] : vars) {
+      const int nj = stateBlockDim(var_j.block);
+      H.block(ci, column_of.at(var_j), ni, nj) += H_blocks.block(off_i, off_j, ni, nj);
     }
   }
 }
 
+template <typename Scalar>
+std::vector<std::pair<VarKey, int>> priorVars(const MargPrior<Scalar>& prior) {
+  std::vector<std::pair<VarKey, int>> vars;
+  for (const auto& block : prior.blocks) vars.emplace_back(block.var, block.offset);
+  return vars;
+}
+
+// The four blocks of an IMU factor's 30 columns.
+std::vector<std::pair<VarKey, int>> linkVars(int64_t from, int64_t to) {
+  return {{{from, StateBlock::kPose}, 0},
+          {{from, StateBlock::kSpeedBias}, kPoseDim},
+          {{to, StateBlock::kPose}, 15},
+          {{to, StateBlock::kSpeedBias}, 15 + kPoseDim}};
+}
+
+// Adds the prior's Hessian and gradient at δ to a system with columns column_of.
+template <typename Scalar>
+void addPrior(const MargPrior<Scalar>& prior, const VecX<Scalar>& delta,
+              const std::map<VarKey, int>& column_of, MatX<Scalar>& H, VecX<Scalar>& b) {
+  MatX<Scalar> Hp;
+  VecX<Scalar> bp;
+  prior.linearize(delta, &Hp, &bp);
+  scatterBlocks(priorVars(prior), Hp, bp, column_of, H, b);
+}
+
+// Gathers the entries of a system vector for a layout of blocks.
+template <typename Scalar>
+VecX<Scalar> gatherBlocks(const std::vector<std::pair<VarKey, int>>& vars, int size,
+                          const VecX<Scalar>& x, const std::map<VarKey, int>& column_of) {
+  VecX<Scalar> out(size);
+  for (const auto& [var, offset] : vars) {
+    const int n = stateBlockDim(var.block);
+    out.segment(offset, n) = x.segment(column_of.at(var), n);
+  }
+  return out;
+}
+
+// Huber cost of a reprojection error e (pixels), divided by σ²: ½e² inside, k·e − ½k² outside.
+template <typename Scalar>
+Scalar huberCost(Scalar e, Scalar k, Scalar sigma) {
+  const Scalar c = e <= k ? Scalar(0.5) * e * e : k * e - Scalar(0.5) * k * k;
+  return c / (sigma * sigma);
+}
+
 }  // namespace
 
-template <typename Scalar>
-VoEstimator<Scalar>::VoEstimator(const EstimatorConfig& config, const Variant& variant,
-                                 const StereoRig<double>& rig, const SE3<double>& T_w_c0_initial)
-    : config_(config),
-      variant_(variant),
-      rig_(rig.template cast<Scalar>()),
-      T_c0_c1_(rig.T_c0_c1().template cast<Scalar>()),
-      last_pose_(T_w_c0_initial),
-      lambda_(static_cast<Scalar>(config.lambda_init)) {
-  prior_.storage = variant.storage;
-  shadow_prior_.storage = variant.storage;
-  if (config_.min_frames_after_kf < 1) config_.min_frames_after_kf = 1;
+int MargEvent::numPoses() const {
+  return static_cast<int>(std::count_if(layout.begin(), layout.end(), [](const PriorVariable& v) {
+    return v.kind == PriorVariableKind::kPose;
+  }));
 }
 
 template <typename Scalar>
-int VoEstimator<Scalar>::numKeyframes() const {
+SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorConfig& config,
+                                                       const Variant& variant,
+                                                       const StereoRig<double>& rig,
+                                                       const SE3<double>& T_w_i_initial,
+                                                       std::optional<ImuSetup> imu)
+    : config_(config),
+      variant_(variant),
+      rig_(rig.template cast<Scalar>()),
+      imu_(std::move(imu)),
+      last_pose_(imu_ ? imu_->initial.T_w_i : T_w_i_initial),
+      lambda_(static_cast<Scalar>(config.lambda_init)) {
+  if (imu_) {
+    T_i_c_ = {rig.T_i_c0.template cast<Scalar>(), rig.T_i_c1.template cast<Scalar>()};
+    g_w_ = imu_->g_w.template cast<Scalar>();
+  } else {
+    T_i_c_ = {SE3S(), rig.T_c0_c1().template cast<Scalar>()};
+  }
+  prior_.storage = variant.storage;
+  shadow_prior_.storage = variant.storage;
+  if (config_.min_frames_after_kf < 1) config_.min_frames_after_kf = 1;
+  if (config_.max_states < 2) config_.max_states = 2;
+}
+
+template <typename Scalar>
+int SlidingWindowEstimator<Scalar>::numKeyframes() const {
   return static_cast<int>(std::count_if(frames_.begin(), frames_.end(),
                                         [](const auto& f) { return f.second.is_keyframe; }));
 }
 
 template <typename Scalar>
-typename VoEstimator<Scalar>::SE3S VoEstimator<Scalar>::jacobianPoseOf(int64_t frame_id) const {
+typename SlidingWindowEstimator<Scalar>::SE3S SlidingWindowEstimator<Scalar>::jacobianPoseOf(
+    int64_t frame_id) const {
   const Frame& frame = frames_.at(frame_id);
-  return frame.linearized ? frame.T_w_c_lin : frame.T_w_c;
-}
-
-// Huber cost of a reprojection error e (pixels), divided by σ²: ½e² inside, k·e − ½k² outside.
-template <typename Scalar>
-static Scalar huberCost(Scalar e, Scalar k, Scalar sigma) {
-  const Scalar c = e <= k ? Scalar(0.5) * e * e : k * e - Scalar(0.5) * k * k;
-  return c / (sigma * sigma);
+  return frame.linearized ? frame.T_w_i_lin : frame.T_w_i;
 }
 
 template <typename Scalar>
-Scalar VoEstimator<Scalar>::landmarkCost(const Landmark& lm) const {
+ImuState<Scalar> SlidingWindowEstimator<Scalar>::stateOf(int64_t frame_id,
+                                                         bool at_linearization_point) const {
+  const Frame& frame = frames_.at(frame_id);
+  ImuState<Scalar> s;
+  s.t_ns = frame.t_ns;
+  s.T_w_i = at_linearization_point ? jacobianPoseOf(frame_id) : frame.T_w_i;
+  const Vec9S& sb = at_linearization_point && frame.speed_bias_linearized ? frame.speed_bias_lin
+                                                                          : frame.speed_bias;
+  s.v_w = sb.template head<3>();
+  s.b_g = sb.template segment<3>(3);
+  s.b_a = sb.template tail<3>();
+  return s;
+}
+
+template <typename Scalar>
+Scalar SlidingWindowEstimator<Scalar>::landmarkCost(const Landmark& lm) const {
   const Scalar k = static_cast<Scalar>(config_.huber_px);
   const Scalar sigma = static_cast<Scalar>(config_.obs_std_px);
-  const SE3S& T_w_h = frames_.at(lm.host).T_w_c;
+  const SE3S& T_w_h = frames_.at(lm.host).T_w_i;
   Scalar cost = 0;
   for (const auto& [frame_id, obs] : lm.obs) {
-    const SE3S& T_w_t = frames_.at(frame_id).T_w_c;
+    const SE3S& T_w_t = frames_.at(frame_id).T_w_i;
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
-      const SE3S T_i_ct = cam == 0 ? SE3S() : T_c0_c1_;
-      const SE3S T_ct_h = frame_id == lm.host ? T_i_ct.inverse()
-                                              : relativePose<Scalar>(T_w_h, SE3S(), T_w_t, T_i_ct);
+      const SE3S T_ct_h = frame_id == lm.host
+                              ? T_i_c_[cam].inverse() * T_i_c_[0]
+                              : relativePose<Scalar>(T_w_h, T_i_c_[0], T_w_t, T_i_c_[cam]);
       const Vec3S q = transformLandmark<Scalar>(T_ct_h, lm.param);
       Vec2S uv;
       if (!(cam == 0 ? rig_.cam0 : rig_.cam1).project(q, &uv)) continue;
@@ -107,19 +176,33 @@ Scalar VoEstimator<Scalar>::landmarkCost(const Landmark& lm) const {
 }
 
 template <typename Scalar>
-Scalar VoEstimator<Scalar>::totalCost() const {
+Scalar SlidingWindowEstimator<Scalar>::linkCost(int64_t from, const ImuLink& link) const {
+  const ImuState<Scalar> s_i = stateOf(from, false);
+  const ImuState<Scalar> s_j = stateOf(link.to, false);
+  return Scalar(0.5) *
+         (link.factor.whitenedResidual(s_i, s_j).squaredNorm() +
+          biasRandomWalkResidual<Scalar>(s_i, s_j, link.dt_s, imu_->noise).squaredNorm());
+}
+
+template <typename Scalar>
+VecX<Scalar> SlidingWindowEstimator<Scalar>::priorDelta(const MargPrior<Scalar>& prior) const {
+  return prior.delta([this](int64_t f) { return poseOf(f); },
+                     [this](int64_t f) { return speedBiasOf(f); });
+}
+
+template <typename Scalar>
+Scalar SlidingWindowEstimator<Scalar>::totalCost() const {
   Scalar cost = 0;
   for (const auto& [id, lm] : landmarks_) cost += landmarkCost(lm);
-  if (!prior_.empty()) {
-    cost += prior_.cost(prior_.delta([this](int64_t f) { return poseOf(f); }));
-  }
+  for (const auto& [from, link] : imu_links_) cost += linkCost(from, link);
+  if (!prior_.empty()) cost += prior_.cost(priorDelta(prior_));
   return cost;
 }
 
 template <typename Scalar>
-bool VoEstimator<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm,
-                                            const std::set<int64_t>& system_frames,
-                                            Linearized* out) const {
+bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm,
+                                                       const std::set<int64_t>& system_frames,
+                                                       Linearized* out) const {
   const Scalar k = static_cast<Scalar>(config_.huber_px);
   const Scalar sigma = static_cast<Scalar>(config_.obs_std_px);
   struct Row2 {
@@ -130,7 +213,7 @@ bool VoEstimator<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm
   };
   std::vector<Row2> rows;
   out->cost = 0;
-  const SE3S& T_w_h = frames_.at(lm.host).T_w_c;
+  const SE3S& T_w_h = frames_.at(lm.host).T_w_i;
   const SE3S T_w_h_jac = jacobianPoseOf(lm.host);
   const bool host_linearized = frames_.at(lm.host).linearized;
   for (const auto& [frame_id, obs] : lm.obs) {
@@ -138,20 +221,19 @@ bool VoEstimator<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm
     const bool in_host = frame_id == lm.host;
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
       const PinholeCamera<Scalar>& camera = cam == 0 ? rig_.cam0 : rig_.cam1;
-      const SE3S T_i_ct = cam == 0 ? SE3S() : T_c0_c1_;
       Mat<Scalar, 6, 6> D_rel_h, D_rel_t;
       SE3S T_ct_h, T_ct_h_jac;
       if (in_host) {
-        T_ct_h = T_i_ct.inverse();
+        T_ct_h = T_i_c_[cam].inverse() * T_i_c_[0];
         T_ct_h_jac = T_ct_h;
       } else {
         const Frame& target = frames_.at(frame_id);
-        T_ct_h_jac = relativePose<Scalar>(T_w_h_jac, SE3S(), jacobianPoseOf(frame_id), T_i_ct,
-                                          &D_rel_h, &D_rel_t);
+        T_ct_h_jac = relativePose<Scalar>(T_w_h_jac, T_i_c_[0], jacobianPoseOf(frame_id),
+                                          T_i_c_[cam], &D_rel_h, &D_rel_t);
         // The residual needs its own relative pose only when a first estimate differs from the
         // current one.
         T_ct_h = host_linearized || target.linearized
-                     ? relativePose<Scalar>(T_w_h, SE3S(), target.T_w_c, T_i_ct)
+                     ? relativePose<Scalar>(T_w_h, T_i_c_[0], target.T_w_i, T_i_c_[cam])
                      : T_ct_h_jac;
       }
       Mat<Scalar, 3, 3> D_q_l;
@@ -206,16 +288,47 @@ bool VoEstimator<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm
 }
 
 template <typename Scalar>
-PoseBlockMap VoEstimator<Scalar>::blockMap(const Linearized& lin,
-                                           const std::map<int64_t, int>& column_of) const {
+void SlidingWindowEstimator<Scalar>::linearizeLink(int64_t from, const ImuLink& link,
+                                                   LinkLinearized* out) const {
+  out->from = from;
+  out->to = link.to;
+  const ImuState<Scalar> s_i = stateOf(from, false), s_j = stateOf(link.to, false);
+  const ImuState<Scalar> s_i_jac = stateOf(from, true), s_j_jac = stateOf(link.to, true);
+  typename ImuFactor<Scalar>::Jacobian J_imu;
+  Mat<Scalar, 6, 30> J_rw;
+  link.factor.whitenedResidual(s_i_jac, s_j_jac, &J_imu);
+  biasRandomWalkResidual<Scalar>(s_i_jac, s_j_jac, link.dt_s, imu_->noise, &J_rw);
+  out->J.template topRows<9>() = J_imu;
+  out->J.template bottomRows<6>() = J_rw;
+  out->r.template head<9>() = link.factor.whitenedResidual(s_i, s_j);
+  out->r.template tail<6>() = biasRandomWalkResidual<Scalar>(s_i, s_j, link.dt_s, imu_->noise);
+}
+
+template <typename Scalar>
+PoseBlockMap SlidingWindowEstimator<Scalar>::blockMap(const Linearized& lin,
+                                                      const ColumnMap& column_of) const {
   PoseBlockMap map;
   map.pose_dim = kPoseDim;
-  for (int64_t f : lin.frames) map.rcs_offset.push_back(column_of.at(f));
+  for (int64_t f : lin.frames) map.rcs_offset.push_back(column_of.at({f, StateBlock::kPose}));
   return map;
 }
 
 template <typename Scalar>
-std::vector<int64_t> VoEstimator<Scalar>::keyframeIds() const {
+int SlidingWindowEstimator<Scalar>::windowColumns(ColumnMap* column_of) const {
+  int col = 0;
+  for (const auto& [id, frame] : frames_) {
+    (*column_of)[{id, StateBlock::kPose}] = col;
+    col += kPoseDim;
+    if (frame.has_speed_bias) {
+      (*column_of)[{id, StateBlock::kSpeedBias}] = col;
+      col += kSpeedBiasDim;
+    }
+  }
+  return col;
+}
+
+template <typename Scalar>
+std::vector<int64_t> SlidingWindowEstimator<Scalar>::keyframeIds() const {
   std::vector<int64_t> ids;
   for (const auto& [id, frame] : frames_) {
     if (frame.is_keyframe) ids.push_back(id);
@@ -224,15 +337,21 @@ std::vector<int64_t> VoEstimator<Scalar>::keyframeIds() const {
 }
 
 template <typename Scalar>
-Status VoEstimator<Scalar>::computeStep(OptElimination elimination, Scalar lambda,
-                                        VecX<Scalar>* delta_poses) const {
-  std::set<int64_t> system;
-  std::map<int64_t, int> column_of;
+std::vector<int64_t> SlidingWindowEstimator<Scalar>::stateIds() const {
+  std::vector<int64_t> ids;
   for (const auto& [id, frame] : frames_) {
-    column_of[id] = kPoseDim * static_cast<int>(system.size());
-    system.insert(id);
+    if (frame.has_speed_bias) ids.push_back(id);
   }
-  const int n = kPoseDim * static_cast<int>(system.size());
+  return ids;
+}
+
+template <typename Scalar>
+Status SlidingWindowEstimator<Scalar>::computeStep(OptElimination elimination, Scalar lambda,
+                                                   VecX<Scalar>* delta) const {
+  std::set<int64_t> system;
+  for (const auto& [id, frame] : frames_) system.insert(id);
+  ColumnMap column_of;
+  const int n = windowColumns(&column_of);
   MatX<Scalar> H = MatX<Scalar>::Zero(n, n);
   VecX<Scalar> b = VecX<Scalar>::Zero(n);
   const Scalar lambda_min = static_cast<Scalar>(config_.lambda_min);
@@ -259,26 +378,28 @@ Status VoEstimator<Scalar>::computeStep(OptElimination elimination, Scalar lambd
       if (!s.ok()) return s;
     }
   }
-  if (!prior_.empty()) {
-    addPrior(prior_, prior_.delta([this](int64_t f) { return poseOf(f); }), column_of, H, b);
+  for (const auto& [from, link] : imu_links_) {
+    LinkLinearized lin;
+    linearizeLink(from, link, &lin);
+    const MatX<Scalar> H_link = lin.J.transpose() * lin.J;
+    const VecX<Scalar> b_link = lin.J.transpose() * lin.r;
+    scatterBlocks(linkVars(from, link.to), H_link, b_link, column_of, H, b);
   }
+  if (!prior_.empty()) addPrior(prior_, priorDelta(prior_), column_of, H, b);
   const DampedSolve<Scalar> solve = solveDampedLdlt<Scalar>(H, b, lambda, lambda_min);
-  *delta_poses = solve.delta;
+  *delta = solve.delta;
   return solve.status;
 }
 
 template <typename Scalar>
-Status VoEstimator<Scalar>::optimize(FrameResult* result) {
+Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
   std::set<int64_t> system;
-  std::map<int64_t, int> column_of;
-  for (const auto& [id, frame] : frames_) {
-    column_of[id] = kPoseDim * static_cast<int>(system.size());
-    system.insert(id);
-  }
-  const int n = kPoseDim * static_cast<int>(system.size());
+  for (const auto& [id, frame] : frames_) system.insert(id);
+  ColumnMap column_of;
+  const int n = windowColumns(&column_of);
   const Scalar lambda_min = static_cast<Scalar>(config_.lambda_min);
   const Scalar lambda_max = static_cast<Scalar>(config_.lambda_max);
-  auto pose_of = [this](int64_t f) { return poseOf(f); };
+  const bool ns = variant_.opt == OptElimination::kNullspace;
 
   // λ restarts at its initial value for every frame (as Basalt's optimize does).
   lambda_ = static_cast<Scalar>(config_.lambda_init);
@@ -295,15 +416,24 @@ Status VoEstimator<Scalar>::optimize(FrameResult* result) {
       if (linearizeLandmark(id, lm, system, &lin)) lins.push_back(std::move(lin));
     }
     ReducedSystem<Scalar> rs;
-    rs.H_prior = MatX<Scalar>::Zero(n, n);
-    rs.b_prior = VecX<Scalar>::Zero(n);
+    rs.H_fixed = MatX<Scalar>::Zero(n, n);
+    rs.b_fixed = VecX<Scalar>::Zero(n);
+    std::vector<LinkLinearized> links(imu_links_.size());
+    size_t link_index = 0;
+    for (const auto& [from, link] : imu_links_) {
+      LinkLinearized& lin = links[link_index++];
+      linearizeLink(from, link, &lin);
+      const MatX<Scalar> H_link = lin.J.transpose() * lin.J;
+      const VecX<Scalar> b_link = lin.J.transpose() * lin.r;
+      scatterBlocks(linkVars(from, link.to), H_link, b_link, column_of, rs.H_fixed, rs.b_fixed);
+    }
     VecX<Scalar> prior_delta;
     if (!prior_.empty()) {
-      prior_delta = prior_.delta(pose_of);
-      addPrior(prior_, prior_delta, column_of, rs.H_prior, rs.b_prior);
+      prior_delta = priorDelta(prior_);
+      addPrior(prior_, prior_delta, column_of, rs.H_fixed, rs.b_fixed);
     }
     for (const Linearized& lin : lins) {
-      if (variant_.opt == OptElimination::kNullspace) {
+      if (ns) {
         rs.ns.emplace_back();
         Status s = rs.ns.back().setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, column_of));
         if (!s.ok()) return s;
@@ -316,13 +446,13 @@ Status VoEstimator<Scalar>::optimize(FrameResult* result) {
 
     bool stop = false;
     while (true) {
-      // Assemble the damped reduced camera system for the current λ.
-      rs.H = rs.H_prior;
-      rs.b = rs.b_prior;
+      // Assemble the damped reduced system for the current λ.
+      rs.H = rs.H_fixed;
+      rs.b = rs.b_fixed;
       Status status = Status::Ok();
       for (size_t l = 0; l < lins.size(); ++l) {
         Vec3<Scalar> d;
-        if (variant_.opt == OptElimination::kNullspace) {
+        if (ns) {
           for (int i = 0; i < 3; ++i) {
             d[i] = lmDamping(rs.ns[l].landmarkHessianDiagonal()[i], lambda_, lambda_min);
           }
@@ -343,9 +473,8 @@ Status VoEstimator<Scalar>::optimize(FrameResult* result) {
       }
       std::vector<Vec3<Scalar>> delta_l(lins.size());
       for (size_t l = 0; l < lins.size() && status.ok(); ++l) {
-        status = variant_.opt == OptElimination::kNullspace
-                     ? rs.ns[l].backSubstitute(solve.delta, &delta_l[l])
-                     : rs.sc[l].backSubstitute(solve.delta, &delta_l[l]);
+        status = ns ? rs.ns[l].backSubstitute(solve.delta, &delta_l[l])
+                    : rs.sc[l].backSubstitute(solve.delta, &delta_l[l]);
       }
       if (!status.ok()) {
         if (++failed_solves_ >= config_.max_failed_solves) {
@@ -362,25 +491,29 @@ Status VoEstimator<Scalar>::optimize(FrameResult* result) {
       // Model decrease of the undamped linearized energy.
       Scalar model_change = 0;
       for (size_t l = 0; l < lins.size(); ++l) {
-        model_change += variant_.opt == OptElimination::kNullspace
-                            ? rs.ns[l].linearizedCostChange(solve.delta, delta_l[l])
-                            : rs.sc[l].linearizedCostChange(solve.delta, delta_l[l]);
+        model_change += ns ? rs.ns[l].linearizedCostChange(solve.delta, delta_l[l])
+                           : rs.sc[l].linearizedCostChange(solve.delta, delta_l[l]);
+      }
+      for (const LinkLinearized& lin : links) {
+        const Vec<Scalar, 15> J_step =
+            lin.J * gatherBlocks<Scalar>(linkVars(lin.from, lin.to), 30, solve.delta, column_of);
+        model_change += lin.r.dot(J_step) + Scalar(0.5) * J_step.squaredNorm();
       }
       if (!prior_.empty()) {
-        VecX<Scalar> step(prior_.cols());
-        for (size_t i = 0; i < prior_.frame_ids.size(); ++i) {
-          step.template segment<kPoseDim>(kPoseDim * i) =
-              solve.delta.template segment<kPoseDim>(column_of.at(prior_.frame_ids[i]));
-        }
-        model_change += prior_.costChange(prior_delta, step);
+        model_change += prior_.costChange(
+            prior_delta,
+            gatherBlocks<Scalar>(priorVars(prior_), prior_.cols(), solve.delta, column_of));
       }
 
       // Apply the step on a backup.
-      std::map<int64_t, SE3S> pose_backup;
+      std::map<int64_t, Frame> frame_backup = frames_;
       for (auto& [id, frame] : frames_) {
-        pose_backup[id] = frame.T_w_c;
-        frame.T_w_c =
-            boxPlus<Scalar>(frame.T_w_c, solve.delta.template segment<kPoseDim>(column_of.at(id)));
+        frame.T_w_i = boxPlus<Scalar>(frame.T_w_i, solve.delta.template segment<kPoseDim>(
+                                                       column_of.at({id, StateBlock::kPose})));
+        if (frame.has_speed_bias) {
+          frame.speed_bias += solve.delta.template segment<kSpeedBiasDim>(
+              column_of.at({id, StateBlock::kSpeedBias}));
+        }
       }
       std::vector<Vec3S> param_backup(lins.size());
       Scalar max_step = solve.delta.size() ? solve.delta.cwiseAbs().maxCoeff() : Scalar(0);
@@ -404,7 +537,7 @@ Status VoEstimator<Scalar>::optimize(FrameResult* result) {
                max_step < static_cast<Scalar>(config_.stop_max_step);
         break;
       }
-      for (auto& [id, frame] : frames_) frame.T_w_c = pose_backup[id];
+      frames_ = std::move(frame_backup);
       for (size_t l = 0; l < lins.size(); ++l)
         landmarks_.at(lins[l].track_id).param = param_backup[l];
       if (lambda_ >= lambda_max) {
@@ -419,16 +552,16 @@ Status VoEstimator<Scalar>::optimize(FrameResult* result) {
   }
   result->cost_final = static_cast<double>(cost);
   for (const auto& [id, frame] : frames_) {
-    if (!frame.T_w_c.translation().allFinite() ||
-        !frame.T_w_c.unitQuaternion().coeffs().allFinite()) {
-      return Status::Error(Status::Code::kNotFinite, "a pose turned non-finite");
+    if (!frame.T_w_i.translation().allFinite() ||
+        !frame.T_w_i.unitQuaternion().coeffs().allFinite() || !frame.speed_bias.allFinite()) {
+      return Status::Error(Status::Code::kNotFinite, "a state turned non-finite");
     }
   }
   return Status::Ok();
 }
 
 template <typename Scalar>
-void VoEstimator<Scalar>::addNewLandmarks(int64_t frame_id, const TrackFrame& frame) {
+void SlidingWindowEstimator<Scalar>::addNewLandmarks(int64_t frame_id, const TrackFrame& frame) {
   TriangulationOptions<Scalar> options;
   options.min_baseline = static_cast<Scalar>(config_.min_baseline_m);
   for (const StereoObservation& obs : frame.observations) {
@@ -446,13 +579,18 @@ void VoEstimator<Scalar>::addNewLandmarks(int64_t frame_id, const TrackFrame& fr
 }
 
 template <typename Scalar>
-std::optional<int64_t> VoEstimator<Scalar>::selectKeyframeToMarginalize(int64_t current) const {
-  std::vector<int64_t> kfs;
-  for (const auto& [id, frame] : frames_) {
-    if (frame.is_keyframe) kfs.push_back(id);
-  }
+std::optional<int64_t> SlidingWindowEstimator<Scalar>::selectKeyframeToMarginalize(
+    int64_t current, const std::set<VarKey>& marg_vars) const {
+  const std::vector<int64_t> kfs = keyframeIds();
   if (static_cast<int>(kfs.size()) <= config_.max_kfs) return std::nullopt;
-  const std::vector<int64_t> candidates(kfs.begin(), kfs.end() - 2);
+  // Only pose-only keyframes (VIO: older than the states, or losing their speed-bias now).
+  std::vector<int64_t> candidates;
+  for (auto it = kfs.begin(); it != kfs.end() - 2; ++it) {
+    if (!frames_.at(*it).has_speed_bias || marg_vars.count({*it, StateBlock::kSpeedBias}) != 0) {
+      candidates.push_back(*it);
+    }
+  }
+  if (candidates.empty()) return std::nullopt;
   for (int64_t c : candidates) {
     int hosted = 0, connected = 0;
     for (const auto& [id, lm] : landmarks_) {
@@ -463,15 +601,15 @@ std::optional<int64_t> VoEstimator<Scalar>::selectKeyframeToMarginalize(int64_t 
     if (hosted == 0 || connected < config_.marg_connected_share * hosted) return c;
   }
   // DSO's distance score: prefer frames far from the newest keyframe but close to the others.
-  const Vec3S t_last = frames_.at(kfs.back()).T_w_c.translation();
+  const Vec3S t_last = frames_.at(kfs.back()).T_w_i.translation();
   int64_t best = candidates.front();
   Scalar best_score = -1;
   for (int64_t c : candidates) {
-    const Vec3S t_c = frames_.at(c).T_w_c.translation();
+    const Vec3S t_c = frames_.at(c).T_w_i.translation();
     Scalar sum = 0;
     for (int64_t j : kfs) {
       if (j != c)
-        sum += Scalar(1) / ((t_c - frames_.at(j).T_w_c.translation()).norm() + Scalar(1e-5));
+        sum += Scalar(1) / ((t_c - frames_.at(j).T_w_i.translation()).norm() + Scalar(1e-5));
     }
     const Scalar score = std::sqrt((t_c - t_last).norm()) * sum;
     if (score > best_score) {
@@ -483,49 +621,50 @@ std::optional<int64_t> VoEstimator<Scalar>::selectKeyframeToMarginalize(int64_t 
 }
 
 template <typename Scalar>
-Status VoEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior, MargMethod method,
-                                            PriorStorage storage,
-                                            const std::set<int64_t>& marg_frames,
-                                            const std::vector<int64_t>& marg_landmarks,
-                                            int* qr_rank) const {
-  std::set<int64_t> all_frames;
-  for (const auto& [id, frame] : frames_) all_frames.insert(id);
+Status SlidingWindowEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior, MargMethod method,
+                                                       PriorStorage storage, const MargPlan& plan,
+                                                       int* qr_rank) const {
+  std::set<int64_t> system_frames;
+  for (const auto& [id, frame] : frames_) {
+    if (plan.drop_obs_frames.count(id) == 0) system_frames.insert(id);
+  }
   std::vector<Linearized> lins;
-  std::set<int64_t> keep;
-  for (int64_t id : marg_landmarks) {
+  std::set<VarKey> keep;
+  for (int64_t id : plan.landmarks) {
     Linearized lin;
-    if (!linearizeLandmark(id, landmarks_.at(id), all_frames, &lin)) continue;
+    if (!linearizeLandmark(id, landmarks_.at(id), system_frames, &lin)) continue;
     // Rows beyond the three the landmark consumes carry pose information.
     if (lin.r.size() <= 3 || lin.frames.empty()) continue;
-    keep.insert(lin.frames.begin(), lin.frames.end());
+    for (int64_t f : lin.frames) keep.insert({f, StateBlock::kPose});
     lins.push_back(std::move(lin));
   }
-  keep.insert(prior.frame_ids.begin(), prior.frame_ids.end());
-  for (int64_t f : marg_frames) keep.erase(f);
+  std::vector<LinkLinearized> links(plan.imu_links.size());
+  for (size_t k = 0; k < plan.imu_links.size(); ++k) {
+    linearizeLink(plan.imu_links[k], imu_links_.at(plan.imu_links[k]), &links[k]);
+    for (const auto& [var, offset] : linkVars(links[k].from, links[k].to)) keep.insert(var);
+  }
+  for (const auto& block : prior.blocks) keep.insert(block.var);
+  for (const VarKey& var : plan.vars) keep.erase(var);
 
-  std::map<int64_t, int> column_of;
+  ColumnMap column_of;
   int col = 0;
-  for (int64_t f : marg_frames) {
-    column_of[f] = col;
-    col += kPoseDim;
+  for (const VarKey& var : plan.vars) {
+    column_of[var] = col;
+    col += stateBlockDim(var.block);
   }
   const int n_marg = col;
-  for (int64_t f : keep) {
-    column_of[f] = col;
-    col += kPoseDim;
-  }
-  const int n = col;
-  const VecX<Scalar> old_delta = prior.delta([this](int64_t f) { return poseOf(f); });
-
   MargPrior<Scalar> next;
   next.storage = storage;
-  next.frame_ids.assign(keep.begin(), keep.end());
-  VecX<Scalar> new_delta(kPoseDim * next.frame_ids.size());
-  for (size_t i = 0; i < next.frame_ids.size(); ++i) {
-    next.x0.push_back(jacobianPoseOf(next.frame_ids[i]));
-    new_delta.template segment<kPoseDim>(kPoseDim * i) =
-        boxMinus(poseOf(next.frame_ids[i]), next.x0.back());
+  for (const VarKey& var : keep) {
+    column_of[var] = col;
+    col += stateBlockDim(var.block);
+    const Frame& frame = frames_.at(var.frame_id);
+    next.addBlock(var, jacobianPoseOf(var.frame_id),
+                  frame.speed_bias_linearized ? frame.speed_bias_lin : frame.speed_bias);
   }
+  const int n = col;
+  const VecX<Scalar> old_delta = priorDelta(prior);
+  const VecX<Scalar> new_delta = priorDelta(next);
 
   if (method == MargMethod::kQr) {
     int rows = prior.empty() ? 0 : prior.rows();
@@ -536,19 +675,28 @@ Status VoEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior, MargMethod
       if (!s.ok()) return s;
       rows += blocks[l].numReducedRows();
     }
+    rows += 15 * static_cast<int>(links.size());
     MatX<Scalar> A = MatX<Scalar>::Zero(rows, n + 1);
     int row = 0;
     for (const auto& block : blocks) {
       block.copyReducedRows(A, row);
       row += block.numReducedRows();
     }
+    for (const LinkLinearized& lin : links) {
+      for (const auto& [var, offset] : linkVars(lin.from, lin.to)) {
+        const int dim = stateBlockDim(var.block);
+        A.block(row, column_of.at(var), 15, dim) = lin.J.middleCols(offset, dim);
+      }
+      A.col(n).segment(row, 15) = lin.r;
+      row += 15;
+    }
     if (!prior.empty()) {
       MatX<Scalar> J;
       VecX<Scalar> r;
       prior.sqrtRows(old_delta, &J, &r);
-      for (size_t i = 0; i < prior.frame_ids.size(); ++i) {
-        A.block(row, column_of.at(prior.frame_ids[i]), J.rows(), kPoseDim) =
-            J.middleCols(kPoseDim * i, kPoseDim);
+      for (const auto& block : prior.blocks) {
+        const int dim = stateBlockDim(block.var.block);
+        A.block(row, column_of.at(block.var), J.rows(), dim) = J.middleCols(block.offset, dim);
       }
       A.col(n).segment(row, r.size()) = r;
     }
@@ -570,6 +718,11 @@ Status VoEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior, MargMethod
       // A landmark whose H_ll is singular carries no usable pose information: skip it.
       block.addToReducedSystem(H, b);
     }
+    for (const LinkLinearized& lin : links) {
+      const MatX<Scalar> H_link = lin.J.transpose() * lin.J;
+      const VecX<Scalar> b_link = lin.J.transpose() * lin.r;
+      scatterBlocks(linkVars(lin.from, lin.to), H_link, b_link, column_of, H, b);
+    }
     if (!prior.empty()) addPrior(prior, old_delta, column_of, H, b);
     SchurMarginalization<Scalar> sc = schurMarginalize<Scalar>(H, b, n_marg);
     if (!sc.status.ok()) return sc.status;
@@ -588,33 +741,105 @@ Status VoEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior, MargMethod
 }
 
 template <typename Scalar>
-Status VoEstimator<Scalar>::trialMarginalization(int64_t frame_id, MargMethod method,
-                                                 MatXd* H_m) const {
-  std::vector<int64_t> hosted;
-  for (const auto& [id, lm] : landmarks_) {
-    if (lm.host == frame_id) hosted.push_back(id);
+std::optional<MargPlan> SlidingWindowEstimator<Scalar>::planStateMarginalization(bool force) const {
+  const std::vector<int64_t> states = stateIds();
+  if (!imu_ || states.size() < 2 ||
+      (!force && static_cast<int>(states.size()) <= config_.max_states)) {
+    return std::nullopt;
   }
-  MargPrior<Scalar> prior = prior_;
-  Status s = marginalizeInto(prior, method, PriorStorage::kSqrt, {frame_id}, hosted, nullptr);
+  const int64_t oldest = states.front();
+  MargPlan plan;
+  plan.vars.insert({oldest, StateBlock::kSpeedBias});
+  if (!frames_.at(oldest).is_keyframe) {
+    plan.vars.insert({oldest, StateBlock::kPose});
+    plan.drop_obs_frames.insert(oldest);
+  }
+  if (imu_links_.count(oldest) != 0) plan.imu_links.push_back(oldest);
+  return plan;
+}
+
+template <typename Scalar>
+MargPlan SlidingWindowEstimator<Scalar>::planKeyframeMarginalization(int64_t frame_id) const {
+  MargPlan plan;
+  plan.vars.insert({frame_id, StateBlock::kPose});
+  for (const auto& [id, lm] : landmarks_) {
+    if (lm.host == frame_id) plan.landmarks.push_back(id);
+  }
+  return plan;
+}
+
+template <typename Scalar>
+Status SlidingWindowEstimator<Scalar>::trialMarginalization(const MargPlan& plan, MargMethod method,
+                                                            MatXd* H_m) const {
+  MargPrior<Scalar> prior = shadow_prior_;
+  const PriorStorage storage =
+      method == MargMethod::kQr ? PriorStorage::kSqrt : PriorStorage::kHessian;
+  if (method == MargMethod::kQr && prior.storage != PriorStorage::kSqrt && !prior.empty()) {
+    return Status::Error(Status::Code::kInvalidArgument,
+                         "qr marginalization needs a square-root shadow prior");
+  }
+  Status s = marginalizeInto(prior, method, storage, plan, nullptr);
   if (!s.ok()) return s;
-  const MatXd J = prior.sqrt.J.template cast<double>();
-  *H_m = J.transpose() * J;
+  if (storage == PriorStorage::kSqrt) {
+    const MatXd J = prior.sqrt.J.template cast<double>();
+    *H_m = J.transpose() * J;
+  } else {
+    *H_m = prior.hessian.H.template cast<double>();
+  }
   return Status::Ok();
 }
 
 template <typename Scalar>
-Status VoEstimator<Scalar>::marginalize(int64_t current, FrameResult* result) {
+MargEvent SlidingWindowEstimator<Scalar>::shadowEvent() const {
+  MargEvent event;
+  for (const auto& block : shadow_prior_.blocks) {
+    const int64_t f = block.var.frame_id;
+    if (block.var.block == StateBlock::kPose) {
+      event.layout.push_back({PriorVariableKind::kPose, f, block.offset});
+      event.state.T_w_i[f] = block.T0.template cast<double>();
+    } else {
+      event.layout.push_back({PriorVariableKind::kVelocity, f, block.offset});
+      event.layout.push_back({PriorVariableKind::kGyroBias, f, block.offset + 3});
+      event.layout.push_back({PriorVariableKind::kAccelBias, f, block.offset + 6});
+      event.state.v_w[f] = block.sb0.template head<3>().template cast<double>();
+    }
+  }
+  // Gauge directions at the linearization points: the prior's nullspace lies there (FEJ).
+  const VecX<Scalar> delta = priorDelta(shadow_prior_);
+  if (shadow_prior_.storage == PriorStorage::kSqrt) {
+    event.J_m = shadow_prior_.sqrt.J.template cast<double>();
+    event.r_m = (shadow_prior_.sqrt.r + shadow_prior_.sqrt.J * delta).template cast<double>();
+    event.H_m = event.J_m.transpose() * event.J_m;
+    event.b_m = event.J_m.transpose() * event.r_m;
+  } else {
+    event.H_m = shadow_prior_.hessian.H.template cast<double>();
+    event.b_m = (shadow_prior_.hessian.b + shadow_prior_.hessian.H * delta).template cast<double>();
+  }
+  event.prior_rows = shadow_prior_.rows();
+  return event;
+}
+
+template <typename Scalar>
+Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult* result) {
   const bool current_is_kf = frames_.at(current).is_keyframe;
-  std::set<int64_t> marg_frames;
+  MargPlan plan;
   std::set<int64_t> marg_landmarks;
   for (const auto& [id, lm] : landmarks_) {
     if (lm.obs.count(current) == 0) marg_landmarks.insert(id);  // track lost
   }
-  if (!current_is_kf) {
-    for (auto& [id, lm] : landmarks_) lm.obs.erase(current);
+  if (!imu_ && !current_is_kf) plan.drop_obs_frames.insert(current);
+  if (const auto state_plan = planStateMarginalization()) {
+    plan.vars = state_plan->vars;
+    plan.imu_links = state_plan->imu_links;
+    plan.drop_obs_frames.insert(state_plan->drop_obs_frames.begin(),
+                                state_plan->drop_obs_frames.end());
   }
-  if (const auto kf = selectKeyframeToMarginalize(current)) {
-    marg_frames.insert(*kf);
+  for (int64_t f : plan.drop_obs_frames) {
+    for (auto& [id, lm] : landmarks_) lm.obs.erase(f);
+  }
+  int n_marg_frames = 0;
+  if (const auto kf = selectKeyframeToMarginalize(current, plan.vars)) {
+    plan.vars.insert({*kf, StateBlock::kPose});
     for (auto& [id, lm] : landmarks_) {
       if (lm.host == *kf) {
         marg_landmarks.insert(id);
@@ -623,69 +848,135 @@ Status VoEstimator<Scalar>::marginalize(int64_t current, FrameResult* result) {
       }
     }
   }
-  if (!marg_frames.empty() || !marg_landmarks.empty()) {
-    const std::vector<int64_t> landmarks(marg_landmarks.begin(), marg_landmarks.end());
+  for (const VarKey& var : plan.vars) n_marg_frames += var.block == StateBlock::kPose ? 1 : 0;
+  plan.landmarks.assign(marg_landmarks.begin(), marg_landmarks.end());
+  if (!plan.empty()) {
     const auto t0 = Clock::now();
     int qr_rank = -1;
-    Status status =
-        marginalizeInto(prior_, variant_.marg, variant_.storage, marg_frames, landmarks, &qr_rank);
+    Status status = marginalizeInto(prior_, variant_.marg, variant_.storage, plan, &qr_rank);
     result->t_marg_s = secondsSince(t0);
     if (!status.ok()) return status;
-    for (int64_t f : prior_.frame_ids) {
-      Frame& frame = frames_.at(f);
-      if (!frame.linearized) {
+    for (const auto& block : prior_.blocks) {
+      Frame& frame = frames_.at(block.var.frame_id);
+      if (block.var.block == StateBlock::kPose && !frame.linearized) {
         frame.linearized = true;
-        frame.T_w_c_lin = frame.T_w_c;
+        frame.T_w_i_lin = frame.T_w_i;
+      } else if (block.var.block == StateBlock::kSpeedBias && !frame.speed_bias_linearized) {
+        frame.speed_bias_linearized = true;
+        frame.speed_bias_lin = frame.speed_bias;
       }
     }
     if (config_.diagnostics) {
       const auto t1 = Clock::now();
-      MargEvent event;
-      status = marginalizeInto(shadow_prior_, variant_.marg, variant_.storage, marg_frames,
-                               landmarks, &event.qr_rank);
+      int shadow_rank = -1;
+      status = marginalizeInto(shadow_prior_, variant_.marg, variant_.storage, plan, &shadow_rank);
       if (!status.ok()) return status;
-      event.frame_ids = shadow_prior_.frame_ids;
-      // Gauge directions at the linearization points: the prior's nullspace lies there (FEJ).
-      for (const SE3S& T : shadow_prior_.x0) event.T_w_c.push_back(T.template cast<double>());
-      const VecX<Scalar> delta = shadow_prior_.delta([this](int64_t f) { return poseOf(f); });
-      if (shadow_prior_.storage == PriorStorage::kSqrt) {
-        event.J_m = shadow_prior_.sqrt.J.template cast<double>();
-        event.r_m = (shadow_prior_.sqrt.r + shadow_prior_.sqrt.J * delta).template cast<double>();
-        event.H_m = event.J_m.transpose() * event.J_m;
-        event.b_m = event.J_m.transpose() * event.r_m;
-      } else {
-        event.H_m = shadow_prior_.hessian.H.template cast<double>();
-        event.b_m =
-            (shadow_prior_.hessian.b + shadow_prior_.hessian.H * delta).template cast<double>();
-      }
-      event.prior_rows = shadow_prior_.rows();
-      event.n_marg_frames = static_cast<int>(marg_frames.size());
-      event.n_marg_landmarks = static_cast<int>(landmarks.size());
+      MargEvent event = shadowEvent();
+      event.qr_rank = shadow_rank;
+      event.n_marg_frames = n_marg_frames;
+      event.n_marg_landmarks = static_cast<int>(plan.landmarks.size());
       event.t_shadow_s = secondsSince(t1);
       result->marg_event = std::move(event);
     }
-    for (int64_t id : marg_landmarks) landmarks_.erase(id);
-    for (int64_t f : marg_frames) frames_.erase(f);
+    for (int64_t id : plan.landmarks) landmarks_.erase(id);
+    for (int64_t from : plan.imu_links) imu_links_.erase(from);
+    for (const VarKey& var : plan.vars) {
+      if (var.block == StateBlock::kPose) {
+        frames_.erase(var.frame_id);
+      } else if (auto it = frames_.find(var.frame_id); it != frames_.end()) {
+        it->second.has_speed_bias = false;
+        it->second.speed_bias_linearized = false;
+      }
+    }
   }
-  if (!current_is_kf) frames_.erase(current);
+  if (!imu_ && !current_is_kf) frames_.erase(current);
   return Status::Ok();
 }
 
 template <typename Scalar>
-FrameResult VoEstimator<Scalar>::processFrame(const TrackFrame& track_frame) {
+void SlidingWindowEstimator<Scalar>::initializeGaugePrior(int64_t frame_id) {
+  // Weights on the first state's increment: VO all 6 pose dof; VIO position, yaw (δφ_z, the
+  // rotation about gravity) and the biases.
+  const Frame& first = frames_.at(frame_id);
+  VecXd weights = VecXd::Zero(first.has_speed_bias ? 15 : 6);
+  if (first.has_speed_bias) {
+    weights.head<3>().setConstant(config_.gauge_prior_weight);
+    weights[5] = config_.gauge_prior_weight;
+    weights.segment<3>(kPoseDim + 3).setConstant(config_.gauge_prior_bias_gyro);
+    weights.segment<3>(kPoseDim + 6).setConstant(config_.gauge_prior_bias_accel);
+  } else {
+    weights.setConstant(config_.gauge_prior_weight);
+  }
+  const int n = static_cast<int>(weights.size());
+  const int m = static_cast<int>((weights.array() > 0).count());
+  prior_.blocks.clear();
+  prior_.addBlock({frame_id, StateBlock::kPose}, first.T_w_i, first.speed_bias);
+  if (first.has_speed_bias) {
+    prior_.addBlock({frame_id, StateBlock::kSpeedBias}, first.T_w_i, first.speed_bias);
+  }
+  prior_.sqrt.J = MatX<Scalar>::Zero(m, n);
+  prior_.sqrt.r = VecX<Scalar>::Zero(m);
+  prior_.hessian.H = MatX<Scalar>::Zero(n, n);
+  prior_.hessian.b = VecX<Scalar>::Zero(n);
+  for (int c = 0, row = 0; c < n; ++c) {
+    if (weights[c] <= 0) continue;
+    const Scalar w = static_cast<Scalar>(weights[c]);
+    prior_.sqrt.J(row++, c) = std::sqrt(w);
+    prior_.hessian.H(c, c) = w;
+  }
+}
+
+template <typename Scalar>
+void SlidingWindowEstimator<Scalar>::addImuLink(int64_t from, int64_t to) {
+  // Preintegrated in double (measurement preprocessing, like the pixel measurements), then used in
+  // the estimator's precision.
+  const Frame& f_i = frames_.at(from);
+  const ImuState<Scalar> s_i = stateOf(from, false);
+  const ImuPreintegration<double> pre = preintegrate<double>(
+      imu_->imu, f_i.t_ns, frames_.at(to).t_ns, s_i.b_g.template cast<double>(),
+      s_i.b_a.template cast<double>(),
+      ImuSampleNoise<double>::fromDensities(imu_->noise, imu_->sample_period_s));
+  ImuLink link{to, ImuFactor<Scalar>(pre.template cast<Scalar>(), g_w_),
+               static_cast<Scalar>(pre.durationSeconds())};
+  imu_links_.erase(from);
+  imu_links_.emplace(from, std::move(link));
+}
+
+template <typename Scalar>
+FrameResult SlidingWindowEstimator<Scalar>::processFrame(const TrackFrame& track_frame) {
   FrameResult result;
   result.t_ns = track_frame.t_ns;
   const int64_t id = next_frame_index_++;
-  SE3<double> T_init = last_pose_;
-  if (has_previous_pose_) {
-    // Constant-velocity prediction: T_k = (T_{k−1} T_{k−2}⁻¹) T_{k−1}.
-    T_init = (last_pose_ * previous_pose_.inverse()) * last_pose_;
-  }
   Frame frame;
   frame.t_ns = track_frame.t_ns;
-  frame.T_w_c = T_init.template cast<Scalar>();
-  frame.T_w_c_lin = frame.T_w_c;
-  frames_[id] = frame;
+  frame.has_speed_bias = isVio();
+  if (imu_ && id == 0) {
+    const ImuState<Scalar> s = imu_->initial.template cast<Scalar>();
+    frame.T_w_i = s.T_w_i;
+    frame.speed_bias << s.v_w, s.b_g, s.b_a;
+  } else if (!imu_) {
+    SE3<double> T_init = last_pose_;
+    if (has_previous_pose_) {
+      // Constant-velocity prediction: T_k = (T_{k−1} T_{k−2}⁻¹) T_{k−1}.
+      T_init = (last_pose_ * previous_pose_.inverse()) * last_pose_;
+    }
+    frame.T_w_i = T_init.template cast<Scalar>();
+  }
+  frame.T_w_i_lin = frame.T_w_i;
+  if (imu_ && id > 0) {
+    // Predicted from the previous state through the new IMU factor.
+    const int64_t previous = frames_.rbegin()->first;
+    frames_[id] = frame;
+    addImuLink(previous, id);
+    const ImuState<Scalar> s_j = predictState<Scalar>(
+        stateOf(previous, false), imu_links_.at(previous).factor.preintegration(), g_w_);
+    Frame& added = frames_.at(id);
+    added.T_w_i = s_j.T_w_i;
+    added.T_w_i_lin = s_j.T_w_i;
+    added.speed_bias << s_j.v_w, s_j.b_g, s_j.b_a;
+  } else {
+    frames_[id] = frame;
+  }
 
   int connected = 0;
   for (const StereoObservation& obs : track_frame.observations) {
@@ -699,22 +990,21 @@ FrameResult VoEstimator<Scalar>::processFrame(const TrackFrame& track_frame) {
     Frame& first = frames_.at(id);
     first.is_keyframe = true;
     first.linearized = true;
+    first.speed_bias_linearized = first.has_speed_bias;
+    first.speed_bias_lin = first.speed_bias;
     last_keyframe_ = id;
-    // Gauge prior on all 6 dof of the first pose (the shadow prior has none).
-    const Scalar w = static_cast<Scalar>(config_.gauge_prior_weight);
-    prior_.frame_ids = {id};
-    prior_.x0 = {first.T_w_c};
-    prior_.sqrt.J = std::sqrt(w) * MatX<Scalar>::Identity(kPoseDim, kPoseDim);
-    prior_.sqrt.r = VecX<Scalar>::Zero(kPoseDim);
-    prior_.hessian.H = w * MatX<Scalar>::Identity(kPoseDim, kPoseDim);
-    prior_.hessian.b = VecX<Scalar>::Zero(kPoseDim);
+    initializeGaugePrior(id);  // the shadow prior has none
     addNewLandmarks(id, track_frame);
   }
 
   const auto t0 = Clock::now();
   result.status = optimize(&result);
   result.t_opt_s = secondsSince(t0);
-  result.T_w_c = frames_.at(id).T_w_c.template cast<double>();
+  const Frame& optimized = frames_.at(id);
+  result.T_w_i = optimized.T_w_i.template cast<double>();
+  if (optimized.has_speed_bias) {
+    result.v_w = optimized.speed_bias.template head<3>().template cast<double>();
+  }
   if (!result.status.ok()) return result;
 
   const double observed = static_cast<double>(track_frame.observations.size());
@@ -732,12 +1022,12 @@ FrameResult VoEstimator<Scalar>::processFrame(const TrackFrame& track_frame) {
   result.status = marginalize(id, &result);
 
   previous_pose_ = last_pose_;
-  last_pose_ = result.T_w_c;
+  last_pose_ = result.T_w_i;
   has_previous_pose_ = id > 0;
   return result;
 }
 
-#define MARGLAB_INST(S) template class VoEstimator<S>;
+#define MARGLAB_INST(S) template class SlidingWindowEstimator<S>;
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

@@ -1,35 +1,52 @@
 #pragma once
-// Sliding-window stereo visual odometry (Demmel et al., ICCV 2021, §3–5; numbers of DESIGN §3),
-// one template for every variant: the Variant picks landmark elimination (ns|sc), marginalization
-// (qr|sc) and prior storage (sqrt|sq); Scalar is the precision of everything inside.
+// The sliding-window estimator of the paper (Demmel et al., ICCV 2021, §3–5; numbers of DESIGN §3)
+// for stereo visual odometry (VO) and visual-inertial odometry (VIO): one template for every
+// variant. The Variant picks landmark elimination (ns|sc), marginalization (qr|sc) and prior
+// storage (sqrt|sq); Scalar is the precision of everything inside.
 //
-// State. Poses T_w_c of the left camera of up to max_kfs keyframes plus the current frame;
-// increment δ = [δt; δφ], t ← t + δt, R ← exp(δφ) R. Landmarks hosted in a keyframe as
-// ℓ = (u, v, ρ): stereographic bearing and inverse distance in the host camera, ρ clamped ≥ 0.
+// State. Frames carry a pose T_w_i: the body (IMU) for VIO, the left camera for VO (then
+// T_i_c0 = I). VIO states — the latest max_states frames — also carry a speed-bias block
+// (v_w, b_g, b_a); older keyframes keep their pose only, up to max_kfs keyframes. Increments:
+// pose δ = [δt; δφ], t ← t + δt, R ← exp(δφ) R; speed-bias additive (core/imu/imu_state.h).
+// Landmarks hosted in a keyframe as ℓ = (u, v, ρ): stereographic bearing and inverse distance in
+// the host's cam0, ρ clamped ≥ 0.
 //
-// Energy. E(x) = Σ_obs ρ_H(‖π_c(T_ct_h ℓ) − z‖) / σ² + E_m(x), the Huber norm ρ_H (threshold
-// huber_px) of the reprojection error of every observation (cam0 and cam1) with σ = obs_std_px,
-// linearized with IRLS weights √w/σ on the rows, plus the marginalization prior (marg_prior.h).
+// Energy. E(x) = Σ_obs ρ_H(‖π_c(T_ct_h ℓ) − z‖) / σ² + Σ_k ½‖W r_imu,k‖² + ½‖r_rw,k‖² + E_m(x):
+// Huber norm ρ_H (threshold huber_px) of the reprojection error of every observation (cam0 and
+// cam1), σ = obs_std_px, linearized with IRLS weights √w/σ on the rows; for VIO the IMU
+// preintegration residual between consecutive states (9 rows, whitened by the preintegrated
+// covariance) and the bias random walk (6 rows, core/imu/imu_factor.h); the marginalization prior
+// (marg_prior.h).
 //
 // Optimization (per frame). Levenberg–Marquardt, at most lm_max_iterations linearizations:
-// landmarks are eliminated per landmark (LandmarkBlockNs or LandmarkBlockSc), the reduced camera
-// system with the prior is damped H_ii += max(λH_ii, λ_min) (landmarks alike) and solved by
-// LDLT; the gain ratio ρ = actual / model decrease updates λ ← λ·max(1/3, 1 − (2ρ − 1)³) on
-// success, λ ← λν, ν ← 2ν on failure. Stop on relative decrease < stop_relative_cost or
+// landmarks are eliminated per landmark (LandmarkBlockNs or LandmarkBlockSc), the reduced system
+// with the IMU terms and the prior is damped H_ii += max(λH_ii, λ_min) (landmarks alike) and
+// solved by LDLT; the gain ratio ρ = actual / model decrease updates λ ← λ·max(1/3, 1 − (2ρ − 1)³)
+// on success, λ ← λν, ν ← 2ν on failure. Stop on relative decrease < stop_relative_cost or
 // max|δ| < stop_max_step.
 //
-// First-estimate Jacobians. A frame in the prior keeps its linearization point T_w_c_lin: its
-// reprojection Jacobians are evaluated there (residuals at the current estimate), which keeps
-// the prior's nullspace consistent with the visual terms.
+// First-estimate Jacobians. A variable in the prior keeps its linearization point: reprojection
+// and IMU Jacobians are evaluated there (residuals at the current estimate), which keeps the
+// prior's nullspace consistent with the other terms.
 //
-// Marginalization (after each frame). A non-keyframe current frame is removed with its
-// observations; when there are more than max_kfs keyframes one is marginalized (the oldest of all
-// but the newest two with a share < marg_connected_share of its landmarks still observed, else
-// the DSO distance score) with the landmarks it hosts (its observations of other landmarks are
-// dropped); landmarks whose track ended are marginalized right away. `qr`: landmarks by
-// nullspace projection, then the flat QR of [marg | keep] on the stacked Q2ᵀ rows and prior rows
-// (paper §4.2). `sc`: Schur complement of the landmarks, then of the frame poses on the Hessian
-// with a pseudo-inverse (eqs. 22–23), stored as (H̃, b̃) or LDLT-factorized.
+// Marginalization (after each frame), one event combining:
+//   VO   — a non-keyframe current frame is removed with its observations;
+//   VIO  — when there are more than max_states states, the oldest goes: a keyframe loses its
+//          speed-bias block (its pose stays), a non-keyframe its whole state (its observations are
+//          dropped); the IMU factor leaving it joins the prior;
+//   both — when there are more than max_kfs keyframes one pose-only keyframe is marginalized (the
+//          oldest of all but the newest two with a share < marg_connected_share of its landmarks
+//          still observed, else the DSO distance score) with the landmarks it hosts (its
+//          observations of other landmarks are dropped); landmarks whose track ended are
+//          marginalized right away.
+// `qr`: landmarks by nullspace projection, then the flat QR of [marg | keep] on the stacked Q2ᵀ
+// rows, IMU rows and prior rows (paper §4.2). `sc`: Schur complement of the landmarks, then of the
+// marginalized blocks on the Hessian with a pseudo-inverse (eqs. 22–23), stored as (H̃, b̃) or
+// LDLT-factorized.
+//
+// Gauge. The initial prior fixes the gauge: VO all 6 dof of the first pose (gauge_prior_weight);
+// VIO position and yaw of the first state (gauge_prior_weight) and its biases (gauge_prior_bg,
+// gauge_prior_ba) — gravity makes roll and pitch observable.
 //
 // Diagnostics. A shadow prior starts empty (no gauge prior) and is marginalized with the identical
 // procedure, in the same precision (as Basalt does); its Hessian, in double, is what the paper's
@@ -45,29 +62,44 @@
 
 #include "core/common/eigen_types.h"
 #include "core/common/status.h"
+#include "core/data/types.h"
+#include "core/diagnostics/gauge.h"
 #include "core/estimator/config.h"
 #include "core/estimator/marg_prior.h"
 #include "core/estimator/variant.h"
 #include "core/geometry/camera.h"
 #include "core/geometry/se3.h"
+#include "core/imu/imu_factor.h"
+#include "core/imu/imu_state.h"
 #include "core/linalg/landmark_block.h"
 #include "core/sim/tracks.h"
 
 namespace marglab {
 
+// What a VIO estimator needs beyond the cameras: the IMU stream (synthetic or recorded, covering
+// the frame times), its noise densities, gravity in the world, and the first state.
+struct ImuSetup {
+  ImuData imu;
+  ImuNoise noise;
+  double sample_period_s = 0.005;
+  Eigen::Vector3d g_w = Eigen::Vector3d(0, 0, -9.81);
+  ImuState<double> initial;  // T_w_i, v_w, b_g, b_a of the first frame
+};
+
 // One marginalization event of the shadow (gauge-free) prior, in double, for diagnostics.
 struct MargEvent {
-  std::vector<int64_t> frame_ids;  // prior layout (6 dof per frame)
-  std::vector<SE3<double>> T_w_c;  // linearization point of each layout frame
-  MatXd H_m;                       // prior Hessian (J_mᵀJ_m formed in double for sqrt)
-  VecXd b_m;                       // gradient at the current state
-  MatXd J_m;                       // square-root storage only
-  VecXd r_m;                       // square-root storage only, at the current state
+  PriorLayout layout;  // pose / velocity / gyro-bias / accel-bias blocks of the prior
+  GaugeState state;    // linearization points of the layout's poses and velocities
+  MatXd H_m;           // prior Hessian (J_mᵀJ_m formed in double for sqrt)
+  VecXd b_m;           // gradient at the current state
+  MatXd J_m;           // square-root storage only
+  VecXd r_m;           // square-root storage only, at the current state
   int prior_rows = 0;
   int qr_rank = -1;  // total rank revealed by the flat QR (−1 for sc)
   int n_marg_frames = 0;
   int n_marg_landmarks = 0;
   double t_shadow_s = 0;
+  int numPoses() const;
 };
 
 struct FrameResult {
@@ -80,45 +112,71 @@ struct FrameResult {
   double cost_final = 0;
   double t_opt_s = 0;
   double t_marg_s = 0;
-  SE3<double> T_w_c;
+  SE3<double> T_w_i;  // body (VIO) or cam0 (VO) pose of the frame after optimization
+  Eigen::Vector3d v_w = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   std::optional<MargEvent> marg_event;
   Status status;  // not ok: the run failed at this frame
 };
 
+// What one marginalization removes: variables, landmarks (with all their observations), the IMU
+// factors starting at the listed frames, and the observations in drop_obs_frames.
+struct MargPlan {
+  std::set<VarKey> vars;
+  std::vector<int64_t> landmarks;
+  std::vector<int64_t> imu_links;
+  std::set<int64_t> drop_obs_frames;
+  bool empty() const { return vars.empty() && landmarks.empty() && imu_links.empty(); }
+};
+
 template <typename Scalar>
-class VoEstimator {
+class SlidingWindowEstimator {
  public:
   using SE3S = SE3<Scalar>;
   using Vec2S = Vec<Scalar, 2>;
   using Vec3S = Vec3<Scalar>;
-  static constexpr int kPoseDim = 6;
+  using Vec9S = Vec<Scalar, kSpeedBiasDim>;
 
-  // rig: cam0/cam1 intrinsics and extrinsics (T_i_c0 is ignored: the state is T_w_c0).
-  VoEstimator(const EstimatorConfig& config, const Variant& variant, const StereoRig<double>& rig,
-              const SE3<double>& T_w_c0_initial);
+  // VO: T_w_i_initial is the first cam0 pose (the rig's T_i_c0 is ignored: body = cam0).
+  // VIO (imu given): the first state is imu->initial; the rig's extrinsics map body to cameras.
+  SlidingWindowEstimator(const EstimatorConfig& config, const Variant& variant,
+                         const StereoRig<double>& rig, const SE3<double>& T_w_i_initial,
+                         std::optional<ImuSetup> imu = std::nullopt);
 
+  // Throws InputError when a VIO frame lies outside the IMU stream.
   FrameResult processFrame(const TrackFrame& frame);
 
-  // Introspection for tests and window capture.
+  bool isVio() const { return imu_.has_value(); }
   int numKeyframes() const;
   int numLandmarks() const { return static_cast<int>(landmarks_.size()); }
   const MargPrior<Scalar>& prior() const { return prior_; }
   const MargPrior<Scalar>& shadowPrior() const { return shadow_prior_; }
   std::vector<int64_t> keyframeIds() const;
-  // Linearizes the current window and returns the pose part of the LM step for damping λ with
-  // the given elimination (equivalence tests: ns vs sc on the same window).
-  Status computeStep(OptElimination elimination, Scalar lambda, VecX<Scalar>* delta_poses) const;
-  // The prior that a marginalization of `frame_id` (with its hosted landmarks) would produce,
-  // with `method`, on a copy of the current shadow prior (equivalence tests: qr vs sc).
-  Status trialMarginalization(int64_t frame_id, MargMethod method, MatXd* H_m) const;
+  std::vector<int64_t> stateIds() const;  // frames with a speed-bias block (VIO)
+  bool isKeyframe(int64_t frame_id) const { return frames_.at(frame_id).is_keyframe; }
+
+  // Linearizes the current window and returns the LM step of all variables (layout: frames in id
+  // order, pose then speed-bias) for damping λ with the given elimination (equivalence tests).
+  Status computeStep(OptElimination elimination, Scalar lambda, VecX<Scalar>* delta) const;
+  // The marginalization of the oldest VIO state (keyframe: its speed-bias; otherwise the whole
+  // state), as the estimator would plan it now; nullopt for VO or with no state to spare.
+  std::optional<MargPlan> planStateMarginalization(bool force = false) const;
+  // The marginalization of keyframe `frame_id` with the landmarks it hosts.
+  MargPlan planKeyframeMarginalization(int64_t frame_id) const;
+  // The prior Hessian a plan would produce with `method` on a copy of the shadow prior (sqrt
+  // storage for qr, Hessian for sc), in double (equivalence tests: qr vs sc).
+  Status trialMarginalization(const MargPlan& plan, MargMethod method, MatXd* H_m) const;
 
  private:
   struct Frame {
     int64_t t_ns = 0;
-    SE3S T_w_c;
-    SE3S T_w_c_lin;
-    bool linearized = false;
+    SE3S T_w_i;
+    SE3S T_w_i_lin;
+    bool linearized = false;  // pose in a prior: Jacobians at T_w_i_lin
     bool is_keyframe = false;
+    bool has_speed_bias = false;
+    Vec9S speed_bias = Vec9S::Zero();  // [v_w; b_g; b_a]
+    Vec9S speed_bias_lin = Vec9S::Zero();
+    bool speed_bias_linearized = false;
   };
   struct Observation {
     Vec2S uv0;
@@ -139,30 +197,56 @@ class VoEstimator {
     VecX<Scalar> r;
     Scalar cost = 0;
   };
+  // The IMU factor from frame `from` to frame `to` (consecutive states).
+  struct ImuLink {
+    int64_t to = -1;
+    ImuFactor<Scalar> factor;
+    Scalar dt_s = 0;
+  };
+  // An IMU factor linearized: 15 rows [W r_imu; r_rw] over [pose_i | sb_i | pose_j | sb_j].
+  struct LinkLinearized {
+    int64_t from = -1, to = -1;
+    Mat<Scalar, 15, 30> J;
+    Vec<Scalar, 15> r;
+  };
+  using ColumnMap = std::map<VarKey, int>;
 
   Scalar landmarkCost(const Landmark& lm) const;
+  Scalar linkCost(int64_t from, const ImuLink& link) const;
   Scalar totalCost() const;
   // Returns false when the landmark has fewer than 3 valid rows.
   bool linearizeLandmark(int64_t track_id, const Landmark& lm,
                          const std::set<int64_t>& system_frames, Linearized* out) const;
-  PoseBlockMap blockMap(const Linearized& lin, const std::map<int64_t, int>& column_of) const;
+  void linearizeLink(int64_t from, const ImuLink& link, LinkLinearized* out) const;
+  PoseBlockMap blockMap(const Linearized& lin, const ColumnMap& column_of) const;
+  // All variables of the window, frames in id order, pose then speed-bias; returns the size.
+  int windowColumns(ColumnMap* column_of) const;
+  VecX<Scalar> priorDelta(const MargPrior<Scalar>& prior) const;
   Status optimize(FrameResult* result);
   void addNewLandmarks(int64_t frame_id, const TrackFrame& frame);
-  std::optional<int64_t> selectKeyframeToMarginalize(int64_t current) const;
+  void initializeGaugePrior(int64_t frame_id);
+  void addImuLink(int64_t from, int64_t to);
+  std::optional<int64_t> selectKeyframeToMarginalize(int64_t current,
+                                                     const std::set<VarKey>& marg_vars) const;
   Status marginalize(int64_t current, FrameResult* result);
-  // Marginalizes `marg_frames` and `marg_landmarks` into `prior` with `method`.
+  // Marginalizes the plan into `prior` with `method`.
   Status marginalizeInto(MargPrior<Scalar>& prior, MargMethod method, PriorStorage storage,
-                         const std::set<int64_t>& marg_frames,
-                         const std::vector<int64_t>& marg_landmarks, int* qr_rank) const;
-  SE3S poseOf(int64_t frame_id) const { return frames_.at(frame_id).T_w_c; }
+                         const MargPlan& plan, int* qr_rank) const;
+  MargEvent shadowEvent() const;
+  SE3S poseOf(int64_t frame_id) const { return frames_.at(frame_id).T_w_i; }
+  Vec9S speedBiasOf(int64_t frame_id) const { return frames_.at(frame_id).speed_bias; }
   SE3S jacobianPoseOf(int64_t frame_id) const;
+  ImuState<Scalar> stateOf(int64_t frame_id, bool at_linearization_point) const;
 
   EstimatorConfig config_;
   Variant variant_;
   StereoRig<Scalar> rig_;
-  SE3S T_c0_c1_;
+  std::array<SE3S, 2> T_i_c_;  // body to cam0 / cam1 (VO: I, T_c0_c1)
+  std::optional<ImuSetup> imu_;
+  Vec3S g_w_ = Vec3S::Zero();
   std::map<int64_t, Frame> frames_;        // by frame index
   std::map<int64_t, Landmark> landmarks_;  // by track id
+  std::map<int64_t, ImuLink> imu_links_;   // by start frame
   MargPrior<Scalar> prior_;
   MargPrior<Scalar> shadow_prior_;
   int64_t next_frame_index_ = 0;

@@ -13,16 +13,33 @@ int MargPrior<Scalar>::rows() const {
 }
 
 template <typename Scalar>
-int MargPrior<Scalar>::indexOf(int64_t frame_id) const {
-  auto it = std::find(frame_ids.begin(), frame_ids.end(), frame_id);
-  return it == frame_ids.end() ? -1 : static_cast<int>(it - frame_ids.begin());
+int MargPrior<Scalar>::cols() const {
+  return blocks.empty() ? 0 : blocks.back().offset + stateBlockDim(blocks.back().var.block);
 }
 
 template <typename Scalar>
-VecX<Scalar> MargPrior<Scalar>::delta(const std::function<SE3<Scalar>(int64_t)>& pose_of) const {
+void MargPrior<Scalar>::addBlock(const VarKey& var, const SE3<Scalar>& T0, const Vec9S& sb0) {
+  blocks.push_back(Block{var, cols(), T0, sb0});
+}
+
+template <typename Scalar>
+int MargPrior<Scalar>::indexOf(const VarKey& var) const {
+  auto it = std::find_if(blocks.begin(), blocks.end(),
+                         [&var](const Block& block) { return block.var == var; });
+  return it == blocks.end() ? -1 : static_cast<int>(it - blocks.begin());
+}
+
+template <typename Scalar>
+VecX<Scalar> MargPrior<Scalar>::delta(const std::function<SE3<Scalar>(int64_t)>& pose_of,
+                                      const std::function<Vec9S(int64_t)>& speed_bias_of) const {
   VecX<Scalar> d(cols());
-  for (size_t i = 0; i < frame_ids.size(); ++i) {
-    d.template segment<kPoseDim>(kPoseDim * i) = boxMinus(pose_of(frame_ids[i]), x0[i]);
+  for (const Block& block : blocks) {
+    if (block.var.block == StateBlock::kPose) {
+      d.template segment<kPoseDim>(block.offset) = boxMinus(pose_of(block.var.frame_id), block.T0);
+    } else {
+      d.template segment<kSpeedBiasDim>(block.offset) =
+          speed_bias_of(block.var.frame_id) - block.sb0;
+    }
   }
   return d;
 }

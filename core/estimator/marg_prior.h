@@ -1,6 +1,7 @@
 #pragma once
-// The marginalization prior of the sliding window (paper §3.1.3), over a list of pose variables
-// (6 dof each, increment δ = [δt; δφ] of core/geometry/se3.h), in one of two storages:
+// The marginalization prior of the sliding window (paper §3.1.3), over a list of state blocks —
+// poses (6 dof, increment δ = [δt; δφ] of core/geometry/se3.h) and, for VIO, speed-bias blocks
+// (9 dof, δ = [δv; δb_g; δb_a] of core/imu/imu_state.h) — in one of two storages:
 //   square root (eq. 4):  E_m(x) = ½ ‖r_m + J_m δ‖²,
 //   Hessian     (eq. 3):  E_m(x) = ½ δᵀ H_m δ + b_mᵀ δ,          δ = x ⊟ x⁰,
 // where x⁰ are the first-estimate linearization points of the prior's variables. The shift of
@@ -18,23 +19,51 @@
 
 namespace marglab {
 
+// The two kinds of state block of a frame: its pose, and (VIO, latest states only) velocity and
+// biases together.
+enum class StateBlock : int { kPose = 0, kSpeedBias = 1 };
+constexpr int kPoseDim = 6;
+constexpr int kSpeedBiasDim = 9;
+constexpr int stateBlockDim(StateBlock block) {
+  return block == StateBlock::kPose ? kPoseDim : kSpeedBiasDim;
+}
+
+// One variable of the window: a block of one frame. Ordered by frame, pose before speed-bias.
+struct VarKey {
+  int64_t frame_id = 0;
+  StateBlock block = StateBlock::kPose;
+  bool operator<(const VarKey& o) const {
+    return frame_id != o.frame_id ? frame_id < o.frame_id : block < o.block;
+  }
+  bool operator==(const VarKey& o) const { return frame_id == o.frame_id && block == o.block; }
+};
+
 template <typename Scalar>
 struct MargPrior {
-  static constexpr int kPoseDim = 6;
+  using Vec9S = Vec<Scalar, kSpeedBiasDim>;
+  struct Block {
+    VarKey var;
+    int offset = 0;
+    SE3<Scalar> T0;             // linearization point of a pose block
+    Vec9S sb0 = Vec9S::Zero();  // linearization point of a speed-bias block
+  };
+
   PriorStorage storage = PriorStorage::kSqrt;
-  std::vector<int64_t> frame_ids;  // variable layout: pose blocks in this order
-  std::vector<SE3<Scalar>> x0;     // linearization points, one per frame id
-  SqrtPrior<Scalar> sqrt;          // used when storage == kSqrt
-  HessianPrior<Scalar> hessian;    // used when storage == kHessian
+  std::vector<Block> blocks;     // variable layout, in column order
+  SqrtPrior<Scalar> sqrt;        // used when storage == kSqrt
+  HessianPrior<Scalar> hessian;  // used when storage == kHessian
 
-  bool empty() const { return frame_ids.empty(); }
-  int cols() const { return kPoseDim * static_cast<int>(frame_ids.size()); }
+  bool empty() const { return blocks.empty(); }
+  int cols() const;
   int rows() const;
-  // Index of a frame in the layout, or −1.
-  int indexOf(int64_t frame_id) const;
+  // Appends a block at the end of the layout.
+  void addBlock(const VarKey& var, const SE3<Scalar>& T0, const Vec9S& sb0);
+  // Index of a variable in the layout, or −1.
+  int indexOf(const VarKey& var) const;
 
-  // δ = x ⊟ x⁰ stacked over the layout, poses looked up by frame id.
-  VecX<Scalar> delta(const std::function<SE3<Scalar>(int64_t)>& pose_of) const;
+  // δ = x ⊟ x⁰ stacked over the layout, current values looked up by frame id.
+  VecX<Scalar> delta(const std::function<SE3<Scalar>(int64_t)>& pose_of,
+                     const std::function<Vec9S(int64_t)>& speed_bias_of) const;
   // E_m at δ.
   Scalar cost(const VecX<Scalar>& delta) const;
   // Gradient and Hessian at δ: b = Jᵀ(r + Jδ), H = JᵀJ  |  b = b_m + H_m δ, H = H_m.

@@ -10,8 +10,9 @@
 #include "core/data/sequence.h"
 #include "core/diagnostics/ate.h"
 #include "core/diagnostics/diagnostics.h"
-#include "core/estimator/vo_estimator.h"
+#include "core/estimator/estimator.h"
 #include "core/sim/feature_tracker.h"
+#include "core/sim/imu_synth.h"
 #include "core/sim/trajectory_spline.h"
 
 namespace marglab {
@@ -45,14 +46,76 @@ Trajectory cameraGroundTruth(const Trajectory& gt, const SE3<double>& T_b_c0) {
 
 std::string splitDataset(const Sequence& sequence) { return datasetKindName(sequence.kind); }
 
+// The synthetic IMU's random stream is separate from the world's and the tracks'.
+std::uint64_t imuSeed(std::uint64_t seed) { return seed ^ 0x9e3779b97f4a7c15ULL; }
+
+// The IMU stream and first state of a VIO run: the first state is the ground truth at the first
+// frame (pose and velocity from the spline) with zero biases, or the recorded ground-truth biases
+// for the real IMU where the sequence has them — the same for every variant.
+ImuSetup imuSetup(const RunOptions& options, const Sequence& sequence,
+                  const TrajectoryFunction& trajectory, std::int64_t t0_ns,
+                  std::map<std::string, std::string>* provenance) {
+  ImuSetup setup;
+  setup.noise = sequence.imu_noise;
+  setup.g_w = gravityWorld(sequence.kind);
+  const TrajectorySample first = trajectory.evaluate(t0_ns);
+  setup.initial.t_ns = t0_ns;
+  setup.initial.T_w_i = SE3<double>(first.R_w_b, first.p_w_b);
+  setup.initial.v_w = first.v_w;
+  if (options.imu == ImuSource::kReal) {
+    setup.imu = realImuWithin(sequence, trajectory);
+    if (setup.imu.size() < 2) {
+      throw InputError(sequence.imu_file, 0, "fewer than two IMU samples inside the trajectory");
+    }
+    std::vector<std::int64_t> dt;
+    for (size_t k = 1; k < setup.imu.size(); ++k) {
+      dt.push_back(setup.imu.t_ns[k] - setup.imu.t_ns[k - 1]);
+    }
+    std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
+    setup.sample_period_s = 1e-9 * static_cast<double>(dt[dt.size() / 2]);
+    std::string biases = "zero";
+    if (sequence.gt_imu_state && !sequence.gt_imu_state->bias_gyro.empty()) {
+      const auto& gt_t = sequence.gt.t_ns;
+      const size_t k =
+          static_cast<size_t>(std::lower_bound(gt_t.begin(), gt_t.end(), t0_ns) - gt_t.begin());
+      const size_t i = std::min(k, gt_t.size() - 1);
+      setup.initial.b_g = sequence.gt_imu_state->bias_gyro[i];
+      setup.initial.b_a = sequence.gt_imu_state->bias_accel[i];
+      biases = "ground-truth csv";
+    }
+    (*provenance)["imu"] =
+        fmt::format("real, {} ({:.1f} Hz)", sequence.imu_file, 1.0 / setup.sample_period_s);
+    (*provenance)["initial_biases"] = biases;
+  } else {
+    ImuSynthOptions synth_options;
+    synth_options.gravity_w = setup.g_w;
+    setup.imu =
+        synthesizeImu(trajectory, sequence.imu_noise, 200.0, imuSeed(options.seed), synth_options)
+            .imu;
+    setup.sample_period_s = 1.0 / 200.0;
+    (*provenance)["imu"] = "synthetic 200 Hz from the spline (white noise + bias random walk)";
+    (*provenance)["initial_biases"] = "zero (the synthetic biases start at zero)";
+  }
+  (*provenance)["initial_state"] = "ground-truth pose and velocity at the first frame";
+  return setup;
+}
+
 template <typename Scalar>
 RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const TrackStream& stream,
                    const TrajectoryFunction& trajectory, const EstimatorConfig& config) {
   RunOutcome outcome;
+  const bool vio = options.mode == RunMode::kVio;
+  outcome.vio = vio;
   const SE3<double> T_b_c0 = cameraExtrinsic(sequence.calib.cam0);
-  const Trajectory gt_cam = cameraGroundTruth(sequence.gt, T_b_c0);
+  // VIO estimates the body (IMU) frame, VO the left camera: the ATE compares like with like.
+  const Trajectory gt_est = vio ? sequence.gt : cameraGroundTruth(sequence.gt, T_b_c0);
   const TrajectorySample first = trajectory.evaluate(stream.frames.front().t_ns);
   const SE3<double> T_w_c0_first = SE3<double>(first.R_w_b, first.p_w_b) * T_b_c0;
+  std::map<std::string, std::string> imu_provenance;
+  std::optional<ImuSetup> imu;
+  if (vio) {
+    imu = imuSetup(options, sequence, trajectory, stream.frames.front().t_ns, &imu_provenance);
+  }
 
   RunMetadata metadata;
   metadata.dataset = splitDataset(sequence);
@@ -60,7 +123,7 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
   metadata.sequence = name.substr(name.find('/') == std::string::npos ? 0 : name.find('/') + 1);
   metadata.variant = options.variant.name();
   metadata.precision = options.variant.precision == Precision::kF32 ? "f32" : "f64";
-  metadata.mode = "vo";
+  metadata.mode = vio ? "vio" : "vo";
   metadata.seed = options.seed;
   metadata.config_toml = config.toToml();
   if (options.variant.marg == MargMethod::kQr) {
@@ -72,10 +135,11 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
   metadata.extra = {{"dataset_path", sequence.directory},
                     {"gt_source", sequence.gt_source},
                     {"measurements", "simulated stereo tracks, undistorted pinhole"}};
+  for (const auto& [key, value] : imu_provenance) metadata.extra.emplace_back(key, value);
   ResultsWriter writer = ResultsWriter::create(options.output, metadata);
 
-  VoEstimator<Scalar> estimator(config, options.variant, rigFromCalib(sequence.calib),
-                                T_w_c0_first);
+  SlidingWindowEstimator<Scalar> estimator(config, options.variant, rigFromCalib(sequence.calib),
+                                           T_w_c0_first, std::move(imu));
   std::vector<std::int64_t> t_ns;
   std::vector<Eigen::Vector3d> positions;
   std::vector<Eigen::Quaterniond> quaternions;
@@ -102,22 +166,18 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
     record.cost_final = result.cost_final;
     record.t_opt_s = result.t_opt_s;
     record.t_marg_s = result.t_marg_s;
-    record.p_est = result.T_w_c.translation();
-    record.q_est = result.T_w_c.unitQuaternion();
-    if (auto p_gt = interpolatePosition(gt_cam, frame.t_ns)) record.p_gt = *p_gt;
+    record.p_est = result.T_w_i.translation();
+    record.q_est = result.T_w_i.unitQuaternion();
+    if (auto p_gt = interpolatePosition(gt_est, frame.t_ns)) record.p_gt = *p_gt;
     writer.appendFrame(record);
     t_ns.push_back(frame.t_ns);
     positions.push_back(record.p_est);
     quaternions.push_back(record.q_est);
 
-    if (result.marg_event && result.status.ok() && !result.marg_event->frame_ids.empty()) {
+    if (result.marg_event && result.status.ok() && !result.marg_event->layout.empty()) {
       const MargEvent& event = *result.marg_event;
-      PriorLayout layout;
-      GaugeState state;
-      for (size_t i = 0; i < event.frame_ids.size(); ++i) {
-        layout.push_back({PriorVariableKind::kPose, event.frame_ids[i], static_cast<int>(6 * i)});
-        state.T_w_i[event.frame_ids[i]] = event.T_w_c[i];
-      }
+      const PriorLayout& layout = event.layout;
+      const GaugeState& state = event.state;
       const std::uint64_t seed = config.diagnostics_seed + static_cast<std::uint64_t>(marg_index);
       const bool sqrt_storage = options.variant.storage == PriorStorage::kSqrt;
       const PriorDiagnostics diagnostics =
@@ -189,10 +249,21 @@ RunOutcome runSequence(const RunOptions& options) {
   if (stream.frames.empty()) {
     throw InputError(sequence.directory, 0, "no camera frame lies inside the trajectory");
   }
-  if (options.variant.precision == Precision::kF32) {
-    return runWith<float>(options, sequence, stream, spline, config);
+  RunOptions resolved = options;
+  if (resolved.mode == RunMode::kAuto) {
+    resolved.mode = sequence.kind == DatasetKind::kKitti ? RunMode::kVo : RunMode::kVio;
   }
-  return runWith<double>(options, sequence, stream, spline, config);
+  if (resolved.mode == RunMode::kVio && sequence.kind == DatasetKind::kKitti) {
+    throw InputError(sequence.directory, 0,
+                     "KITTI odometry has no IMU: VIO needs EuRoC or TUM-VI (use --mode vo)");
+  }
+  if (resolved.mode == RunMode::kVo && resolved.imu == ImuSource::kReal) {
+    throw UsageError("--imu real needs VIO (--mode vio)");
+  }
+  if (options.variant.precision == Precision::kF32) {
+    return runWith<float>(resolved, sequence, stream, spline, config);
+  }
+  return runWith<double>(resolved, sequence, stream, spline, config);
 }
 
 }  // namespace marglab

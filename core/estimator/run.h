@@ -22,9 +22,17 @@
 
 namespace marglab {
 
+// VO: stereo only (the state is the left camera). VIO: stereo + IMU (the state is the body).
+// kAuto: VIO where the dataset has an IMU (EuRoC, TUM-VI), VO on KITTI.
+enum class RunMode { kAuto, kVo, kVio };
+// The IMU of a VIO run: synthesized from the spline (default), or the sequence's recording.
+enum class ImuSource { kSynthetic, kReal };
+
 struct RunOptions {
   std::string dataset;  // "kitti/10", "euroc/MH_01_easy", or a folder in original layout
   Variant variant;
+  RunMode mode = RunMode::kAuto;
+  ImuSource imu = ImuSource::kSynthetic;
   int max_frames = 0;  // 0: the whole sequence
   std::uint64_t seed = 1;
   EstimatorConfig config;
@@ -37,6 +45,7 @@ struct RunOptions {
 
 struct RunOutcome {
   RunStatus status = RunStatus::kOk;
+  bool vio = false;  // the mode that ran
   std::int64_t failure_frame = -1;
   std::string failure_reason;
   SummaryValues summary;
