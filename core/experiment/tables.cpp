@@ -1,0 +1,766 @@
+#include "core/experiment/tables.h"
+
+#include <fmt/core.h>
+#include <fmt/format.h>
+
+#include <toml++/toml.h>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <set>
+
+#include "core/common/error.h"
+#include "core/io/results_file.h"
+
+namespace marglab::experiment {
+namespace {
+
+namespace fs = std::filesystem;
+
+int lineOf(const toml::node& node) { return static_cast<int>(node.source().begin.line); }
+
+const std::vector<std::string> kHeadline = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64",
+                                            "sc-sc-sq-f32"};
+const std::vector<std::string> kAblation = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-qr-sqrt-f64",
+                                            "sc-qr-sqrt-f32", "ns-sc-sqrt-f64", "ns-sc-sqrt-f32",
+                                            "sc-sc-sqrt-f64", "sc-sc-sqrt-f32"};
+
+bool startsWith(const std::string& s, const std::string& prefix) { return s.rfind(prefix, 0) == 0; }
+bool isVioDataset(const std::string& d) {
+  return startsWith(d, "euroc/") || startsWith(d, "tumvi/");
+}
+bool isVoDataset(const std::string& d) { return startsWith(d, "kitti/"); }
+
+std::vector<TableColumn> headlineColumns(const std::string& family) {
+  std::vector<TableColumn> columns;
+  for (const std::string& v : kHeadline) {
+    const bool sqrt = startsWith(v, "ns-qr-sqrt");
+    const std::string bits = v.substr(v.size() - 2);
+    columns.push_back({v, fmt::format("{}{}-{}", sqrt ? "√" : "", family, bits),
+                       sqrt ? fmt::format("$\\sqrt{{\\text{{{}}}}}$-{}", family, bits)
+                            : fmt::format("\\textit{{{}-{}}}", family, bits)});
+  }
+  return columns;
+}
+
+std::vector<TableColumn> ablationColumns() {
+  std::vector<TableColumn> columns;
+  for (const std::string& v : kAblation) {
+    // ns-qr-sqrt-f64 → "NS/QR-64": optimization NS+LDLT or SC+LDLT, marginalization NS+QR or SC+SC.
+    std::string opt = v.substr(0, 2), marg = v.substr(3, 2);
+    for (auto* s : {&opt, &marg}) std::transform(s->begin(), s->end(), s->begin(), ::toupper);
+    const std::string label = fmt::format("{}/{}-{}", opt, marg, v.substr(v.size() - 2));
+    columns.push_back({v, label, label});
+  }
+  return columns;
+}
+
+double mean(const std::vector<double>& v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  double s = 0;
+  for (double x : v) s += x;
+  return s / static_cast<double>(v.size());
+}
+
+double roundTo(double v, int decimals) {
+  const double scale = std::pow(10.0, decimals);
+  return std::round(v * scale) / scale;
+}
+
+std::string texEscape(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '_' || c == '%' || c == '&' || c == '#' || c == '$') out += '\\';
+    out += c;
+  }
+  return out;
+}
+
+// Replaces the markdown-only glyphs of notes for LaTeX.
+std::string texNote(const std::string& note) {
+  std::string out = texEscape(note);
+  for (const auto& [from, to] :
+       std::vector<std::pair<std::string, std::string>>{{"√", "$\\sqrt{}$"},
+                                                        {"–", "--"},
+                                                        {"Σ", "$\\Sigma$"},
+                                                        {"×", "$\\times$"},
+                                                        {"σ", "$\\sigma$"},
+                                                        {"`", ""}}) {
+    for (std::size_t p = out.find(from); p != std::string::npos;
+         p = out.find(from, p + to.size())) {
+      out.replace(p, from.size(), to);
+    }
+  }
+  return out;
+}
+
+// Marks the best value(s) of a row per quantity, compared as printed.
+void markBest(std::vector<TableCell>& cells, std::size_t quantities, int decimals, bool higher) {
+  for (auto& cell : cells) cell.best.assign(quantities, false);
+  for (std::size_t q = 0; q < quantities; ++q) {
+    double best =
+        higher ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
+    bool any = false;
+    for (const auto& cell : cells) {
+      if (cell.state != TableCell::State::kValue || !std::isfinite(cell.numbers[q])) continue;
+      const double r = roundTo(cell.numbers[q], decimals);
+      best = higher ? std::max(best, r) : std::min(best, r);
+      any = true;
+    }
+    if (!any) continue;
+    for (auto& cell : cells) {
+      if (cell.state == TableCell::State::kValue && std::isfinite(cell.numbers[q]) &&
+          roundTo(cell.numbers[q], decimals) == best) {
+        cell.best[q] = true;
+      }
+    }
+  }
+}
+
+TableCell paperCell(const PaperTable* table, const std::string& row_key, const std::string& variant,
+                    const std::vector<std::string>& quantities) {
+  TableCell cell;
+  if (table == nullptr) return cell;
+  const PaperTable::Row* row = table->row(row_key);
+  const auto col = std::find(table->columns.begin(), table->columns.end(), variant);
+  if (row == nullptr || col == table->columns.end()) return cell;
+  const std::size_t c = static_cast<std::size_t>(col - table->columns.begin());
+  cell.state = TableCell::State::kValue;
+  for (const std::string& q : quantities) {
+    const auto it = row->cells.find(q);
+    if (it == row->cells.end()) return TableCell{};
+    const PaperCell& p = it->second[c];
+    if (p.state == PaperCell::State::kFailed) {
+      cell.state = TableCell::State::kFailed;
+      cell.numbers.clear();
+      return cell;
+    }
+    if (p.state == PaperCell::State::kMissing) return TableCell{};
+    cell.numbers.push_back(p.value);
+  }
+  return cell;
+}
+
+// The runs of one dataset × variant (all seeds) of the selected override.
+struct Selection {
+  std::vector<const RunRecord*> runs;
+  TableCell::State state() const {
+    if (runs.empty()) return TableCell::State::kMissing;
+    bool missing = false;
+    for (const RunRecord* r : runs) {
+      if (r->state == "failed") return TableCell::State::kFailed;
+      if (r->state != "ok") missing = true;
+    }
+    return missing ? TableCell::State::kMissing : TableCell::State::kValue;
+  }
+};
+
+class Builder {
+ public:
+  Builder(const ResultSet& results, const PaperValues& paper, const std::string& override_name)
+      : paper_(paper) {
+    // Deduplicate dataset × variant × seed: the run with more requested frames wins.
+    std::map<std::string, const RunRecord*> chosen;
+    for (const RunRecord& r : results.runs) {
+      if (r.row.get("override") != override_name) continue;
+      const std::string key =
+          r.row.get("dataset") + "|" + r.row.get("variant") + "|" + r.row.get("seed");
+      auto frames = [](const RunRecord* x) {
+        const double f = x->row.number("frames");
+        return !std::isfinite(f) || f <= 0 ? std::numeric_limits<double>::infinity() : f;
+      };
+      auto it = chosen.find(key);
+      if (it == chosen.end() || frames(&r) > frames(it->second)) chosen[key] = &r;
+    }
+    for (const auto& [key, run] : chosen) {
+      by_cell_[run->row.get("dataset") + "|" + run->row.get("variant")].runs.push_back(run);
+      datasets_.insert(run->row.get("dataset"));
+      modes_.insert(run->mode.empty() ? "?" : run->mode);
+    }
+  }
+
+  const Selection& select(const std::string& dataset, const std::string& variant) const {
+    static const Selection kNone;
+    const auto it = by_cell_.find(dataset + "|" + variant);
+    return it == by_cell_.end() ? kNone : it->second;
+  }
+
+  // Datasets of a family, in the paper's row order, then the others by name.
+  std::vector<std::string> rowsFor(bool (*family)(const std::string&), const PaperTable* table,
+                                   const std::vector<std::string>& variants) const {
+    std::vector<std::string> rows;
+    auto present = [&](const std::string& d) {
+      return std::any_of(variants.begin(), variants.end(),
+                         [&](const std::string& v) { return !select(d, v).runs.empty(); });
+    };
+    if (table != nullptr) {
+      for (const auto& row : table->rows) {
+        if (datasets_.count(row.key) && present(row.key)) rows.push_back(row.key);
+      }
+    }
+    for (const std::string& d : datasets_) {
+      if (family(d) && present(d) && std::find(rows.begin(), rows.end(), d) == rows.end()) {
+        rows.push_back(d);
+      }
+    }
+    return rows;
+  }
+
+  std::string framesLabel(const std::string& dataset,
+                          const std::vector<std::string>& variants) const {
+    double most = 0;
+    for (const std::string& v : variants) {
+      for (const RunRecord* r : select(dataset, v).runs) {
+        const double f = r->row.number("frames");
+        if (!std::isfinite(f) || f <= 0) return "all";
+        most = std::max(most, f);
+      }
+    }
+    return most > 0 ? fmt::format("{:.0f}", most) : "";
+  }
+
+  std::string rowLabel(const PaperTable* table, const std::string& dataset, bool* estimate) const {
+    std::string label = dataset;
+    if (table != nullptr) {
+      if (const PaperTable::Row* row = table->row(dataset)) label = row->label;
+    }
+    for (const auto& [key, sel] : by_cell_) {
+      if (!startsWith(key, dataset + "|")) continue;
+      for (const RunRecord* r : sel.runs) {
+        if (r->gt_source.find("estimate") != std::string::npos) {
+          *estimate = true;
+          return label + "*";
+        }
+      }
+    }
+    return label;
+  }
+
+  std::string modeNote() const {
+    std::vector<std::string> modes(modes_.begin(), modes_.end());
+    return fmt::format("Estimator mode of our runs (results attribute `mode`): {}.",
+                       fmt::join(modes, ", "));
+  }
+
+  // Tables 1, 2 (ATE) and 3, 5 (runtime).
+  std::optional<Table> perSequence(int number, bool vio) const {
+    const std::string id = fmt::format("table{}", number);
+    const PaperTable* paper = paperTable(id);
+    const bool ate = number == 1 || number == 2;
+    Table t;
+    t.id = id;
+    t.title = ate ? fmt::format("Table {}: absolute trajectory error [m], {}", number,
+                                vio ? "VIO (EuRoC, TUM-VI)" : "VO (KITTI)")
+                  : fmt::format("Table {}: runtime [s], optimization / marginalization, {}", number,
+                                vio ? "VIO (EuRoC, TUM-VI)" : "VO (KITTI)");
+    t.row_header = "sequence";
+    t.quantities = ate ? std::vector<std::string>{"ate"} : std::vector<std::string>{"opt", "marg"};
+    t.columns = headlineColumns(vio ? "VIO" : "VO");
+    bool any_estimate = false;
+    for (const std::string& dataset : rowsFor(vio ? isVioDataset : isVoDataset, paper, kHeadline)) {
+      TableRow row;
+      row.key = dataset;
+      row.label = rowLabel(paper, dataset, &any_estimate);
+      row.frames = framesLabel(dataset, kHeadline);
+      row.ours_decimals = ate ? 4 : 2;
+      row.paper_decimals = ate ? (vio ? 3 : 2) : 1;
+      for (const TableColumn& column : t.columns) {
+        const Selection& sel = select(dataset, column.variant);
+        TableCell cell;
+        cell.state = sel.state();
+        cell.n_runs = static_cast<int>(sel.runs.size());
+        if (cell.state == TableCell::State::kValue) {
+          std::vector<double> a, o, m;
+          for (const RunRecord* r : sel.runs) {
+            a.push_back(r->ate_rmse);
+            o.push_back(r->t_opt_s);
+            m.push_back(r->t_marg_s);
+          }
+          cell.numbers = ate ? std::vector<double>{mean(a)} : std::vector<double>{mean(o), mean(m)};
+        }
+        row.ours.push_back(cell);
+        row.paper.push_back(paperCell(paper, dataset, column.variant, t.quantities));
+      }
+      markBest(row.ours, t.quantities.size(), row.ours_decimals, false);
+      markBest(row.paper, t.quantities.size(), row.paper_decimals, false);
+      t.rows.push_back(std::move(row));
+    }
+    if (t.rows.empty()) return std::nullopt;
+    t.notes.push_back(
+        ate ? "ATE: RMSE of the positions after SE(3) alignment to the reference, in metres "
+              "(results /summary ate_rmse)."
+            : "Total wall time of optimization / marginalization in seconds (results /summary "
+              "t_opt_total_s / t_marg_total_s); diagnostics are not timed.");
+    t.notes.push_back(modeNote());
+    t.notes.push_back(
+        "Ours: simulated stereo tracks along the real trajectories, `frames` = frames per run "
+        "(`all`: the whole sequence); the paper: real images, whole sequences" +
+        std::string(ate ? "." : ", on a 12-thread Xeon W-2133."));
+    if (any_estimate) {
+      t.notes.push_back(
+          "*: the shipped reference trajectory is a VIO estimate, not ground truth; our ATE is "
+          "relative to it.");
+    }
+    addCommonNotes(&t, paper, vio ? isVioDataset : isVoDataset);
+    return t;
+  }
+
+  // Tables 4 and 6.
+  std::optional<Table> ablation(int number, bool (*family)(const std::string&),
+                                const std::string& family_name, std::string* why) const {
+    const std::string id = fmt::format("table{}", number);
+    const PaperTable* paper = paperTable(id);
+    std::vector<std::string> sequences;
+    for (const std::string& d : datasets_) {
+      if (!family(d)) continue;
+      if (std::all_of(kAblation.begin(), kAblation.end(), [&](const std::string& v) {
+            return select(d, v).state() != TableCell::State::kMissing;
+          })) {
+        sequences.push_back(d);
+      }
+    }
+    if (sequences.empty()) {
+      *why = fmt::format("Table {}: no {} sequence has all eight ablation variants ({})", number,
+                         family_name, fmt::join(kAblation, ", "));
+      return std::nullopt;
+    }
+    Table t;
+    t.id = id;
+    t.title = fmt::format(
+        "Table {}: ablation of optimization / marginalization and precision, "
+        "{}, square-root prior storage (averages)",
+        number, number == 4 ? "VIO on EuRoC" : "VO on KITTI");
+    t.row_header = "metric";
+    t.quantities = {"value"};
+    t.columns = ablationColumns();
+    struct Metric {
+      const char* key;
+      const char* label;
+      int ours_decimals, paper_decimals;
+      bool higher;
+      const char* suffix;
+    };
+    const Metric metrics[] = {{"ate_m", "ATE [m]", 4, 3, false, ""},
+                              {"realtime", "real-time", 1, 1, true, "x"},
+                              {"t_total_s", "t total [s]", 2, 1, false, ""},
+                              {"t_opt_s", "t opt [s]", 2, 1, false, ""},
+                              {"t_marg_s", "t marg [s]", 2, 1, false, ""}};
+    std::string frames;
+    for (const Metric& metric : metrics) {
+      TableRow row;
+      row.key = metric.key;
+      row.label = metric.label;
+      row.ours_decimals = metric.ours_decimals;
+      row.paper_decimals = metric.paper_decimals;
+      row.higher_is_better = metric.higher;
+      row.suffix = metric.suffix;
+      for (const TableColumn& column : t.columns) {
+        TableCell cell;
+        cell.state = TableCell::State::kValue;
+        std::vector<double> ate, total, opt, marg;
+        double duration = 0, wall = 0;
+        for (const std::string& d : sequences) {
+          const Selection& sel = select(d, column.variant);
+          cell.n_runs += static_cast<int>(sel.runs.size());
+          if (sel.state() == TableCell::State::kFailed) cell.state = TableCell::State::kFailed;
+          if (sel.state() != TableCell::State::kValue) continue;
+          std::vector<double> a, w, o, m;
+          for (const RunRecord* r : sel.runs) {
+            a.push_back(r->ate_rmse);
+            w.push_back(r->t_opt_s + r->t_marg_s);
+            o.push_back(r->t_opt_s);
+            m.push_back(r->t_marg_s);
+            duration += r->duration_s;
+            wall += r->t_opt_s + r->t_marg_s;
+          }
+          ate.push_back(mean(a));
+          total.push_back(mean(w));
+          opt.push_back(mean(o));
+          marg.push_back(mean(m));
+        }
+        if (cell.state == TableCell::State::kValue) {
+          const std::string key = metric.key;
+          cell.numbers = {key == "ate_m"       ? mean(ate)
+                          : key == "realtime"  ? duration / wall
+                          : key == "t_total_s" ? mean(total)
+                          : key == "t_opt_s"   ? mean(opt)
+                                               : mean(marg)};
+        }
+        row.ours.push_back(cell);
+        row.paper.push_back(paperCell(paper, metric.key, column.variant, t.quantities));
+      }
+      markBest(row.ours, 1, row.ours_decimals, row.higher_is_better);
+      markBest(row.paper, 1, row.paper_decimals, row.higher_is_better);
+      t.rows.push_back(std::move(row));
+    }
+    std::vector<std::string> labels;
+    for (const std::string& d : sequences) {
+      labels.push_back(fmt::format("{} ({} frames)", d, framesLabel(d, kAblation)));
+    }
+    t.notes.push_back(fmt::format(
+        "Columns: optimization / marginalization - precision; NS = nullspace projection "
+        "(NS+LDLT, NS+QR), SC = Schur complement (SC+LDLT, SC+SC); all store the prior in square "
+        "root form. Ours: averages over {} sequence(s) that have all eight variants: {}.",
+        sequences.size(), fmt::join(labels, ", ")));
+    t.notes.push_back(
+        "t total = t opt + t marg (our front-end is simulated and not timed); real-time = "
+        "Σ duration / Σ t total; x: the variant failed on at least one of these sequences.");
+    t.notes.push_back(modeNote());
+    addCommonNotes(&t, paper, nullptr);
+    return t;
+  }
+
+ private:
+  const PaperTable* paperTable(const std::string& id) const {
+    const auto it = paper_.tables.find(id);
+    return it == paper_.tables.end() ? nullptr : &it->second;
+  }
+
+  void addCommonNotes(Table* t, const PaperTable* paper, bool (*family)(const std::string&)) const {
+    if (paper != nullptr) {
+      t->notes.push_back(fmt::format("Paper: {} of {} ({}).",
+                                     paper->source.substr(0, paper->source.find(':')),
+                                     paper_.source, fs::path(paper_.file).filename().string()));
+      if (family != nullptr) {
+        std::vector<std::string> absent;
+        for (const auto& row : paper->rows) {
+          const bool shown = std::any_of(t->rows.begin(), t->rows.end(),
+                                         [&](const TableRow& r) { return r.key == row.key; });
+          if (!shown) absent.push_back(row.label);
+        }
+        if (!absent.empty()) {
+          t->notes.push_back(
+              fmt::format("Paper rows without runs of ours here: {}.", fmt::join(absent, ", ")));
+        }
+      }
+    }
+    t->notes.push_back(
+        "Bold: best of the row among ours and among the paper's values (as printed); x: failed; "
+        "–: no run.");
+  }
+
+  const PaperValues& paper_;
+  std::map<std::string, Selection> by_cell_;
+  std::set<std::string> datasets_;
+  std::set<std::string> modes_;
+};
+
+std::string cellMarkdown(const TableCell& cell, const TableRow& row, bool ours) {
+  const int decimals = ours ? row.ours_decimals : row.paper_decimals;
+  if (cell.state != TableCell::State::kValue) return formatCell(cell, 0, decimals, row.suffix);
+  std::vector<std::string> parts;
+  for (std::size_t q = 0; q < cell.numbers.size(); ++q) {
+    const std::string text = formatCell(cell, q, decimals, row.suffix);
+    parts.push_back(cell.best.size() > q && cell.best[q] ? "**" + text + "**" : text);
+  }
+  return fmt::format("{}", fmt::join(parts, " / "));
+}
+
+std::string cellLatex(const TableCell& cell, const TableRow& row, bool ours) {
+  const int decimals = ours ? row.ours_decimals : row.paper_decimals;
+  if (cell.state == TableCell::State::kMissing) return "--";
+  if (cell.state == TableCell::State::kFailed) return "x";
+  std::vector<std::string> parts;
+  for (std::size_t q = 0; q < cell.numbers.size(); ++q) {
+    const std::string text = formatCell(cell, q, decimals, row.suffix);
+    parts.push_back(cell.best.size() > q && cell.best[q] ? "\\textbf{" + text + "}" : text);
+  }
+  return fmt::format("{}", fmt::join(parts, " / "));
+}
+
+std::string csvNumber(double v) { return std::isfinite(v) ? fmt::format("{:.17g}", v) : ""; }
+
+const char* stateName(TableCell::State s) {
+  return s == TableCell::State::kValue    ? "ok"
+         : s == TableCell::State::kFailed ? "failed"
+                                          : "missing";
+}
+
+}  // namespace
+
+// ---- paper values -------------------------------------------------------------------------------
+
+const PaperTable::Row* PaperTable::row(const std::string& key) const {
+  for (const Row& r : rows) {
+    if (r.key == key) return &r;
+  }
+  return nullptr;
+}
+
+std::string defaultPaperValuesPath() {
+  return std::string(MARGLAB_SOURCE_DIR) + "/experiments/paper_values.toml";
+}
+
+PaperValues loadPaperValues(const std::string& path) {
+  toml::table root;
+  try {
+    root = toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    throw InputError(path, static_cast<int>(e.source().begin.line), std::string(e.description()));
+  }
+  PaperValues values;
+  values.file = path;
+  values.source = root["source"].value_or(std::string());
+  for (const auto& [key, node] : root) {
+    const std::string id(key.str());
+    if (id == "source") continue;
+    const toml::table* table = node.as_table();
+    if (table == nullptr || !startsWith(id, "table")) {
+      throw InputError(path, lineOf(node), "expected source = \"...\" or [tableN] tables");
+    }
+    PaperTable t;
+    t.id = id;
+    t.source = (*table)["source"].value_or(std::string());
+    for (const char* list : {"columns", "quantities"}) {
+      const toml::array* array = (*table)[list].as_array();
+      if (array == nullptr || array->empty()) {
+        throw InputError(path, lineOf(*table), fmt::format("[{}] needs {} = [...]", id, list));
+      }
+      for (const toml::node& item : *array) {
+        if (!item.is_string()) throw InputError(path, lineOf(item), "expected a string");
+        (std::string(list) == "columns" ? t.columns : t.quantities).push_back(**item.as_string());
+      }
+    }
+    const toml::array* rows = (*table)["row"].as_array();
+    if (rows == nullptr) throw InputError(path, lineOf(*table), "[" + id + "] needs row = [...]");
+    for (const toml::node& row_node : *rows) {
+      const toml::table* row = row_node.as_table();
+      if (row == nullptr) throw InputError(path, lineOf(row_node), "a row must be a table");
+      PaperTable::Row r;
+      r.key = (*row)["dataset"].value_or((*row)["metric"].value_or(std::string()));
+      r.label = (*row)["label"].value_or(r.key);
+      if (r.key.empty()) {
+        throw InputError(path, lineOf(row_node),
+                         "a row needs dataset = \"...\" or metric = \"...\"");
+      }
+      for (const std::string& q : t.quantities) {
+        const toml::array* cells = (*row)[q].as_array();
+        if (cells == nullptr || cells->size() != t.columns.size()) {
+          throw InputError(
+              path, lineOf(row_node),
+              fmt::format("row {} needs {} = [...] with {} values", r.key, q, t.columns.size()));
+        }
+        std::vector<PaperCell> list;
+        for (const toml::node& cell : *cells) {
+          PaperCell c;
+          if (const auto v = cell.value<double>();
+              v && (cell.is_floating_point() || cell.is_integer())) {
+            c.state = PaperCell::State::kValue;
+            c.value = *v;
+          } else if (cell.is_string() && **cell.as_string() == "x") {
+            c.state = PaperCell::State::kFailed;
+          } else if (cell.is_string() && **cell.as_string() == "n/a") {
+            c.state = PaperCell::State::kMissing;
+          } else {
+            throw InputError(path, lineOf(cell), "expected a number, \"x\" or \"n/a\"");
+          }
+          list.push_back(c);
+        }
+        r.cells[q] = std::move(list);
+      }
+      t.rows.push_back(std::move(r));
+    }
+    values.tables[id] = std::move(t);
+  }
+  return values;
+}
+
+// ---- results ------------------------------------------------------------------------------------
+
+ResultSet loadResults(const std::vector<std::string>& dirs) {
+  ResultSet set;
+  for (const std::string& dir : dirs) {
+    const std::string index = (fs::path(dir) / "index.csv").string();
+    for (const IndexRow& row : readIndex(index)) {
+      RunRecord r;
+      r.row = row;
+      r.dir = dir;
+      r.results_path = (fs::path(dir) / row.get("results")).string();
+      r.state = row.get("status") == "failed" ? "failed" : "missing";
+      if (!row.get("results").empty() && fs::is_regular_file(r.results_path)) {
+        try {
+          const ResultsReader reader(r.results_path);
+          const RunInfo& info = reader.info();
+          if (info.metadata.variant != row.get("variant")) {
+            throw InputError(r.results_path, 0,
+                             fmt::format("variant {} but the index says {}", info.metadata.variant,
+                                         row.get("variant")));
+          }
+          const SummaryValues s = reader.summary();
+          r.state = info.status == "ok" ? "ok" : "failed";
+          r.mode = info.metadata.mode;
+          for (const auto& [name, value] : info.metadata.extra) {
+            if (name == "gt_source") r.gt_source = value;
+          }
+          r.ate_rmse = s.ate_rmse;
+          r.t_opt_s = s.t_opt_total_s;
+          r.t_marg_s = s.t_marg_total_s;
+          r.wall_s = s.wall_time_s;
+          r.duration_s = s.duration_s;
+          r.n_frames = s.n_frames;
+          r.failure_frame = info.failure_frame;
+        } catch (const InputError& e) {
+          set.warnings.push_back(
+              fmt::format("{}: not a complete results file ({}); counted as "
+                          "not run",
+                          r.results_path, e.what()));
+          r.state = "missing";
+        }
+      } else if (r.state != "failed") {
+        if (row.get("status") == "ok") {
+          set.warnings.push_back(r.results_path + " is listed as ok but does not exist");
+        }
+      }
+      set.runs.push_back(std::move(r));
+    }
+  }
+  return set;
+}
+
+// ---- tables -------------------------------------------------------------------------------------
+
+std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& paper) {
+  std::set<std::string> overrides;
+  for (const RunRecord& r : results.runs) overrides.insert(r.row.get("override"));
+  std::vector<TableSet> sets;
+  for (const std::string& o : overrides) {
+    Builder builder(results, paper, o);
+    TableSet set;
+    set.override_name = o;
+    auto add = [&](std::optional<Table> t, const std::string& why) {
+      if (t) {
+        set.tables.push_back(std::move(*t));
+      } else if (!why.empty()) {
+        set.skipped.push_back(why);
+      }
+    };
+    add(builder.perSequence(1, true), "Table 1: no EuRoC / TUM-VI runs");
+    add(builder.perSequence(2, false), "Table 2: no KITTI runs");
+    add(builder.perSequence(3, true), "Table 3: no EuRoC / TUM-VI runs");
+    std::string why;
+    add(builder.ablation(
+            4, [](const std::string& d) { return startsWith(d, "euroc/"); }, "EuRoC", &why),
+        why);
+    add(builder.perSequence(5, false), "Table 5: no KITTI runs");
+    why.clear();
+    add(builder.ablation(6, isVoDataset, "KITTI", &why), why);
+    sets.push_back(std::move(set));
+  }
+  return sets;
+}
+
+std::string formatCell(const TableCell& cell, std::size_t component, int decimals,
+                       const std::string& suffix) {
+  if (cell.state == TableCell::State::kFailed) return "x";
+  if (cell.state == TableCell::State::kMissing || component >= cell.numbers.size()) return "–";
+  const double v = cell.numbers[component];
+  if (std::isnan(v)) return "nan";
+  return fmt::format("{:.{}f}{}", v, decimals, suffix);
+}
+
+std::string renderMarkdown(const Table& table) {
+  std::string out = "### " + table.title + "\n\n| " + table.row_header + " |";
+  const bool frames = std::any_of(table.rows.begin(), table.rows.end(),
+                                  [](const TableRow& r) { return !r.frames.empty(); });
+  if (frames) out += " frames |";
+  for (const TableColumn& c : table.columns) out += fmt::format(" {} | paper |", c.label_md);
+  out += "\n|---|";
+  if (frames) out += "---:|";
+  for (std::size_t i = 0; i < table.columns.size(); ++i) out += "---:|---:|";
+  out += "\n";
+  for (const TableRow& row : table.rows) {
+    out += "| " + row.label + " |";
+    if (frames) out += " " + row.frames + " |";
+    for (std::size_t c = 0; c < table.columns.size(); ++c) {
+      out += fmt::format(" {} | {} |", cellMarkdown(row.ours[c], row, true),
+                         cellMarkdown(row.paper[c], row, false));
+    }
+    out += "\n";
+  }
+  out += "\n";
+  for (const std::string& note : table.notes) out += note + "\n";
+  return out + "\n";
+}
+
+std::string renderLatex(const Table& table) {
+  const bool frames = std::any_of(table.rows.begin(), table.rows.end(),
+                                  [](const TableRow& r) { return !r.frames.empty(); });
+  const std::size_t lead = frames ? 2 : 1;
+  std::string out =
+      "% " + table.title + " (marglab tables; needs \\usepackage{booktabs,amsmath})\n";
+  out += "\\begin{table}[t]\n\\centering\n\\small\n";
+  out += "\\begin{tabular}{l" + std::string(frames ? "r" : "");
+  for (std::size_t i = 0; i < table.columns.size(); ++i) out += "rr";
+  out += "}\n\\toprule\n" + texEscape(table.row_header) + (frames ? " & frames" : "");
+  for (const TableColumn& c : table.columns) {
+    out += " & \\multicolumn{2}{c}{" + c.label_tex + "}";
+  }
+  out += " \\\\\n";
+  for (std::size_t i = 0; i < table.columns.size(); ++i) {
+    out += fmt::format("\\cmidrule(lr){{{}-{}}}", lead + 1 + 2 * i, lead + 2 + 2 * i);
+  }
+  out += "\n" + std::string(frames ? " & " : "");
+  for (std::size_t i = 0; i < table.columns.size(); ++i) out += " & ours & paper";
+  out += " \\\\\n\\midrule\n";
+  for (const TableRow& row : table.rows) {
+    out += texEscape(row.label);
+    if (frames) out += " & " + row.frames;
+    for (std::size_t c = 0; c < table.columns.size(); ++c) {
+      out +=
+          " & " + cellLatex(row.ours[c], row, true) + " & " + cellLatex(row.paper[c], row, false);
+    }
+    out += " \\\\\n";
+  }
+  out += "\\bottomrule\n\\end{tabular}\n\\caption{" + texNote(table.title) + ". ";
+  for (const std::string& note : table.notes) out += texNote(note) + " ";
+  out += "}\n\\label{tab:marglab-" + table.id + "}\n\\end{table}\n\n";
+  return out;
+}
+
+std::string renderCsv(const std::vector<Table>& tables, const std::string& override_name) {
+  std::string out =
+      "table,override,row,label,frames,column,variant,quantity,ours,ours_state,ours_best,n_runs,"
+      "paper,paper_state,paper_best\n";
+  for (const Table& t : tables) {
+    for (const TableRow& row : t.rows) {
+      for (std::size_t c = 0; c < t.columns.size(); ++c) {
+        for (std::size_t q = 0; q < t.quantities.size(); ++q) {
+          const std::string quantity = t.quantities[q] == "value" ? row.key : t.quantities[q];
+          const TableCell& ours = row.ours[c];
+          const TableCell& paper = row.paper[c];
+          const auto number = [&](const TableCell& cell) {
+            return cell.state == TableCell::State::kValue && q < cell.numbers.size()
+                       ? csvNumber(cell.numbers[q])
+                       : std::string();
+          };
+          const auto best = [&](const TableCell& cell) {
+            return cell.best.size() > q && cell.best[q] ? "1" : "0";
+          };
+          const std::vector<std::string> fields = {t.id,
+                                                   override_name,
+                                                   row.key,
+                                                   row.label,
+                                                   row.frames,
+                                                   t.columns[c].label_md,
+                                                   t.columns[c].variant,
+                                                   quantity,
+                                                   number(ours),
+                                                   stateName(ours.state),
+                                                   best(ours),
+                                                   std::to_string(ours.n_runs),
+                                                   number(paper),
+                                                   stateName(paper.state),
+                                                   best(paper)};
+          for (std::size_t f = 0; f < fields.size(); ++f) {
+            out += (f ? "," : "") + csvField(fields[f]);
+          }
+          out += "\n";
+        }
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace marglab::experiment

@@ -1,0 +1,140 @@
+#pragma once
+// Regenerates Tables 1–6 of Demmel et al. (ICCV 2021) from sweep results, with the paper's
+// published values (experiments/paper_values.toml) beside ours:
+//
+//   Table 1  ATE [m] per sequence, VIO (EuRoC, TUM-VI)         columns √-64, √-32, SC-64, SC-32
+//   Table 2  ATE [m] per sequence, VO (KITTI)                   (ns-qr-sqrt, sc-sc-sq × f64/f32)
+//   Table 3  runtime [s] optimization / marginalization, VIO
+//   Table 5  the same for VO
+//   Table 4  ablation on EuRoC: ATE, real-time factor, t total / opt / marg, averaged over the
+//   Table 6  ablation on KITTI   sequences that have all eight square-root-storage variants
+//
+// Every value of ours is read from the runs' HDF5 results files (/summary: ate_rmse,
+// t_opt_total_s, t_marg_total_s, wall_time_s, duration_s; root attribute status) — never from
+// the index. Rules, also stated under each table:
+//   - a cell is `x` when any of its runs failed (numerically, or the process died), `–` when it
+//     has no run (not planned, or not finished);
+//   - several seeds: the mean over seeds;
+//   - ablation averages are over the sequences that have all eight variants; a variant that
+//     failed on one of them is `x`; real-time factor = Σ duration / Σ (t_opt + t_marg);
+//     t total = t_opt + t_marg (the front-end is simulated, so it is not timed);
+//   - bold: the best value of the row (lowest; highest real-time factor) among ours, and among the
+//     paper's, compared as printed, so that ties are all bold as in the paper;
+//   - when the same dataset × variant × seed × override was run more than once (several groups or
+//     folders), the run with more requested frames is used.
+// One table set per override name of the sweep ("" = runs without override).
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/experiment/sweep_index.h"
+
+namespace marglab::experiment {
+
+// ---- the paper's values -------------------------------------------------------------------------
+
+struct PaperCell {
+  enum class State { kValue, kFailed, kMissing } state = State::kMissing;
+  double value = 0;
+};
+
+struct PaperTable {
+  std::string id;                       // "table1"
+  std::string source;                   // "Table 1: ..."
+  std::vector<std::string> columns;     // variants
+  std::vector<std::string> quantities;  // "ate" | "opt", "marg" | "value"
+  struct Row {
+    std::string key;    // dataset ("kitti/10") or metric ("ate_m")
+    std::string label;  // the paper's row label
+    std::map<std::string, std::vector<PaperCell>> cells;  // quantity → one per column
+  };
+  std::vector<Row> rows;
+  const Row* row(const std::string& key) const;
+};
+
+struct PaperValues {
+  std::string file;
+  std::string source;  // citation
+  std::map<std::string, PaperTable> tables;
+};
+
+// Reads experiments/paper_values.toml; throws InputError(file, line, what).
+PaperValues loadPaperValues(const std::string& path);
+std::string defaultPaperValuesPath();  // <source dir>/experiments/paper_values.toml
+
+// ---- our results --------------------------------------------------------------------------------
+
+struct RunRecord {
+  IndexRow row;              // the index row
+  std::string dir;           // the sweep folder it came from
+  std::string results_path;  // absolute or relative to the working directory
+  std::string state;         // "ok" | "failed" | "missing" (no complete file, not failed)
+  std::string mode;          // results file attribute "mode" ("vo" | "vio")
+  std::string gt_source;     // results file attribute "gt_source" (may be "")
+  double ate_rmse = 0, t_opt_s = 0, t_marg_s = 0, wall_s = 0, duration_s = 0;
+  long long n_frames = 0;
+  long long failure_frame = -1;
+};
+
+struct ResultSet {
+  std::vector<RunRecord> runs;
+  std::vector<std::string> warnings;
+};
+
+// Reads <dir>/index.csv of each folder and every results file it lists.
+ResultSet loadResults(const std::vector<std::string>& dirs);
+
+// ---- tables -------------------------------------------------------------------------------------
+
+struct TableCell {
+  enum class State { kValue, kFailed, kMissing } state = State::kMissing;
+  std::vector<double> numbers;  // one per quantity
+  std::vector<bool> best;       // one per quantity
+  int n_runs = 0;
+};
+
+struct TableRow {
+  std::string key;     // dataset or metric
+  std::string label;   // paper label (+ '*' when the reference is an estimate)
+  std::string frames;  // "all" | "N" (requested frames of our runs), "" for metric rows
+  int ours_decimals = 3;
+  int paper_decimals = 3;
+  bool higher_is_better = false;
+  std::string suffix;            // printed after numbers ("x" for the real-time factor)
+  std::vector<TableCell> ours;   // one per column
+  std::vector<TableCell> paper;  // one per column
+};
+
+struct TableColumn {
+  std::string variant;
+  std::string label_md;   // "√VIO-64"
+  std::string label_tex;  // "$\sqrt{\text{VIO}}$-64"
+};
+
+struct Table {
+  std::string id;     // "table1"
+  std::string title;  // "Table 1: absolute trajectory error [m], VIO"
+  std::string row_header;
+  std::vector<std::string> quantities;
+  std::vector<TableColumn> columns;
+  std::vector<TableRow> rows;
+  std::vector<std::string> notes;
+};
+
+struct TableSet {
+  std::string override_name;         // "" for runs without override
+  std::vector<Table> tables;         // only tables with at least one row of ours
+  std::vector<std::string> skipped;  // why a table is absent
+};
+
+std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& paper);
+
+std::string renderMarkdown(const Table& table);
+std::string renderLatex(const Table& table);
+std::string renderCsv(const std::vector<Table>& tables, const std::string& override_name);
+// A number as the tables print it: fixed decimals, "x" for failures, "–" for missing.
+std::string formatCell(const TableCell& cell, std::size_t component, int decimals,
+                       const std::string& suffix);
+
+}  // namespace marglab::experiment
