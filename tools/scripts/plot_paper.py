@@ -1,0 +1,302 @@
+#!/usr/bin/env python3
+"""Figures of Demmel et al. (ICCV 2021) from marglab sweep results (HDF5 files listed in index.csv).
+
+Usage: plot_paper.py --out DIR [--vio-dataset euroc/MH_01_easy] [--vo-dataset kitti/10]
+                     [--figures fig1,fig4,fig5,fig6,fig7] SWEEP_DIR [SWEEP_DIR ...]
+
+Writes PNG and PDF into DIR (slug = dataset with '/' -> '-'):
+  fig1_<slug>            Fig. 1 analog on the VIO dataset: top-down trajectories of the four headline
+                         variants (sqrt-64, sqrt-32, SC-64, SC-32) after SE(3) alignment against the
+                         reference, and sigma_min of the gauge-free prior over time (symlog y axis,
+                         linear within +-1e-8)
+  fig4_dEm_<slug>        Fig. 4 analog: Delta E_m (eq. 27) along x, y, z, roll, pitch, yaw and a random
+                         unit direction over time, one panel per variant, VIO dataset
+  fig5_dEm_<slug>        Fig. 5 analog: the same on the VO dataset
+  fig6_sigma_min_<slug>  Fig. 6 analog: sigma_min over time on the VO dataset
+  fig7_trajectory_<slug> Fig. 7 analog: top-down trajectories on the VO dataset
+The family label (VIO / VO) comes from each results file's `mode` attribute, so the figures say what
+the estimator actually ran. A run that failed is drawn up to its failure and marked with an x.
+Needs matplotlib, h5py and numpy (Debian: python3-matplotlib python3-h5py python3-numpy).
+"""
+import argparse
+import csv
+import os
+import sys
+
+import h5py
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+HEADLINE = ["ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64", "sc-sc-sq-f32"]
+STYLE = {
+    "ns-qr-sqrt-f64": dict(color="tab:blue", ls="-", lw=1.6),
+    "ns-qr-sqrt-f32": dict(color="tab:green", ls="--", lw=1.4),
+    "sc-sc-sq-f64": dict(color="tab:orange", ls="-", lw=1.2),
+    "sc-sc-sq-f32": dict(color="tab:red", ls="-", lw=1.2),
+}
+DIRECTIONS = ["x", "y", "z", "roll", "pitch", "yaw", "random"]
+DIRECTION_COLORS = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
+                    "0.4"]
+LINTHRESH = 1e-8
+
+
+def slug(dataset):
+    return "".join(c if (c.isalnum() or c in "_.-") else "-" for c in dataset).lstrip("-")
+
+
+def label(variant, mode):
+    family = "VIO" if mode == "vio" else "VO"
+    bits = variant[-2:]
+    if variant.startswith("ns-qr-sqrt"):
+        return r"$\sqrt{\mathrm{%s}}$-%s" % (family, bits)
+    if variant.startswith("sc-sc-sq-"):
+        return "%s-%s" % (family, bits)
+    return variant
+
+
+class Run:
+    """One results file, read once."""
+
+    def __init__(self, path, row):
+        self.path = path
+        self.row = row
+        with h5py.File(path, "r") as f:
+            attr = lambda k: f.attrs[k].decode() if isinstance(f.attrs[k], bytes) else f.attrs[k]
+            self.variant = str(attr("variant"))
+            self.mode = str(attr("mode"))
+            self.status = str(attr("status"))
+            self.failure_frame = int(f.attrs["failure_frame"])
+            self.t_ns = f["frames/t_ns"][:]
+            self.p_est = f["frames/p_est"][:]
+            self.p_gt = f["frames/p_gt"][:]
+            s = f["summary"].attrs
+            self.R = np.asarray(s["R_gt_est"], dtype=float).reshape(3, 3)
+            self.t = np.asarray(s["t_gt_est"], dtype=float).reshape(3)
+            self.ate = float(s["ate_rmse"])
+            self.marg_t_ns = f["marg/t_ns"][:]
+            self.sigma_min = f["marg/sigma_min"][:]
+            self.dEm = f["marg/dEm"][:]
+        self.t0 = self.t_ns[0] if len(self.t_ns) else 0
+
+    def time(self, t_ns):
+        return (np.asarray(t_ns, dtype=np.int64) - self.t0) * 1e-9
+
+    def failure_time(self):
+        if self.status != "failed" or len(self.t_ns) == 0:
+            return None
+        k = min(max(self.failure_frame, 0), len(self.t_ns) - 1)
+        return self.time(self.t_ns[k])
+
+    def aligned(self):
+        return self.p_est @ self.R.T + self.t
+
+    def name(self):
+        return label(self.variant, self.mode)
+
+
+def read_rows(dirs):
+    rows = []
+    for d in dirs:
+        index = d if d.endswith(".csv") else os.path.join(d, "index.csv")
+        base = os.path.dirname(index)
+        with open(index, newline="") as f:
+            for row in csv.DictReader(f):
+                row["_path"] = os.path.join(base, row["results"])
+                rows.append(row)
+    return rows
+
+
+def select(rows, dataset):
+    """The headline runs of a dataset: no override (else the first), lowest seed, most frames."""
+    candidates = [r for r in rows if r["dataset"] == dataset and r["variant"] in HEADLINE
+                  and os.path.isfile(r["_path"])]
+    if not candidates:
+        return []
+    overrides = sorted({r["override"] for r in candidates})
+    chosen_override = "" if "" in overrides else overrides[0]
+    best = {}
+    for r in candidates:
+        if r["override"] != chosen_override:
+            continue
+        frames = int(r["frames"] or 0) or 10 ** 12
+        key = r["variant"]
+        rank = (-int(r["seed"]), frames)
+        if key not in best or rank > best[key][0]:
+            best[key] = (rank, r)
+    runs = []
+    for v in HEADLINE:
+        if v in best:
+            try:
+                runs.append(Run(best[v][1]["_path"], best[v][1]))
+            except (OSError, KeyError) as e:
+                print("warning: cannot read %s: %s" % (best[v][1]["_path"], e), file=sys.stderr)
+    return runs
+
+
+def pick_dataset(rows, wanted, family_prefixes):
+    present = sorted({r["dataset"] for r in rows if r["variant"] in HEADLINE})
+    if wanted in present:
+        return wanted
+    fallback = [d for d in present if d.startswith(family_prefixes)]
+    if fallback:
+        print("note: %s has no runs here; using %s" % (wanted, fallback[0]))
+        return fallback[0]
+    return None
+
+
+def plane_axes(p_gt):
+    """The two axes with the largest extent of the reference: top-down for EuRoC (x, y) and
+    KITTI (x, z)."""
+    finite = p_gt[np.all(np.isfinite(p_gt), axis=1)]
+    if len(finite) == 0:
+        return 0, 1
+    extent = finite.max(axis=0) - finite.min(axis=0)
+    a, b = sorted(np.argsort(extent)[-2:])
+    return int(a), int(b)
+
+
+def plot_trajectories(ax, runs, title):
+    ref = max(runs, key=lambda r: len(r.t_ns))
+    a, b = plane_axes(ref.p_gt)
+    gt = ref.p_gt[np.all(np.isfinite(ref.p_gt), axis=1)]
+    ax.plot(gt[:, a], gt[:, b], color="k", lw=3.0, alpha=0.25, label="reference")
+    for run in runs:
+        p = run.aligned()
+        ok = np.all(np.isfinite(p), axis=1)
+        name = run.name()
+        if run.status == "failed":
+            name += " (failed, frame %d)" % run.failure_frame
+        else:
+            name += " (ATE %.3f m)" % run.ate
+        ax.plot(p[ok, a], p[ok, b], label=name, **STYLE[run.variant])
+        if run.status == "failed" and ok.any():
+            last = p[ok][-1]
+            ax.plot(last[a], last[b], "x", color=STYLE[run.variant]["color"], ms=10, mew=2)
+    lo, hi = gt.min(axis=0), gt.max(axis=0)
+    margin = 0.15 * max(hi[a] - lo[a], hi[b] - lo[b], 1e-3)
+    ax.set_xlim(lo[a] - margin, hi[a] + margin)
+    ax.set_ylim(lo[b] - margin, hi[b] + margin)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("xyz"[a] + " [m]")
+    ax.set_ylabel("xyz"[b] + " [m]")
+    ax.set_title(title)
+    ax.legend(fontsize=8, loc="best")
+
+
+def plot_sigma_min(ax, runs, title):
+    for run in runs:
+        ax.plot(run.time(run.marg_t_ns), run.sigma_min, label=run.name(), **STYLE[run.variant])
+        ft = run.failure_time()
+        if ft is not None:
+            ax.axvline(ft, color=STYLE[run.variant]["color"], ls=":", lw=1)
+            if len(run.sigma_min):
+                ax.plot(run.time(run.marg_t_ns[-1]), run.sigma_min[-1], "x",
+                        color=STYLE[run.variant]["color"], ms=9, mew=2)
+    ax.set_yscale("symlog", linthresh=LINTHRESH)
+    ax.axhspan(-LINTHRESH, LINTHRESH, color="0.92", zorder=0)
+    ax.axhline(0, color="0.5", lw=0.5)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(r"$\sigma_{\min}(H_m)$ (gauge-free prior)")
+    ax.set_title(title)
+    ax.legend(fontsize=8, loc="best")
+    ax.grid(True, which="major", alpha=0.3)
+
+
+def plot_dEm(fig, runs, title):
+    axes = fig.subplots(2, 2, sharex=True, sharey=True).ravel()
+    for ax, run in zip(axes, runs):
+        t = run.time(run.marg_t_ns)
+        for j, (d, c) in enumerate(zip(DIRECTIONS, DIRECTION_COLORS)):
+            ax.plot(t, run.dEm[:, j], color=c, lw=1.0, label=d, ls=":" if d == "random" else "-")
+        ft = run.failure_time()
+        if ft is not None:
+            ax.axvline(ft, color="k", ls=":", lw=1)
+        ax.set_yscale("symlog", linthresh=LINTHRESH)
+        ax.axhspan(-LINTHRESH, LINTHRESH, color="0.92", zorder=0)
+        ax.set_title(run.name() + (" (failed)" if run.status == "failed" else ""))
+        ax.grid(True, alpha=0.3)
+    for ax in axes[len(runs):]:
+        ax.set_visible(False)
+    for ax in axes[2:]:
+        ax.set_xlabel("time [s]")
+    for ax in axes[::2]:
+        ax.set_ylabel(r"$\Delta E_m$ (eq. 27)")
+    axes[0].legend(fontsize=7, ncol=2, loc="best")
+    fig.suptitle(title)
+
+
+def save(fig, out, name, written):
+    for ext in ("png", "pdf"):
+        path = os.path.join(out, "%s.%s" % (name, ext))
+        fig.savefig(path, dpi=150, bbox_inches="tight")
+        written.append(path)
+    plt.close(fig)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("dirs", nargs="+", help="sweep folders (with index.csv)")
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--vio-dataset", default="euroc/MH_01_easy")
+    parser.add_argument("--vo-dataset", default="kitti/10")
+    parser.add_argument("--figures", default="fig1,fig4,fig5,fig6,fig7")
+    args = parser.parse_args()
+    figures = set(args.figures.split(","))
+    os.makedirs(args.out, exist_ok=True)
+    rows = read_rows(args.dirs)
+    written = []
+
+    vio = pick_dataset(rows, args.vio_dataset, ("euroc/", "tumvi/"))
+    vio_runs = select(rows, vio) if vio else []
+    if figures & {"fig1", "fig4"} and not vio_runs:
+        print("skipped fig1, fig4: no headline runs on EuRoC / TUM-VI")
+    if vio_runs:
+        s = slug(vio)
+        if "fig1" in figures:
+            fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 9),
+                                              gridspec_kw=dict(height_ratios=[3, 2]))
+            plot_trajectories(top, vio_runs, "%s: trajectories (top-down)" % vio)
+            plot_sigma_min(bottom, vio_runs, r"%s: smallest eigenvalue of the prior" % vio)
+            fig.tight_layout()
+            save(fig, args.out, "fig1_" + s, written)
+        if "fig4" in figures:
+            fig = plt.figure(figsize=(10, 6.5))
+            plot_dEm(fig, vio_runs, r"%s: prior cost change $\Delta E_m$ along gauge and random "
+                                    "directions" % vio)
+            save(fig, args.out, "fig4_dEm_" + s, written)
+
+    vo = pick_dataset(rows, args.vo_dataset, ("kitti/",))
+    vo_runs = select(rows, vo) if vo else []
+    if figures & {"fig5", "fig6", "fig7"} and not vo_runs:
+        print("skipped fig5, fig6, fig7: no headline runs on KITTI")
+    if vo_runs:
+        s = slug(vo)
+        if "fig5" in figures:
+            fig = plt.figure(figsize=(10, 6.5))
+            plot_dEm(fig, vo_runs, r"%s: prior cost change $\Delta E_m$ along gauge and random "
+                                   "directions" % vo)
+            save(fig, args.out, "fig5_dEm_" + s, written)
+        if "fig6" in figures:
+            fig, ax = plt.subplots(figsize=(8, 4))
+            plot_sigma_min(ax, vo_runs, "%s: smallest eigenvalue of the prior" % vo)
+            fig.tight_layout()
+            save(fig, args.out, "fig6_sigma_min_" + s, written)
+        if "fig7" in figures:
+            fig, ax = plt.subplots(figsize=(7, 7))
+            plot_trajectories(ax, vo_runs, "%s: trajectories (top-down)" % vo)
+            fig.tight_layout()
+            save(fig, args.out, "fig7_trajectory_" + s, written)
+
+    for path in written:
+        print("wrote", path)
+    if not written:
+        print("no figure written: the sweep has no headline runs (%s)" % ", ".join(HEADLINE))
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
