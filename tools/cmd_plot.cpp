@@ -3,100 +3,18 @@
 // numpy (found among $MARGLAB_PYTHON, /usr/bin/python3 and python3 on PATH — the first python3 on
 // PATH may lack them).
 
-#include <fmt/core.h>
-#include <fmt/format.h>
-
-#include <sys/wait.h>
-#include <unistd.h>
-#include <cstdlib>
-#include <filesystem>
 #include <memory>
-#include <sstream>
 
-#include "core/common/error.h"
-#include "core/experiment/sweep_runner.h"
+#include "core/experiment/plotting.h"
 #include "tools/command.h"
 
 namespace marglab {
-namespace cli {
-
-struct PlotRequest {
-  std::vector<std::string> dirs;
-  std::string out;  // default notebooks-out/<name of the first folder>
-  std::string figures = "fig1,fig4,fig5,fig6,fig7";
-  std::string vio_dataset = "euroc/MH_01_easy";
-  std::string vo_dataset = "kitti/10";
-};
-
-std::string findPlottingPython() {
-  std::vector<std::string> candidates;
-  if (const char* env = std::getenv("MARGLAB_PYTHON"); env != nullptr && env[0] != '\0') {
-    candidates.push_back(env);
-  }
-  candidates.insert(candidates.end(), {"/usr/bin/python3", "python3"});
-  for (const std::string& candidate : candidates) {
-    const std::string command = experiment::shellJoin({candidate}) +
-                                " -c 'import matplotlib, h5py, numpy' > /dev/null 2>&1";
-    if (std::system(command.c_str()) == 0) return candidate;
-  }
-  return {};
-}
-
-// Runs the plotting script; returns the exit code (1 when no suitable Python exists).
-int runPlot(const PlotRequest& request) {
-  namespace fs = std::filesystem;
-  for (const std::string& dir : request.dirs) {
-    if (!fs::is_regular_file(fs::path(dir) / "index.csv")) {
-      throw UsageError(dir + " is not a sweep folder (no index.csv); run `marglab sweep` first");
-    }
-  }
-  std::stringstream list(request.figures);
-  for (std::string f; std::getline(list, f, ',');) {
-    if (f != "fig1" && f != "fig4" && f != "fig5" && f != "fig6" && f != "fig7") {
-      throw UsageError("--figure takes fig1, fig4, fig5, fig6, fig7 (comma-separated), not '" + f +
-                       "'");
-    }
-  }
-  const std::string script = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts/plot_paper.py";
-  if (access(script.c_str(), R_OK) != 0) throw InputError(script, 0, "plotting script not found");
-  const std::string python = findPlottingPython();
-  if (python.empty()) {
-    fmt::print(stderr,
-               "marglab plot: no Python with matplotlib, h5py and numpy (tried $MARGLAB_PYTHON, "
-               "/usr/bin/python3, python3). Install them:\n"
-               "  sudo apt-get install python3-matplotlib python3-h5py python3-numpy\n"
-               "or: python3 -m pip install matplotlib h5py numpy  (then set MARGLAB_PYTHON to that "
-               "interpreter if it is not /usr/bin/python3)\n");
-    return 1;
-  }
-  const std::string out =
-      request.out.empty()
-          ? "notebooks-out/" + fs::path(request.dirs.front()).lexically_normal().filename().string()
-          : request.out;
-  std::vector<std::string> args = {python,          script,
-                                   "--out",         out,
-                                   "--figures",     request.figures,
-                                   "--vio-dataset", request.vio_dataset,
-                                   "--vo-dataset",  request.vo_dataset};
-  args.insert(args.end(), request.dirs.begin(), request.dirs.end());
-  std::fflush(stdout);
-  const int status = std::system(experiment::shellJoin(args).c_str());
-  if (status != 0) {
-    fmt::print(stderr, "marglab plot: {} failed (exit {})\n", script,
-               WIFEXITED(status) ? WEXITSTATUS(status) : -1);
-    return 1;
-  }
-  return 0;
-}
-
-}  // namespace cli
-
 namespace {
 
 const bool kRegistered = cli::registerCommand(
     {"plot", "Figures of the paper (Fig. 1, 4-7 analogs) from sweep results, PNG + PDF", 40,
      [](CLI::App& sub) -> cli::CommandRun {
-       auto request = std::make_shared<cli::PlotRequest>();
+       auto request = std::make_shared<experiment::PlotRequest>();
        sub.add_option("dirs", request->dirs, "Sweep folders (results/NAME), one or more")
            ->required()
            ->check(CLI::ExistingDirectory);
@@ -112,7 +30,7 @@ const bool kRegistered = cli::registerCommand(
        sub.add_option("--vo-dataset", request->vo_dataset,
                       "Sequence of Figs. 5-7 (else the first KITTI one present)")
            ->capture_default_str();
-       return [request] { return cli::runPlot(*request); };
+       return [request] { return experiment::runPlot(*request); };
      }});
 
 }  // namespace

@@ -42,28 +42,6 @@ experiment::ParseOptions sweepParseOptions() {
   return options;
 }
 
-// Runs a validated plan and prints the summary; the exit code of `sweep` and `reproduce`.
-int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& sweep_file,
-                      const experiment::SweepOptions& options) {
-  std::ifstream in(sweep_file);
-  std::stringstream text;
-  text << in.rdbuf();
-  fmt::print("sweep {}: {} runs -> {}\n", plan.name, plan.runs.size(), options.out_dir);
-  std::fflush(stdout);
-  const experiment::SweepSummary s = experiment::runSweep(plan, text.str(), options);
-  fmt::print("sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{} in {:.1f} s\n",
-             plan.name, s.ok, s.failed_numerical, s.failed_process,
-             s.reused ? fmt::format(" ({} kept from an earlier invocation)", s.reused) : "",
-             s.not_run ? fmt::format(", {} not run", s.not_run) : "", s.wall_s);
-  fmt::print("  index {}\n", s.index_path);
-  if (s.interrupted) {
-    fmt::print("  interrupted: continue with --resume\n");
-    return 130;
-  }
-  // Numerical failures are results (tables show them as x); a run that crashed is an error.
-  return s.failed_process > 0 ? 1 : 0;
-}
-
 }  // namespace cli
 
 namespace {
@@ -97,7 +75,7 @@ int runSweepCommand(const SweepArgs& args) {
   options.resume = args.resume;
   options.force = args.force;
   options.status_line = cli::stderrIsTerminal();
-  return cli::runSweepAndReport(plan, args.file, options);
+  return experiment::runSweepAndReport(plan, args.file, options);
 }
 
 const bool kRegistered = cli::registerCommand(

@@ -25,6 +25,7 @@
 #include "core/estimator/variant.h"
 #include "core/experiment/sweep_index.h"
 #include "core/io/results_file.h"
+#include "marglab/version.h"
 
 namespace marglab::experiment {
 namespace {
@@ -107,11 +108,17 @@ class FrameEstimator {
   std::map<std::string, double> cache_;
 };
 
-// Is this a complete results file? Fills the row's summary columns when it is.
-bool readCompleteResults(const std::string& path, IndexRow* row) {
+// Is this a complete results file? Fills the row's summary columns when it is. With git_sha, only
+// a file written by that revision counts (so --resume never mixes revisions).
+bool readCompleteResults(const std::string& path, IndexRow* row, const char* git_sha = nullptr,
+                         bool* other_revision = nullptr) {
   if (!fs::is_regular_file(path)) return false;
   try {
     const ResultsReader reader(path);
+    if (git_sha != nullptr && reader.info().git_sha != git_sha) {
+      if (other_revision != nullptr) *other_revision = true;
+      return false;
+    }
     const std::string& status = reader.info().status;
     if (status != "ok" && status != "failed") return false;
     const SummaryValues s = reader.summary();
@@ -219,12 +226,14 @@ class Runner {
               "marglab " + shellJoin(runArguments(run, row.get("results"), row.get("config"))));
       const std::string fingerprint = runFingerprint(run);
       const std::string results = (out / row.get("results")).string();
+      bool other_revision = false;
       if (options_.resume && readFile((out / "runs" / (run.id + ".cmd")).string()) == fingerprint &&
-          readCompleteResults(results, &row)) {
+          readCompleteResults(results, &row, MARGLAB_GIT_SHA, &other_revision)) {
         row.set("reused", "1");
       } else {
         row.set("status", "pending");
         queue_.push_back(rows_.size());
+        if (other_revision) ++other_revision_;
       }
       rows_.push_back(std::move(row));
       weights_.push_back(frames(run));
@@ -433,6 +442,7 @@ class Runner {
     s.interrupted = g_stop_signal != 0;
     s.wall_s = std::chrono::duration<double>(Clock::now() - start_).count();
     s.index_path = index_path_;
+    s.redone_other_revision = other_revision_;
     for (const IndexRow& row : rows_) {
       const std::string& status = row.get("status");
       if (!row.get("reused").empty()) ++s.reused;
@@ -471,6 +481,7 @@ class Runner {
   std::vector<std::size_t> queue_;
   std::map<pid_t, Slot> running_;
   int finished_ = 0;
+  int other_revision_ = 0;
   int queue_total_ = 0;
   double remaining_weight_ = 0;
   double done_weight_ = 0;
@@ -504,6 +515,34 @@ std::string runFingerprint(const PlannedRun& run) {
   const std::string config = run.config_toml.empty() ? "" : "configs/" + run.id + ".toml";
   return "marglab " + shellJoin(runArguments(run, "runs/" + run.id + ".h5", config)) + "\n" +
          run.config_toml;
+}
+
+// Runs a validated plan and prints the summary; the exit code of `sweep` and `reproduce`.
+int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& sweep_file,
+                      const experiment::SweepOptions& options) {
+  std::ifstream in(sweep_file);
+  std::stringstream text;
+  text << in.rdbuf();
+  fmt::print(options.out, "sweep {}: {} runs -> {}\n", plan.name, plan.runs.size(),
+             options.out_dir);
+  std::fflush(options.out);
+  const experiment::SweepSummary s = experiment::runSweep(plan, text.str(), options);
+  fmt::print(options.out,
+             "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{} in {:.1f} s\n",
+             plan.name, s.ok, s.failed_numerical, s.failed_process,
+             s.reused ? fmt::format(" ({} kept from an earlier invocation)", s.reused) : "",
+             s.not_run ? fmt::format(", {} not run", s.not_run) : "", s.wall_s);
+  if (s.redone_other_revision > 0) {
+    fmt::print(options.out, "  {} complete run(s) of another git revision were run again\n",
+               s.redone_other_revision);
+  }
+  fmt::print(options.out, "  index {}\n", s.index_path);
+  if (s.interrupted) {
+    fmt::print(options.out, "  interrupted: continue with --resume\n");
+    return 130;
+  }
+  // Numerical failures are results (tables show them as x); a run that crashed is an error.
+  return s.failed_process > 0 ? 1 : 0;
 }
 
 SweepSummary runSweep(const SweepPlan& plan, const std::string& sweep_file_text,

@@ -14,7 +14,8 @@
 // is deterministic for its seed.
 //
 // --resume keeps a run whose results file is complete (opens as a results file with a status
-// attribute, ok or failed) and whose fingerprint equals the planned one; everything else —
+// attribute, ok or failed), was written by this build's git revision (attribute git_sha) and whose
+// fingerprint equals the planned one; everything else —
 // missing, partial (a killed run leaves at most a temporary, which is removed), crashed, or planned
 // differently — is run again. A numerically failed run (status failed in a complete file) is a
 // result, not a crash: it is deterministic and kept.
@@ -40,10 +41,11 @@ struct SweepOptions {
 struct SweepSummary {
   int planned = 0;
   int ok = 0;
-  int failed_numerical = 0;  // complete results file with status failed
-  int failed_process = 0;    // signal / exit without results / timeout / could not start
-  int reused = 0;            // kept by --resume
-  int not_run = 0;           // still pending after an interruption
+  int failed_numerical = 0;       // complete results file with status failed
+  int failed_process = 0;         // signal / exit without results / timeout / could not start
+  int reused = 0;                 // kept by --resume
+  int not_run = 0;                // still pending after an interruption
+  int redone_other_revision = 0;  // complete, but written by another git revision: run again
   bool interrupted = false;
   double wall_s = 0;
   std::string index_path;
@@ -52,6 +54,12 @@ struct SweepSummary {
 // Throws UsageError when out_dir holds another sweep and neither resume nor force is set;
 // InputError when files cannot be written.
 SweepSummary runSweep(const SweepPlan& plan, const std::string& sweep_file_text,
+                      const SweepOptions& options);
+
+// runSweep with the file's text, printing a header and the summary to options.out; returns the exit
+// code of `marglab sweep`: 0 (numerical failures are results), 1 when a run crashed or was
+// killed, 130 when interrupted.
+int runSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
                       const SweepOptions& options);
 
 // The fingerprint stored in runs/<id>.cmd.

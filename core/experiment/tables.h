@@ -137,4 +137,19 @@ std::string renderCsv(const std::vector<Table>& tables, const std::string& overr
 std::string formatCell(const TableCell& cell, std::size_t component, int decimals,
                        const std::string& suffix);
 
+// ---- files --------------------------------------------------------------------------------------
+
+struct TablesRequest {
+  std::vector<std::string> dirs;
+  std::string formats = "md,tex,csv";
+  std::string out;           // default <first dir>/tables  // default <first dir>/tables
+  std::string paper_values;  // default defaultPaperValuesPath()
+  bool print = false;
+};
+
+// Reads the results of the folders and writes, per override set, tables[__<override>].{md,tex,csv}
+// (all tables) and table<N>[__<override>].{md,tex,csv}; prints one line per set to stdout and
+// warnings to stderr; returns the combined files. Throws UsageError / InputError.
+std::vector<std::string> writeTables(const TablesRequest& request, std::string* markdown);
+
 }  // namespace marglab::experiment

@@ -1,0 +1,137 @@
+// `marglab reproduce [--quick]`: the paper on the shipped data in one command — the sweep(s), the
+// tables beside the paper's values, and the figures.
+//   --quick  experiments/quick.toml → results/quick, tables in results/quick/tables, figures in
+//            notebooks-out/quick (< 10 min on 2 cores)
+//   full     experiments/paper_vo.toml → results/paper_vo and paper_vio.toml → results/paper_vio;
+//            tables of both in results/paper/tables, figures in notebooks-out/paper
+
+#include <fmt/core.h>
+#include <fmt/format.h>
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+
+#include "core/common/error.h"
+#include "core/experiment/plotting.h"
+#include "core/experiment/sweep_def.h"
+#include "core/experiment/sweep_runner.h"
+#include "core/experiment/tables.h"
+#include "tools/command.h"
+
+namespace marglab {
+namespace cli {
+
+// Defined in cmd_sweep.cpp: checks a sweep's extra `run` options with the real `run` verb.
+experiment::ParseOptions sweepParseOptions();
+
+}  // namespace cli
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ReproduceArgs {
+  bool quick = false;
+  int jobs = 0;
+  bool resume = false;
+  std::string experiments = std::string(MARGLAB_SOURCE_DIR) + "/experiments";
+  std::string results = "results";
+  std::string figures = "notebooks-out";
+};
+
+// The Markdown of one table out of the combined tables file, for the closing summary.
+std::string extractTable(const std::string& markdown, const std::string& title_prefix) {
+  const auto start = markdown.find("### " + title_prefix);
+  if (start == std::string::npos) return {};
+  const auto end = markdown.find("\n### ", start + 1);
+  const std::string table = markdown.substr(start, end == std::string::npos ? end : end - start);
+  // Keep the heading and the table rows, not the notes.
+  std::string out;
+  std::size_t pos = 0;
+  while (pos < table.size()) {
+    const auto nl = table.find('\n', pos);
+    const std::string line = table.substr(pos, nl == std::string::npos ? nl : nl - pos + 1);
+    if (line.rfind("###", 0) == 0 || line.rfind("|", 0) == 0) out += line;
+    if (nl == std::string::npos) break;
+    pos = nl + 1;
+  }
+  return out;
+}
+
+int runReproduce(const ReproduceArgs& args) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<std::string> files =
+      args.quick ? std::vector<std::string>{"quick.toml"}
+                 : std::vector<std::string>{"paper_vo.toml", "paper_vio.toml"};
+  // Validate every sweep before running any.
+  std::vector<experiment::SweepPlan> plans;
+  for (const std::string& f : files) {
+    plans.push_back(experiment::loadSweepFile((fs::path(args.experiments) / f).string(),
+                                              cli::sweepParseOptions()));
+  }
+  std::vector<std::string> dirs;
+  int worst = 0;
+  for (std::size_t i = 0; i < plans.size(); ++i) {
+    experiment::SweepOptions options;
+    options.out_dir = (fs::path(args.results) / plans[i].name).string();
+    options.jobs = args.jobs;
+    options.resume = args.resume;
+    options.force = !args.resume;  // reproduce recomputes unless asked to continue
+    options.status_line = cli::stderrIsTerminal();
+    const int code = experiment::runSweepAndReport(
+        plans[i], (fs::path(args.experiments) / files[i]).string(), options);
+    if (code == 130) return code;
+    worst = std::max(worst, code);
+    dirs.push_back(options.out_dir);
+  }
+
+  const std::string name = args.quick ? "quick" : "paper";
+  experiment::TablesRequest tables;
+  tables.dirs = dirs;
+  tables.out = (fs::path(args.results) / name / "tables").string();
+  std::string markdown;
+  const std::vector<std::string> table_files = experiment::writeTables(tables, &markdown);
+
+  experiment::PlotRequest plot;
+  plot.dirs = dirs;
+  plot.out = (fs::path(args.figures) / name).string();
+  const int plot_code = experiment::runPlot(plot);
+
+  const double minutes =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 60.0;
+  fmt::print("\n{}{}", extractTable(markdown, "Table 2:"), extractTable(markdown, "Table 1:"));
+  fmt::print("\nreproduce{} finished in {:.1f} min\n", args.quick ? " --quick" : "", minutes);
+  fmt::print("  results  {}  (index.csv: one row per run, HDF5 files in runs/)\n",
+             fmt::join(dirs, ", "));
+  fmt::print("  tables   {}\n", fmt::join(table_files, ", "));
+  fmt::print("  figures  {}{}\n", plot.out,
+             plot_code == 0 ? "  (fig1, fig4-fig7 as PNG and PDF)" : "  (NOT drawn, see above)");
+  return std::max(worst, plot_code);
+}
+
+const bool kRegistered = cli::registerCommand(
+    {"reproduce", "The paper on the shipped data: sweeps, tables and figures in one command", 50,
+     [](CLI::App& sub) -> cli::CommandRun {
+       auto args = std::make_shared<ReproduceArgs>();
+       sub.add_flag("--quick", args->quick,
+                    "experiments/quick.toml only (KITTI 10 all variants, KITTI 05 and EuRoC MH_01 "
+                    "headline variants; < 10 min on 2 cores) instead of every sequence and "
+                    "variant");
+       sub.add_option("-j,--jobs", args->jobs, "Runs in parallel (0: number of cores)")
+           ->capture_default_str()
+           ->check(CLI::NonNegativeNumber);
+       sub.add_flag("--resume", args->resume,
+                    "Keep complete runs of an earlier, interrupted reproduction (default: start "
+                    "over)");
+       sub.add_option("--experiments", args->experiments, "Folder of the sweep definitions")
+           ->capture_default_str()
+           ->check(CLI::ExistingDirectory);
+       sub.add_option("--results", args->results, "Folder for the sweep results and tables")
+           ->capture_default_str();
+       sub.add_option("--figures", args->figures, "Folder for the figures")->capture_default_str();
+       return [args] { return runReproduce(*args); };
+     }});
+
+}  // namespace
+}  // namespace marglab
