@@ -44,6 +44,7 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
   D("lm", "stop_relative_cost", &c.stop_relative_cost);
   D("lm", "stop_max_step", &c.stop_max_step);
   I("lm", "max_failed_solves", &c.max_failed_solves);
+  list.push_back({"lm", "landmark_damping", nullptr, nullptr, &c.lm_landmark_damping});
   list.push_back({"marginalization", "qr_threshold_mode", nullptr, nullptr, nullptr, nullptr,
                   &c.qr_threshold_mode});
   D("marginalization", "qr_threshold", &c.qr_threshold);

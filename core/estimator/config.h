@@ -11,7 +11,7 @@
 //   [keyframes]     connected_ratio, min_frames_after_kf (−1: dataset default), min_baseline_m,
 //                   marg_connected_share
 //   [lm]            max_iterations, lambda_init, lambda_min, lambda_max, stop_relative_cost,
-//                   stop_max_step, max_failed_solves
+//                   stop_max_step, max_failed_solves, landmark_damping
 //   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
 //                   scalar type)
 //   [failure]       max_position_error_m (−1: dataset default)
@@ -48,6 +48,10 @@ struct EstimatorConfig {
   double stop_relative_cost = 1e-6;
   double stop_max_step = 1e-4;
   int max_failed_solves = 3;
+  // Damping of the landmark blocks too (H_ll += λ…). Off as in the paper's estimator (§5: "we skip
+  // Jacobian scaling and landmark damping"), which lets the reduced system be formed once per
+  // linearization.
+  bool lm_landmark_damping = false;
   // marginalization
   RankThresholdMode qr_threshold_mode = RankThresholdMode::kAbsolute;
   double qr_threshold = -1;

@@ -120,6 +120,7 @@ SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorConfig& co
   } else {
     T_i_c_ = {SE3S(), rig.T_c0_c1().template cast<Scalar>()};
   }
+  for (int cam = 0; cam < 2; ++cam) T_c_h_host_[cam] = T_i_c_[cam].inverse() * T_i_c_[0];
   prior_.storage = variant.storage;
   shadow_prior_.storage = variant.storage;
   if (config_.min_frames_after_kf < 1) config_.min_frames_after_kf = 1;
@@ -155,18 +156,62 @@ ImuState<Scalar> SlidingWindowEstimator<Scalar>::stateOf(int64_t frame_id,
 }
 
 template <typename Scalar>
-Scalar SlidingWindowEstimator<Scalar>::landmarkCost(const Landmark& lm) const {
+size_t SlidingWindowEstimator<Scalar>::RelativePoses::index(int64_t host, int64_t target,
+                                                            int cam) const {
+  const size_t n = ids.size();
+  const size_t h = std::lower_bound(ids.begin(), ids.end(), host) - ids.begin();
+  const size_t t = std::lower_bound(ids.begin(), ids.end(), target) - ids.begin();
+  return (h * n + t) * 2 + static_cast<size_t>(cam);
+}
+
+template <typename Scalar>
+typename SlidingWindowEstimator<Scalar>::RelativePoses
+SlidingWindowEstimator<Scalar>::relativePoses(bool with_jacobians) const {
+  RelativePoses rel;
+  for (const auto& [id, frame] : frames_) rel.ids.push_back(id);
+  const size_t size = rel.ids.size() * rel.ids.size() * 2;
+  rel.T_ct_h.resize(size);
+  if (with_jacobians) {
+    rel.T_ct_h_jac.resize(size);
+    rel.D_rel_h.resize(size);
+    rel.D_rel_t.resize(size);
+  }
+  for (const auto& [h, host] : frames_) {
+    for (const auto& [t, target] : frames_) {
+      for (int cam = 0; cam < 2; ++cam) {
+        const size_t k = rel.index(h, t, cam);
+        if (h == t) {
+          rel.T_ct_h[k] = T_c_h_host_[cam];
+          if (with_jacobians) rel.T_ct_h_jac[k] = T_c_h_host_[cam];
+          continue;
+        }
+        if (!with_jacobians) {
+          rel.T_ct_h[k] = relativePose<Scalar>(host.T_w_i, T_i_c_[0], target.T_w_i, T_i_c_[cam]);
+          continue;
+        }
+        rel.T_ct_h_jac[k] = relativePose<Scalar>(jacobianPoseOf(h), T_i_c_[0], jacobianPoseOf(t),
+                                                 T_i_c_[cam], &rel.D_rel_h[k], &rel.D_rel_t[k]);
+        // The residual needs its own relative pose only when a first estimate differs from the
+        // current one.
+        rel.T_ct_h[k] = host.linearized || target.linearized
+                            ? relativePose<Scalar>(host.T_w_i, T_i_c_[0], target.T_w_i, T_i_c_[cam])
+                            : rel.T_ct_h_jac[k];
+      }
+    }
+  }
+  return rel;
+}
+
+template <typename Scalar>
+Scalar SlidingWindowEstimator<Scalar>::landmarkCost(const Landmark& lm,
+                                                    const RelativePoses& rel) const {
   const Scalar k = static_cast<Scalar>(config_.huber_px);
   const Scalar sigma = static_cast<Scalar>(config_.obs_std_px);
-  const SE3S& T_w_h = frames_.at(lm.host).T_w_i;
   Scalar cost = 0;
   for (const auto& [frame_id, obs] : lm.obs) {
-    const SE3S& T_w_t = frames_.at(frame_id).T_w_i;
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
-      const SE3S T_ct_h = frame_id == lm.host
-                              ? T_i_c_[cam].inverse() * T_i_c_[0]
-                              : relativePose<Scalar>(T_w_h, T_i_c_[0], T_w_t, T_i_c_[cam]);
-      const Vec3S q = transformLandmark<Scalar>(T_ct_h, lm.param);
+      const Vec3S q =
+          transformLandmark<Scalar>(rel.T_ct_h[rel.index(lm.host, frame_id, cam)], lm.param);
       Vec2S uv;
       if (!(cam == 0 ? rig_.cam0 : rig_.cam1).project(q, &uv)) continue;
       cost += huberCost<Scalar>((uv - (cam == 0 ? obs.uv0 : obs.uv1)).norm(), k, sigma);
@@ -193,7 +238,8 @@ VecX<Scalar> SlidingWindowEstimator<Scalar>::priorDelta(const MargPrior<Scalar>&
 template <typename Scalar>
 Scalar SlidingWindowEstimator<Scalar>::totalCost() const {
   Scalar cost = 0;
-  for (const auto& [id, lm] : landmarks_) cost += landmarkCost(lm);
+  const RelativePoses rel = relativePoses(false);
+  for (const auto& [id, lm] : landmarks_) cost += landmarkCost(lm, rel);
   for (const auto& [from, link] : imu_links_) cost += linkCost(from, link);
   if (!prior_.empty()) cost += prior_.cost(priorDelta(prior_));
   return cost;
@@ -202,6 +248,7 @@ Scalar SlidingWindowEstimator<Scalar>::totalCost() const {
 template <typename Scalar>
 bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm,
                                                        const std::set<int64_t>& system_frames,
+                                                       const RelativePoses& rel,
                                                        Linearized* out) const {
   const Scalar k = static_cast<Scalar>(config_.huber_px);
   const Scalar sigma = static_cast<Scalar>(config_.obs_std_px);
@@ -212,30 +259,16 @@ bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const L
     Vec2S r;
   };
   std::vector<Row2> rows;
+  rows.reserve(2 * lm.obs.size());
   out->cost = 0;
-  const SE3S& T_w_h = frames_.at(lm.host).T_w_i;
-  const SE3S T_w_h_jac = jacobianPoseOf(lm.host);
-  const bool host_linearized = frames_.at(lm.host).linearized;
   for (const auto& [frame_id, obs] : lm.obs) {
     if (system_frames.count(frame_id) == 0) continue;
     const bool in_host = frame_id == lm.host;
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
       const PinholeCamera<Scalar>& camera = cam == 0 ? rig_.cam0 : rig_.cam1;
-      Mat<Scalar, 6, 6> D_rel_h, D_rel_t;
-      SE3S T_ct_h, T_ct_h_jac;
-      if (in_host) {
-        T_ct_h = T_i_c_[cam].inverse() * T_i_c_[0];
-        T_ct_h_jac = T_ct_h;
-      } else {
-        const Frame& target = frames_.at(frame_id);
-        T_ct_h_jac = relativePose<Scalar>(T_w_h_jac, T_i_c_[0], jacobianPoseOf(frame_id),
-                                          T_i_c_[cam], &D_rel_h, &D_rel_t);
-        // The residual needs its own relative pose only when a first estimate differs from the
-        // current one.
-        T_ct_h = host_linearized || target.linearized
-                     ? relativePose<Scalar>(T_w_h, T_i_c_[0], target.T_w_i, T_i_c_[cam])
-                     : T_ct_h_jac;
-      }
+      const size_t k_rel = rel.index(lm.host, frame_id, cam);
+      const SE3S& T_ct_h = rel.T_ct_h[k_rel];
+      const SE3S& T_ct_h_jac = rel.T_ct_h_jac[k_rel];
       Mat<Scalar, 3, 3> D_q_l;
       Mat<Scalar, 3, 6> D_q_T;
       const Vec3S q_jac = transformLandmark<Scalar>(T_ct_h_jac, lm.param, &D_q_l, &D_q_T);
@@ -254,8 +287,8 @@ bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const L
       row.target = in_host ? -1 : frame_id;
       if (!in_host) {
         const Mat<Scalar, 2, 6> D_r_T = scale * D_uv_q * D_q_T;
-        row.J_h = D_r_T * D_rel_h;
-        row.J_t = D_r_T * D_rel_t;
+        row.J_h = D_r_T * rel.D_rel_h[k_rel];
+        row.J_t = D_r_T * rel.D_rel_t[k_rel];
       }
       rows.push_back(row);
     }
@@ -355,9 +388,10 @@ Status SlidingWindowEstimator<Scalar>::computeStep(OptElimination elimination, S
   MatX<Scalar> H = MatX<Scalar>::Zero(n, n);
   VecX<Scalar> b = VecX<Scalar>::Zero(n);
   const Scalar lambda_min = static_cast<Scalar>(config_.lambda_min);
+  const RelativePoses rel = relativePoses(true);
   for (const auto& [id, lm] : landmarks_) {
     Linearized lin;
-    if (!linearizeLandmark(id, lm, system, &lin)) continue;
+    if (!linearizeLandmark(id, lm, system, rel, &lin)) continue;
     Vec3<Scalar> d;
     if (elimination == OptElimination::kNullspace) {
       LandmarkBlockNs<Scalar> block;
@@ -411,9 +445,10 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
   }
   for (int it = 0; it < config_.lm_max_iterations; ++it) {
     std::vector<Linearized> lins;
+    const RelativePoses rel = relativePoses(true);
     for (const auto& [id, lm] : landmarks_) {
       Linearized lin;
-      if (linearizeLandmark(id, lm, system, &lin)) lins.push_back(std::move(lin));
+      if (linearizeLandmark(id, lm, system, rel, &lin)) lins.push_back(std::move(lin));
     }
     ReducedSystem<Scalar> rs;
     rs.H_fixed = MatX<Scalar>::Zero(n, n);
@@ -444,13 +479,29 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
       }
     }
 
+    // Without landmark damping (the paper's setting, §5) the reduced system does not depend on λ:
+    // it is formed once per linearization and only the pose diagonal is damped per trial.
+    // Landmarks that cannot be eliminated (singular R1 / H_ll) then stay fixed in this iteration.
+    const bool damp_landmarks = config_.lm_landmark_damping;
+    std::vector<char> active(lins.size(), 1);
+    if (!damp_landmarks) {
+      for (size_t l = 0; l < lins.size(); ++l) {
+        if (ns) {
+          active[l] = rs.ns[l].landmarkSolvable();
+          if (active[l]) rs.ns[l].addToReducedSystem(rs.H_fixed, rs.b_fixed);
+        } else {
+          active[l] = rs.sc[l].addToReducedSystem(rs.H_fixed, rs.b_fixed).ok();
+        }
+      }
+    }
+
     bool stop = false;
     while (true) {
       // Assemble the damped reduced system for the current λ.
       rs.H = rs.H_fixed;
       rs.b = rs.b_fixed;
       Status status = Status::Ok();
-      for (size_t l = 0; l < lins.size(); ++l) {
+      for (size_t l = 0; l < lins.size() && damp_landmarks; ++l) {
         Vec3<Scalar> d;
         if (ns) {
           for (int i = 0; i < 3; ++i) {
@@ -471,8 +522,9 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
         solve = solveDampedLdlt<Scalar>(rs.H, rs.b, lambda_, lambda_min);
         status = solve.status;
       }
-      std::vector<Vec3<Scalar>> delta_l(lins.size());
+      std::vector<Vec3<Scalar>> delta_l(lins.size(), Vec3<Scalar>::Zero());
       for (size_t l = 0; l < lins.size() && status.ok(); ++l) {
+        if (!active[l]) continue;
         status = ns ? rs.ns[l].backSubstitute(solve.delta, &delta_l[l])
                     : rs.sc[l].backSubstitute(solve.delta, &delta_l[l]);
       }
@@ -491,6 +543,7 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
       // Model decrease of the undamped linearized energy.
       Scalar model_change = 0;
       for (size_t l = 0; l < lins.size(); ++l) {
+        if (!active[l]) continue;
         model_change += ns ? rs.ns[l].linearizedCostChange(solve.delta, delta_l[l])
                            : rs.sc[l].linearizedCostChange(solve.delta, delta_l[l]);
       }
@@ -630,9 +683,10 @@ Status SlidingWindowEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior,
   }
   std::vector<Linearized> lins;
   std::set<VarKey> keep;
+  const RelativePoses rel = relativePoses(true);
   for (int64_t id : plan.landmarks) {
     Linearized lin;
-    if (!linearizeLandmark(id, landmarks_.at(id), system_frames, &lin)) continue;
+    if (!linearizeLandmark(id, landmarks_.at(id), system_frames, rel, &lin)) continue;
     // Rows beyond the three the landmark consumes carry pose information.
     if (lin.r.size() <= 3 || lin.frames.empty()) continue;
     for (int64_t f : lin.frames) keep.insert({f, StateBlock::kPose});
@@ -711,23 +765,31 @@ Status SlidingWindowEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior,
   } else {
     MatX<Scalar> H = MatX<Scalar>::Zero(n, n);
     VecX<Scalar> b = VecX<Scalar>::Zero(n);
+    // The energy of the marginalized terms at the current state (after eliminating the
+    // landmarks), for the constant of a Hessian prior.
+    Scalar c = prior.empty() ? Scalar(0) : prior.cost(old_delta);
     for (const Linearized& lin : lins) {
       LandmarkBlockSc<Scalar> block;
       Status s = block.setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, column_of));
       if (!s.ok()) return s;
       // A landmark whose H_ll is singular carries no usable pose information: skip it.
-      block.addToReducedSystem(H, b);
+      if (block.addToReducedSystem(H, b).ok()) c += block.eliminatedCost();
     }
     for (const LinkLinearized& lin : links) {
       const MatX<Scalar> H_link = lin.J.transpose() * lin.J;
       const VecX<Scalar> b_link = lin.J.transpose() * lin.r;
       scatterBlocks(linkVars(lin.from, lin.to), H_link, b_link, column_of, H, b);
+      c += Scalar(0.5) * lin.r.squaredNorm();
     }
     if (!prior.empty()) addPrior(prior, old_delta, column_of, H, b);
     SchurMarginalization<Scalar> sc = schurMarginalize<Scalar>(H, b, n_marg);
     if (!sc.status.ok()) return sc.status;
     const VecX<Scalar> b_m = sc.prior.b - sc.prior.H * new_delta;
     if (storage == PriorStorage::kHessian) {
+      // Re-anchored at x⁰ so that E_m(current) = c + c̃ (the minimum over the marginalized
+      // variables).
+      next.hessian.c = c + sc.prior.c - sc.prior.b.dot(new_delta) +
+                       Scalar(0.5) * new_delta.dot(sc.prior.H * new_delta);
       next.hessian.H = std::move(sc.prior.H);
       next.hessian.b = b_m;
     } else {

@@ -210,13 +210,24 @@ class SlidingWindowEstimator {
     Vec<Scalar, 15> r;
   };
   using ColumnMap = std::map<VarKey, int>;
+  // T_ct_h = (T_w_t T_i_ct)⁻¹ T_w_h T_i_c0 for every (host, target, camera) of the window, at the
+  // current poses and (with Jacobians) at the first estimates: computed once per linearization
+  // or cost evaluation instead of once per observation.
+  struct RelativePoses {
+    std::vector<int64_t> ids;  // frames in id order
+    std::vector<SE3S> T_ct_h, T_ct_h_jac;
+    std::vector<Mat<Scalar, 6, 6>> D_rel_h, D_rel_t;  // ⊞ Jacobians at the first estimates
+    size_t index(int64_t host, int64_t target, int cam) const;
+  };
+  RelativePoses relativePoses(bool with_jacobians) const;
 
-  Scalar landmarkCost(const Landmark& lm) const;
+  Scalar landmarkCost(const Landmark& lm, const RelativePoses& rel) const;
   Scalar linkCost(int64_t from, const ImuLink& link) const;
   Scalar totalCost() const;
   // Returns false when the landmark has fewer than 3 valid rows.
   bool linearizeLandmark(int64_t track_id, const Landmark& lm,
-                         const std::set<int64_t>& system_frames, Linearized* out) const;
+                         const std::set<int64_t>& system_frames, const RelativePoses& rel,
+                         Linearized* out) const;
   void linearizeLink(int64_t from, const ImuLink& link, LinkLinearized* out) const;
   PoseBlockMap blockMap(const Linearized& lin, const ColumnMap& column_of) const;
   // All variables of the window, frames in id order, pose then speed-bias; returns the size.
@@ -241,7 +252,8 @@ class SlidingWindowEstimator {
   EstimatorConfig config_;
   Variant variant_;
   StereoRig<Scalar> rig_;
-  std::array<SE3S, 2> T_i_c_;  // body to cam0 / cam1 (VO: I, T_c0_c1)
+  std::array<SE3S, 2> T_i_c_;       // body to cam0 / cam1 (VO: I, T_c0_c1)
+  std::array<SE3S, 2> T_c_h_host_;  // host cam0 to cam0 / cam1 of the same frame
   std::optional<ImuSetup> imu_;
   Vec3S g_w_ = Vec3S::Zero();
   std::map<int64_t, Frame> frames_;        // by frame index

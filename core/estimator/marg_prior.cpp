@@ -48,7 +48,7 @@ template <typename Scalar>
 Scalar MargPrior<Scalar>::cost(const VecX<Scalar>& d) const {
   if (empty()) return Scalar(0);
   if (storage == PriorStorage::kSqrt) return Scalar(0.5) * (sqrt.r + sqrt.J * d).squaredNorm();
-  return Scalar(0.5) * d.dot(hessian.H * d) + hessian.b.dot(d);
+  return Scalar(0.5) * d.dot(hessian.H * d) + hessian.b.dot(d) + hessian.c;
 }
 
 template <typename Scalar>

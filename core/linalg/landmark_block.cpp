@@ -133,6 +133,11 @@ void LandmarkBlockNs<Scalar>::setLandmarkDamping(const Vec3<Scalar>& d) {
 }
 
 template <typename Scalar>
+bool LandmarkBlockNs<Scalar>::landmarkSolvable() const {
+  return (storage_.block(0, n_p_, 3, 3).diagonal().array() != Scalar(0)).all();
+}
+
+template <typename Scalar>
 void LandmarkBlockNs<Scalar>::addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const {
   const auto Jr = reducedJp();
   MatX<Scalar> H_loc = MatX<Scalar>::Zero(n_p_, n_p_);
@@ -197,7 +202,15 @@ Status LandmarkBlockSc<Scalar>::setFromJacobians(const MatX<Scalar>& J_p,
   H_ll_ = J_l.transpose() * J_l;
   b_p_ = J_p.transpose() * r;
   b_l_ = J_l.transpose() * r;
+  r_squared_norm_ = r.squaredNorm();
   return Status::Ok();
+}
+
+template <typename Scalar>
+Scalar LandmarkBlockSc<Scalar>::eliminatedCost() const {
+  Eigen::LLT<Mat3<Scalar>> llt;
+  if (!dampedFactor(&llt).ok()) return Scalar(0);
+  return Scalar(0.5) * (r_squared_norm_ - b_l_.dot(llt.solve(b_l_)));
 }
 
 template <typename Scalar>

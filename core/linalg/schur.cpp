@@ -63,6 +63,7 @@ SchurMarginalization<Scalar> schurMarginalize(const MatX<Scalar>& H, const VecX<
   // Symmetrize: the product above is symmetric only up to rounding.
   result.prior.H = (Scalar(0.5) * (result.prior.H + result.prior.H.transpose())).eval();
   result.prior.b = b.tail(n_keep) - H_km_H_mm_pinv * b.head(n_marg);
+  result.prior.c = Scalar(-0.5) * b.head(n_marg).dot(pinv.H_pinv * b.head(n_marg));
   if (!result.prior.H.allFinite() || !result.prior.b.allFinite()) {
     result.status = Status::Error(Status::Code::kNotFinite,
                                   "Schur complement: the marginalization prior is not finite");

@@ -3,7 +3,8 @@
 // (Demmel et al., ICCV 2021, eqs. 14–15 and their generalization 22–23).
 //
 // With H = JᵀJ and b = Jᵀr partitioned as [μ | κ] (marginalized variables first),
-//   H̃ = H_κκ − H_κμ H_μμ⁺ H_μκ,        b̃ = b_κ − H_κμ H_μμ⁺ b_μ.
+//   H̃ = H_κκ − H_κμ H_μμ⁺ H_μκ,        b̃ = b_κ − H_κμ H_μμ⁺ b_μ,
+// and the constant the minimization over μ adds to the energy, c̃ = −½ b_μᵀ H_μμ⁺ b_μ.
 // H_μμ⁺ is the Moore–Penrose pseudo-inverse from the self-adjoint eigendecomposition
 // H_μμ = V Λ Vᵀ:  H_μμ⁺ = V Λ⁺ Vᵀ with λ⁺ = 1/λ for |λ| > τ and 0 otherwise.
 // Negative eigenvalues beyond the threshold are inverted as they are, which is what the
@@ -27,11 +28,14 @@
 
 namespace marglab {
 
-// Hessian prior E_m(x) = ½ (x − x⁰)ᵀ H (x − x⁰) + bᵀ (x − x⁰) (paper eq. 3).
+// Hessian prior E_m(x) = ½ (x − x⁰)ᵀ H (x − x⁰) + bᵀ (x − x⁰) + c (paper eq. 3, plus the constant
+// that the square-root form carries as ½‖r_m‖²; it keeps E_m ≥ 0 and the energies of both storages
+// comparable, e.g. for a relative-decrease stopping rule).
 template <typename Scalar>
 struct HessianPrior {
   MatX<Scalar> H;
   VecX<Scalar> b;
+  Scalar c = 0;
 };
 
 template <typename Scalar>
@@ -55,7 +59,7 @@ PseudoInverse<Scalar> pseudoInverseSelfAdjoint(const MatX<Scalar>& H,
 
 template <typename Scalar>
 struct SchurMarginalization {
-  HessianPrior<Scalar> prior;  // (H̃, b̃) over the kept variables
+  HessianPrior<Scalar> prior;  // (H̃, b̃) over the kept variables; c = −½ b_μᵀ H_μμ⁺ b_μ
   int marg_rank = 0;           // rank of H_μμ as decided by the pseudo-inverse
   Scalar threshold_used = 0;
   Status status;

@@ -65,6 +65,64 @@ TEST_F(RunCliTest, WritesAResultsFileThatFollowsTheSchema) {
   EXPECT_NE(check.output.find("OK"), std::string::npos) << check.output;
 }
 
+// VIO on EuRoC (the default mode there): body trajectory, 15-dof states, the same schema.
+TEST_F(RunCliTest, VioRunOnEurocFollowsTheSchema) {
+  const std::string out = path("mh01.h5");
+  const auto result = runCli(
+      "run --dataset euroc/MH_01_easy --variant ns-qr-sqrt-f32 --frames 60 -o '" + out + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find("VIO"), std::string::npos) << result.output;
+  const ResultsReader reader(out);
+  EXPECT_EQ(reader.info().status, "ok");
+  EXPECT_EQ(reader.info().metadata.mode, "vio");
+  EXPECT_EQ(reader.frames().size(), 60u);
+  EXPECT_LT(reader.summary().ate_rmse, 0.05);
+  const std::vector<MargRecord> margs = reader.margs(false);
+  ASSERT_GT(margs.size(), 20u);
+  // The gauge-free VIO prior: x, y, z, yaw stay flat, roll and pitch do not (gravity).
+  const MargRecord& last = margs.back();
+  EXPECT_LT(std::abs(last.dEm[0]), 1e-6 * std::abs(last.dEm[3]));
+  EXPECT_LT(std::abs(last.dEm[5]), 1e-6 * std::abs(last.dEm[4]));
+
+  const std::string python = test::findPythonWithH5py();
+  if (python.empty()) GTEST_SKIP() << "h5py not found: schema check skipped";
+  const auto check = test::runShell(python + " '" + MARGLAB_SOURCE_DIR +
+                                    "/tools/scripts/check_results.py' '" + out + "'");
+  EXPECT_EQ(check.exit_code, 0) << check.output;
+}
+
+TEST_F(RunCliTest, VioWithTheRealImuRecording) {
+  const std::string out = path("v101.h5");
+  const auto result =
+      runCli("run --dataset euroc/V1_01_easy --variant ns-qr-sqrt-f32 --imu real --frames 60 -o '" +
+             out + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  const ResultsReader reader(out);
+  EXPECT_EQ(reader.info().status, "ok");
+  EXPECT_LT(reader.summary().ate_rmse, 0.05);
+  const auto& extra = reader.info().metadata.extra;
+  const auto imu =
+      std::find_if(extra.begin(), extra.end(), [](const auto& kv) { return kv.first == "imu"; });
+  ASSERT_NE(imu, extra.end());
+  EXPECT_NE(imu->second.find("real"), std::string::npos) << imu->second;
+
+  // No recording, no IMU on KITTI, --imu real without VIO: clear errors, no file.
+  const std::string none = path("none.h5");
+  const auto no_imu = runCli(
+      "run --dataset euroc/MH_01_easy --variant ns-qr-sqrt-f32 --imu real -o '" + none + "'");
+  EXPECT_EQ(no_imu.exit_code, 1) << no_imu.output;
+  EXPECT_NE(no_imu.output.find("no real IMU"), std::string::npos) << no_imu.output;
+  const auto kitti_vio =
+      runCli("run --dataset kitti/10 --variant ns-qr-sqrt-f32 --mode vio -o '" + none + "'");
+  EXPECT_EQ(kitti_vio.exit_code, 1) << kitti_vio.output;
+  EXPECT_NE(kitti_vio.output.find("no IMU"), std::string::npos) << kitti_vio.output;
+  const auto vo_real =
+      runCli("run --dataset euroc/V1_01_easy --variant ns-qr-sqrt-f32 --mode vo --imu real -o '" +
+             none + "'");
+  EXPECT_EQ(vo_real.exit_code, 2) << vo_real.output;
+  EXPECT_FALSE(fs::exists(none));
+}
+
 TEST_F(RunCliTest, EigdumpPrintsThePriorsEigenvalues) {
   const std::string out = path("k10.h5");
   ASSERT_EQ(runCli("run --dataset kitti/10 --variant ns-qr-sqrt-f64 --frames 40 "

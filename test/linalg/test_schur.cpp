@@ -41,6 +41,31 @@ TYPED_TEST(SchurTest, PseudoInverseSatisfiesMoorePenroseConditions) {
   }
 }
 
+// c̃ = −½ b_μᵀ H_μμ⁺ b_μ is the minimum over μ of ½‖J_μ μ + r‖² − ½‖r‖² = −½‖P r‖², P the
+// projector onto range(J_μ), computed here by a rank-revealing QR in double — also when J_μ is
+// rank deficient.
+TYPED_TEST(SchurTest, ConstantIsTheMinimumOverTheMarginalizedVariables) {
+  using Scalar = TypeParam;
+  std::mt19937_64 rng(23);
+  for (int rank : {6, 4}) {
+    MatXd J = test::randomGaussian(rng, 30, 10);
+    J.leftCols(6) = J.leftCols(rank) * test::randomGaussian(rng, rank, 6);  // rank of J_μ
+    const VecXd r = test::randomGaussian(rng, 30, 1);
+    const MatX<Scalar> H = (J.transpose() * J).cast<Scalar>();
+    const VecX<Scalar> b = (J.transpose() * r).cast<Scalar>();
+    const SchurMarginalization<Scalar> sc = schurMarginalize<Scalar>(H, b, 6);
+    ASSERT_TRUE(sc.status.ok());
+    EXPECT_EQ(sc.marg_rank, rank);
+    Eigen::ColPivHouseholderQR<MatXd> qr(J.leftCols(6));
+    const MatXd Q = qr.householderQ() * MatXd::Identity(30, qr.rank());
+    const double expected = -0.5 * (Q.transpose() * r).squaredNorm();
+    Eigen::JacobiSVD<MatXd> svd(J.leftCols(6));
+    const double kappa = svd.singularValues()[0] / svd.singularValues()[rank - 1];
+    EXPECT_NEAR(static_cast<double>(sc.prior.c), expected,
+                100 * test::eps<Scalar>() * kappa * kappa * r.squaredNorm());
+  }
+}
+
 TYPED_TEST(SchurTest, MatchesPseudoSchurReference) {
   using Scalar = TypeParam;
   for (const ProblemSpec& spec :
