@@ -4,4 +4,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 BUILD_DIR="${MARGLAB_BUILD_DIR:-build}"
-"$BUILD_DIR/bin/marglab" verify
+# The main job: the quick reproduction of the paper (sweep, tables, figures; < 10 min on 2 cores).
+# It ends by printing where the tables (results/quick/tables) and figures (notebooks-out/quick) are.
+"$BUILD_DIR/bin/marglab" reproduce --quick --jobs "${MARGLAB_JOBS:-0}"

@@ -52,7 +52,8 @@ std::string extractTable(const std::string& markdown, const std::string& title_p
   while (pos < table.size()) {
     const auto nl = table.find('\n', pos);
     const std::string line = table.substr(pos, nl == std::string::npos ? nl : nl - pos + 1);
-    if (line.rfind("###", 0) == 0 || line.rfind("|", 0) == 0) out += line;
+    if (line.rfind("###", 0) == 0) out += line + "\n";
+    if (line.rfind("|", 0) == 0) out += line;
     if (nl == std::string::npos) break;
     pos = nl + 1;
   }
@@ -100,7 +101,7 @@ int runReproduce(const ReproduceArgs& args) {
 
   const double minutes =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 60.0;
-  fmt::print("\n{}{}", extractTable(markdown, "Table 2:"), extractTable(markdown, "Table 1:"));
+  fmt::print("\n{}\n{}", extractTable(markdown, "Table 2:"), extractTable(markdown, "Table 1:"));
   fmt::print("\nreproduce{} finished in {:.1f} min\n", args.quick ? " --quick" : "", minutes);
   fmt::print("  results  {}  (index.csv: one row per run, HDF5 files in runs/)\n",
              fmt::join(dirs, ", "));
