@@ -520,6 +520,11 @@ std::string runFingerprint(const PlannedRun& run) {
 // Runs a validated plan and prints the summary; the exit code of `sweep` and `reproduce`.
 int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& sweep_file,
                       const experiment::SweepOptions& options) {
+  if (!options.resume && !options.force && fs::exists(fs::path(options.out_dir) / "index.csv")) {
+    throw UsageError(fmt::format(
+        "{} already holds a sweep: continue it with --resume, or start over with --force",
+        options.out_dir));
+  }
   std::ifstream in(sweep_file);
   std::stringstream text;
   text << in.rdbuf();

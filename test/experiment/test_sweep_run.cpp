@@ -315,7 +315,7 @@ frames = 20
     }
   }
   ASSERT_NE(child, 0) << readText(dir / "sweep.log");
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // mid-way through its frames
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // mid-way through its frames
   ASSERT_EQ(kill(child, SIGKILL), 0);
   int status = 0;
   ASSERT_EQ(waitpid(sweep, &status, 0), sweep);
