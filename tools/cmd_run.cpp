@@ -32,6 +32,8 @@ struct RunArgs {
   bool no_diagnostics = false;
   std::optional<int> store_prior_every;
   int inject_nan_frame = -1;
+  std::vector<int> dump_windows;
+  std::string dump_dir = "windows";
 };
 
 // A dataset argument is a shipped sequence name or an existing folder; anything else is a usage
@@ -57,6 +59,9 @@ int runRun(const RunArgs& args) {
   options.seed = args.seed;
   options.output = args.output;
   options.inject_nan_frame = args.inject_nan_frame;
+  options.dump_windows = args.dump_windows;
+  options.dump_dir = args.dump_dir;
+  if (!options.dump_windows.empty()) std::filesystem::create_directories(options.dump_dir);
   if (!args.config_file.empty()) options.config.loadToml(args.config_file);
   if (!args.qr_threshold_mode.empty() &&
       !parseRankThresholdMode(args.qr_threshold_mode, &options.config.qr_threshold_mode)) {
@@ -136,6 +141,14 @@ const bool kRegistered = cli::registerCommand(
        sub.add_option("--store-prior-every", args->store_prior_every,
                       "Store the full prior of every k-th marginalization (0: none; default 25) "
                       "for `eigdump --matrix`");
+       sub.add_option(
+              "--dump-windows", args->dump_windows,
+              "Capture the windows of these frames (comma-separated 0-based indices) before "
+              "their optimization, with the step taken, for `marglab bench` and the tests")
+           ->delimiter(',')
+           ->check(CLI::NonNegativeNumber);
+       sub.add_option("--dump-dir", args->dump_dir, "Folder of the captured windows")
+           ->capture_default_str();
        sub.add_option("--inject-nan-frame", args->inject_nan_frame,
                       "Testing: put a NaN into a measurement of this frame")
            ->group("");

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "core/common/error.h"
 #include "core/common/scalar.h"
@@ -110,6 +111,7 @@ SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorConfig& co
                                                        std::optional<ImuSetup> imu)
     : config_(config),
       variant_(variant),
+      rig_input_(rig),
       rig_(rig.template cast<Scalar>()),
       imu_(std::move(imu)),
       last_pose_(imu_ ? imu_->initial.T_w_i : T_w_i_initial),
@@ -992,16 +994,21 @@ template <typename Scalar>
 void SlidingWindowEstimator<Scalar>::addImuLink(int64_t from, int64_t to) {
   // Preintegrated in double (measurement preprocessing, like the pixel measurements), then used in
   // the estimator's precision.
-  const Frame& f_i = frames_.at(from);
   const ImuState<Scalar> s_i = stateOf(from, false);
-  const ImuPreintegration<double> pre = preintegrate<double>(
-      imu_->imu, f_i.t_ns, frames_.at(to).t_ns, s_i.b_g.template cast<double>(),
-      s_i.b_a.template cast<double>(),
-      ImuSampleNoise<double>::fromDensities(imu_->noise, imu_->sample_period_s));
-  ImuLink link{to, ImuFactor<Scalar>(pre.template cast<Scalar>(), g_w_),
-               static_cast<Scalar>(pre.durationSeconds())};
+  ImuLink link =
+      makeImuLink(from, to, s_i.b_g.template cast<double>(), s_i.b_a.template cast<double>());
   imu_links_.erase(from);
   imu_links_.emplace(from, std::move(link));
+}
+
+template <typename Scalar>
+typename SlidingWindowEstimator<Scalar>::ImuLink SlidingWindowEstimator<Scalar>::makeImuLink(
+    int64_t from, int64_t to, const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a) const {
+  const ImuPreintegration<double> pre = preintegrate<double>(
+      imu_->imu, frames_.at(from).t_ns, frames_.at(to).t_ns, b_g, b_a,
+      ImuSampleNoise<double>::fromDensities(imu_->noise, imu_->sample_period_s));
+  return ImuLink{to, ImuFactor<Scalar>(pre.template cast<Scalar>(), g_w_),
+                 static_cast<Scalar>(pre.durationSeconds())};
 }
 
 template <typename Scalar>
@@ -1059,9 +1066,14 @@ FrameResult SlidingWindowEstimator<Scalar>::processFrame(const TrackFrame& track
     addNewLandmarks(id, track_frame);
   }
 
+  if (capture_next_) captured_ = snapshot();
   const auto t0 = Clock::now();
   result.status = optimize(&result);
   result.t_opt_s = secondsSince(t0);
+  if (capture_next_) {
+    recordStep(result, &*captured_);
+    capture_next_ = false;
+  }
   const Frame& optimized = frames_.at(id);
   result.T_w_i = optimized.T_w_i.template cast<double>();
   if (optimized.has_speed_bias) {
@@ -1087,6 +1099,218 @@ FrameResult SlidingWindowEstimator<Scalar>::processFrame(const TrackFrame& track
   last_pose_ = result.T_w_i;
   has_previous_pose_ = id > 0;
   return result;
+}
+
+int WindowSnapshot::numObservations() const {
+  int n = 0;
+  for (const LandmarkState& lm : landmarks) {
+    for (const ObservationState& o : lm.obs) n += o.has_right ? 2 : 1;
+  }
+  return n;
+}
+
+namespace {
+
+// SE3 normalizes its quaternion on construction, and normalizing a unit quaternion again changes
+// its last bits for about a third of all rotations; a restored window must hold the very same
+// bits, so the quaternion is assigned after construction.
+template <typename S>
+SE3<S> exactPose(const SE3<double>& T) {
+  const Eigen::Quaternion<S> q = T.unitQuaternion().template cast<S>();
+  SE3<S> out(q, T.translation().template cast<S>());
+  const_cast<Eigen::Quaternion<S>&>(out.unitQuaternion()) = q;
+  return out;
+}
+
+}  // namespace
+
+template <typename Scalar>
+WindowSnapshot SlidingWindowEstimator<Scalar>::snapshot() const {
+  // Exact widening of a Scalar pose (no renormalization).
+  auto widen = [](const SE3S& T) {
+    SE3<double> out(T.unitQuaternion().template cast<double>(),
+                    T.translation().template cast<double>());
+    const_cast<Eigen::Quaterniond&>(out.unitQuaternion()) =
+        T.unitQuaternion().template cast<double>();
+    return out;
+  };
+  WindowSnapshot w;
+  w.variant = variant_.name();
+  w.config = config_;
+  w.rig = rig_input_;
+  w.vio = isVio();
+  w.failed_solves = failed_solves_;
+  for (const auto& [id, f] : frames_) {
+    WindowSnapshot::FrameState fs;
+    fs.id = id;
+    fs.t_ns = f.t_ns;
+    fs.is_keyframe = f.is_keyframe;
+    fs.linearized = f.linearized;
+    fs.has_speed_bias = f.has_speed_bias;
+    fs.speed_bias_linearized = f.speed_bias_linearized;
+    fs.T_w_i = widen(f.T_w_i);
+    fs.T_w_i_lin = widen(f.T_w_i_lin);
+    fs.speed_bias = f.speed_bias.template cast<double>();
+    fs.speed_bias_lin = f.speed_bias_lin.template cast<double>();
+    w.frames.push_back(fs);
+  }
+  for (const auto& [id, lm] : landmarks_) {
+    WindowSnapshot::LandmarkState ls;
+    ls.id = id;
+    ls.host = lm.host;
+    ls.param = lm.param.template cast<double>();
+    for (const auto& [frame, o] : lm.obs) {
+      ls.obs.push_back(
+          {frame, o.uv0.template cast<double>(), o.uv1.template cast<double>(), o.has_right});
+    }
+    w.landmarks.push_back(std::move(ls));
+  }
+  if (imu_) {
+    w.imu_noise = imu_->noise;
+    w.imu_sample_period_s = imu_->sample_period_s;
+    w.g_w = imu_->g_w;
+    int64_t t_min = std::numeric_limits<int64_t>::max(),
+            t_max = std::numeric_limits<int64_t>::min();
+    for (const auto& [from, link] : imu_links_) {
+      const ImuPreintegration<Scalar>& pre = link.factor.preintegration();
+      w.imu_links.push_back({from, link.to, pre.biasGyroLin().template cast<double>(),
+                             pre.biasAccelLin().template cast<double>()});
+      t_min = std::min(t_min, frames_.at(from).t_ns);
+      t_max = std::max(t_max, frames_.at(link.to).t_ns);
+    }
+    // The samples preintegration reads: from the one in force at the first link's start (with a
+    // margin) to the first one at or after the last link's end.
+    const std::vector<int64_t>& t = imu_->imu.t_ns;
+    if (!imu_links_.empty() && !t.empty()) {
+      const auto lo_it = std::upper_bound(t.begin(), t.end(), t_min);
+      const auto hi_it = std::upper_bound(t.begin(), t.end(), t_max);
+      const size_t lo = static_cast<size_t>(std::max<std::ptrdiff_t>(0, lo_it - t.begin() - 2));
+      const size_t hi = std::min(t.size() - 1, static_cast<size_t>(hi_it - t.begin()) + 1);
+      for (size_t k = lo; k <= hi; ++k) {
+        w.imu.t_ns.push_back(t[k]);
+        w.imu.gyro.push_back(imu_->imu.gyro[k]);
+        w.imu.accel.push_back(imu_->imu.accel[k]);
+      }
+    }
+  }
+  w.prior_storage = prior_.storage;
+  for (const auto& block : prior_.blocks) {
+    w.prior_blocks.push_back(
+        {block.var, block.offset, widen(block.T0), block.sb0.template cast<double>()});
+  }
+  w.prior_J = prior_.sqrt.J.template cast<double>();
+  w.prior_r = prior_.sqrt.r.template cast<double>();
+  w.prior_H = prior_.hessian.H.template cast<double>();
+  w.prior_b = prior_.hessian.b.template cast<double>();
+  w.prior_c = static_cast<double>(prior_.hessian.c);
+  return w;
+}
+
+template <typename Scalar>
+std::optional<WindowSnapshot> SlidingWindowEstimator<Scalar>::takeCapturedWindow() {
+  std::optional<WindowSnapshot> out = std::move(captured_);
+  captured_.reset();
+  return out;
+}
+
+template <typename Scalar>
+void SlidingWindowEstimator<Scalar>::recordStep(const FrameResult& result,
+                                                WindowSnapshot* window) const {
+  const WindowSnapshot now = snapshot();
+  WindowSnapshot::Step& step = window->after;
+  step.present = true;
+  step.lm_iterations = result.lm_iterations;
+  step.cost_initial = result.cost_initial;
+  step.cost_final = result.cost_final;
+  step.frames = now.frames;
+  step.landmarks = now.landmarks;
+  for (auto& lm : step.landmarks) lm.obs.clear();
+}
+
+template <typename Scalar>
+SlidingWindowEstimator<Scalar> SlidingWindowEstimator<Scalar>::fromSnapshot(
+    const WindowSnapshot& w, const Variant& variant, const std::optional<EstimatorConfig>& config) {
+  if (w.frames.empty()) throw InputError("", 0, "window: no frames");
+  EstimatorConfig cfg = config ? *config : w.config;
+  cfg.diagnostics = false;  // a restored window has no shadow prior
+  std::optional<ImuSetup> imu;
+  if (w.vio) {
+    ImuSetup setup;
+    setup.imu = w.imu;
+    setup.noise = w.imu_noise;
+    setup.sample_period_s = w.imu_sample_period_s;
+    setup.g_w = w.g_w;
+    setup.initial.T_w_i = w.frames.front().T_w_i;
+    imu = std::move(setup);
+  }
+  SlidingWindowEstimator est(cfg, variant, w.rig, w.frames.front().T_w_i, std::move(imu));
+  for (const auto& fs : w.frames) {
+    Frame f;
+    f.t_ns = fs.t_ns;
+    f.T_w_i = exactPose<Scalar>(fs.T_w_i);
+    f.T_w_i_lin = exactPose<Scalar>(fs.T_w_i_lin);
+    f.linearized = fs.linearized;
+    f.is_keyframe = fs.is_keyframe;
+    f.has_speed_bias = fs.has_speed_bias;
+    f.speed_bias = fs.speed_bias.template cast<Scalar>();
+    f.speed_bias_lin = fs.speed_bias_lin.template cast<Scalar>();
+    f.speed_bias_linearized = fs.speed_bias_linearized;
+    est.frames_[fs.id] = f;
+    if (fs.is_keyframe) est.last_keyframe_ = std::max(est.last_keyframe_, fs.id);
+    est.next_frame_index_ = std::max(est.next_frame_index_, fs.id + 1);
+  }
+  for (const auto& ls : w.landmarks) {
+    if (est.frames_.count(ls.host) == 0) throw InputError("", 0, "window: landmark host missing");
+    Landmark lm;
+    lm.host = ls.host;
+    lm.param = ls.param.template cast<Scalar>();
+    for (const auto& o : ls.obs) {
+      if (est.frames_.count(o.frame) == 0)
+        throw InputError("", 0, "window: observing frame missing");
+      lm.obs[o.frame] =
+          Observation{o.uv0.template cast<Scalar>(), o.has_right, o.uv1.template cast<Scalar>()};
+    }
+    est.landmarks_.emplace(ls.id, std::move(lm));
+  }
+  for (const auto& link : w.imu_links) {
+    if (!w.vio || est.frames_.count(link.from) == 0 || est.frames_.count(link.to) == 0) {
+      throw InputError("", 0, "window: IMU factor between missing frames");
+    }
+    est.imu_links_.emplace(
+        link.from, est.makeImuLink(link.from, link.to, link.bias_gyro_lin, link.bias_accel_lin));
+  }
+  MargPrior<Scalar>& prior = est.prior_;
+  for (const auto& b : w.prior_blocks) {
+    typename MargPrior<Scalar>::Block block;
+    block.var = b.var;
+    block.offset = b.offset;
+    block.T0 = exactPose<Scalar>(b.T0);
+    block.sb0 = b.sb0.template cast<Scalar>();
+    prior.blocks.push_back(block);
+  }
+  if (w.prior_storage == variant.storage) {
+    prior.sqrt.J = w.prior_J.template cast<Scalar>();
+    prior.sqrt.r = w.prior_r.template cast<Scalar>();
+    prior.hessian.H = w.prior_H.template cast<Scalar>();
+    prior.hessian.b = w.prior_b.template cast<Scalar>();
+    prior.hessian.c = static_cast<Scalar>(w.prior_c);
+  } else if (w.prior_storage == PriorStorage::kSqrt) {
+    // E_m = ½‖r + Jδ‖² = ½δᵀ(JᵀJ)δ + (Jᵀr)ᵀδ + ½‖r‖², formed in double.
+    prior.hessian.H = (w.prior_J.transpose() * w.prior_J).template cast<Scalar>();
+    prior.hessian.b = (w.prior_J.transpose() * w.prior_r).template cast<Scalar>();
+    prior.hessian.c = static_cast<Scalar>(0.5 * w.prior_r.squaredNorm());
+  } else {
+    throw InputError("", 0, "window: a Hessian prior cannot be replayed with square-root storage");
+  }
+  const int cols = prior.empty() ? 0 : prior.cols();
+  const bool sqrt_storage = variant.storage == PriorStorage::kSqrt;
+  if (!prior.empty() &&
+      (sqrt_storage ? prior.sqrt.J.cols() != cols || prior.sqrt.r.size() != prior.sqrt.J.rows()
+                    : prior.hessian.H.cols() != cols || prior.hessian.b.size() != cols)) {
+    throw InputError("", 0, "window: prior size does not match its layout");
+  }
+  est.failed_solves_ = w.failed_solves;
+  return est;
 }
 
 #define MARGLAB_INST(S) template class SlidingWindowEstimator<S>;

@@ -118,6 +118,73 @@ struct FrameResult {
   Status status;  // not ok: the run failed at this frame
 };
 
+// One window of the estimator as optimize() reads it, in double (exact for f32 and f64 states),
+// for replaying and benchmarking one optimization step outside a run (core/bench/window_io.h
+// serializes it). IMU factors are kept as their inputs — the IMU samples around the window and each
+// factor's time span and linearization biases — and preintegrated again on restore (deterministic,
+// so the factor is the same). `after` holds the step the estimator took from this state.
+struct WindowSnapshot {
+  struct FrameState {
+    int64_t id = 0, t_ns = 0;
+    bool is_keyframe = false, linearized = false, has_speed_bias = false;
+    bool speed_bias_linearized = false;
+    SE3<double> T_w_i, T_w_i_lin;
+    Vec<double, 9> speed_bias = Vec<double, 9>::Zero(), speed_bias_lin = Vec<double, 9>::Zero();
+  };
+  struct ObservationState {
+    int64_t frame = 0;
+    Eigen::Vector2d uv0 = Eigen::Vector2d::Zero(), uv1 = Eigen::Vector2d::Zero();
+    bool has_right = false;
+  };
+  struct LandmarkState {
+    int64_t id = 0, host = 0;
+    Eigen::Vector3d param = Eigen::Vector3d::Zero();
+    std::vector<ObservationState> obs;
+  };
+  struct ImuLinkState {
+    int64_t from = 0, to = 0;
+    Eigen::Vector3d bias_gyro_lin = Eigen::Vector3d::Zero(),
+                    bias_accel_lin = Eigen::Vector3d::Zero();
+  };
+  struct PriorBlockState {
+    VarKey var;
+    int offset = 0;
+    SE3<double> T0;
+    Vec<double, 9> sb0 = Vec<double, 9>::Zero();
+  };
+  // The step from this state: optimize()'s outcome and the states after it.
+  struct Step {
+    bool present = false;
+    int lm_iterations = 0;
+    double cost_initial = 0, cost_final = 0;
+    std::vector<FrameState> frames;        // T_w_i and speed_bias after the step
+    std::vector<LandmarkState> landmarks;  // param after the step (no observations)
+  };
+  // Provenance (informational).
+  std::string dataset, variant;
+  int64_t frame_index = -1;  // index of the newest frame in the run
+  // Setup.
+  EstimatorConfig config;
+  StereoRig<double> rig;
+  bool vio = false;
+  ImuNoise imu_noise;
+  double imu_sample_period_s = 0.005;
+  Eigen::Vector3d g_w = Eigen::Vector3d::Zero();
+  ImuData imu;  // the samples the window's IMU factors integrate
+  // State.
+  int failed_solves = 0;
+  std::vector<FrameState> frames;
+  std::vector<LandmarkState> landmarks;
+  std::vector<ImuLinkState> imu_links;
+  PriorStorage prior_storage = PriorStorage::kSqrt;
+  std::vector<PriorBlockState> prior_blocks;
+  MatXd prior_J, prior_H;
+  VecXd prior_r, prior_b;
+  double prior_c = 0;
+  Step after;
+  int numObservations() const;
+};
+
 // What one marginalization removes: variables, landmarks (with all their observations), the IMU
 // factors starting at the listed frames, and the observations in drop_obs_frames.
 struct MargPlan {
@@ -153,6 +220,20 @@ class SlidingWindowEstimator {
   std::vector<int64_t> keyframeIds() const;
   std::vector<int64_t> stateIds() const;  // frames with a speed-bias block (VIO)
   bool isKeyframe(int64_t frame_id) const { return frames_.at(frame_id).is_keyframe; }
+
+  // Window capture: the next processFrame() stores its window right before optimizing, with the
+  // step optimize() took (takeCapturedWindow() hands it over once).
+  void captureNextWindow() { capture_next_ = true; }
+  std::optional<WindowSnapshot> takeCapturedWindow();
+  WindowSnapshot snapshot() const;
+  // The estimator of a captured window, in this Scalar and the given variant (precision aside);
+  // `config` replaces the captured one when given. Throws InputError on an inconsistent window.
+  static SlidingWindowEstimator fromSnapshot(const WindowSnapshot& window, const Variant& variant,
+                                             const std::optional<EstimatorConfig>& config = {});
+  // One optimize() of the window as processFrame() runs it (LM iterations until a stop rule).
+  Status optimizeWindow(FrameResult* result) { return optimize(result); }
+  // Fills window->after from the current state (after optimizeWindow()).
+  void recordStep(const FrameResult& result, WindowSnapshot* window) const;
 
   // Linearizes the current window and returns the LM step of all variables (layout: frames in id
   // order, pose then speed-bias) for damping λ with the given elimination (equivalence tests).
@@ -249,8 +330,13 @@ class SlidingWindowEstimator {
   SE3S jacobianPoseOf(int64_t frame_id) const;
   ImuState<Scalar> stateOf(int64_t frame_id, bool at_linearization_point) const;
 
+  // The IMU factor from `from` to `to`, preintegrated in double from the given biases.
+  ImuLink makeImuLink(int64_t from, int64_t to, const Eigen::Vector3d& b_g,
+                      const Eigen::Vector3d& b_a) const;
+
   EstimatorConfig config_;
   Variant variant_;
+  StereoRig<double> rig_input_;  // as given (window capture)
   StereoRig<Scalar> rig_;
   std::array<SE3S, 2> T_i_c_;       // body to cam0 / cam1 (VO: I, T_c0_c1)
   std::array<SE3S, 2> T_c_h_host_;  // host cam0 to cam0 / cam1 of the same frame
@@ -269,6 +355,12 @@ class SlidingWindowEstimator {
   Scalar lambda_;
   Scalar nu_ = Scalar(2);
   int failed_solves_ = 0;
+  bool capture_next_ = false;
+  std::optional<WindowSnapshot> captured_;
+
+  // The benchmark suite times the phases of one LM iteration on captured windows.
+  template <typename>
+  friend class WindowKernels;
 };
 
 }  // namespace marglab

@@ -2,10 +2,14 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <limits>
+#include <optional>
 
+#include "core/bench/window_io.h"
 #include "core/common/error.h"
 #include "core/data/sequence.h"
 #include "core/diagnostics/ate.h"
@@ -154,7 +158,18 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
       frame.observations.front().uv0.x() = std::numeric_limits<double>::quiet_NaN();
     }
     features += static_cast<double>(frame.observations.size());
+    const bool dump = std::find(options.dump_windows.begin(), options.dump_windows.end(), k) !=
+                      options.dump_windows.end();
+    if (dump) estimator.captureNextWindow();
     const FrameResult result = estimator.processFrame(frame);
+    if (std::optional<WindowSnapshot> window = estimator.takeCapturedWindow()) {
+      window->dataset = options.dataset;
+      window->frame_index = k;
+      const std::string path = (std::filesystem::path(options.dump_dir) /
+                                windowFileName(options.dataset, options.variant.name(), k))
+                                   .string();
+      writeWindow(*window, path);
+    }
 
     FrameRecord record;
     record.t_ns = frame.t_ns;
@@ -217,6 +232,15 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
 }
 
 }  // namespace
+
+std::string windowFileName(const std::string& dataset, const std::string& variant, int frame) {
+  std::string name = dataset;
+  for (char& c : name) {
+    if (c == '/' || c == '\\' || c == ' ') c = '-';
+  }
+  while (!name.empty() && (name.front() == '.' || name.front() == '-')) name.erase(0, 1);
+  return fmt::format("{}_{}_{:06d}.win.gz", name, variant, frame);
+}
 
 std::string tumPathFor(const std::string& results_path) {
   const std::string suffix = ".h5";

@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "core/estimator/config.h"
 #include "core/estimator/variant.h"
@@ -39,6 +40,11 @@ struct RunOptions {
   std::string output;  // results file (.h5); the TUM trajectory goes to <output minus .h5>.tum
   // Fault injection for tests of the failure path: a NaN in the first measurement of this frame.
   int inject_nan_frame = -1;
+  // Window capture: the windows of these frame indices (0-based, before their optimization, with
+  // the step taken) are written to dump_dir as <dataset>_<variant>_<frame>.win.gz
+  // (core/bench/window_io.h).
+  std::vector<int> dump_windows;
+  std::string dump_dir;
   // Called after each frame with (frames done, total frames).
   std::function<void(int, int)> progress;
 };
@@ -59,5 +65,8 @@ RunOutcome runSequence(const RunOptions& options);
 
 // The TUM path written next to a results file.
 std::string tumPathFor(const std::string& results_path);
+
+// The file name of a captured window: "euroc-MH_01_easy_ns-qr-sqrt-f32_000060.win.gz".
+std::string windowFileName(const std::string& dataset, const std::string& variant, int frame);
 
 }  // namespace marglab
