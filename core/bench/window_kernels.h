@@ -1,0 +1,56 @@
+#pragma once
+// The phases of one Levenberg–Marquardt iteration of the estimator, run separately on a captured
+// window (for the benchmark suite and `marglab bench`), with the estimator's own code:
+//   linearize()  relative poses, per-landmark reprojection Jacobians (J_p, J_l, r), IMU factors;
+//   eliminate()  landmark elimination of the variant (ns: in-place Householder QR of [J_p J_l r]
+//                and the Q2ᵀ rows into the reduced camera system; sc: Schur complement), on top
+//                of the IMU and prior terms;
+//   solve()      damped LDLT of the reduced system and back-substitution of the landmarks.
+// iteration() is the three in a row; optimizeOnce() is the estimator's optimize() itself with one
+// LM iteration (including the cost evaluations and λ trials). marginalize() is one marginalization
+// event (the oldest keyframe with its landmarks; for VIO also the oldest state's speed-bias) by the
+// flat QR or by the Schur complement, on a copy of the prior.
+
+#include <memory>
+#include <vector>
+
+#include "core/estimator/estimator.h"
+
+namespace marglab {
+
+// The Householder-QR kernel's flop count for an m × n block [J_p J_l r] with 3 landmark columns:
+// for reflector k: its norm 2(m−k), and its application to the n−k−1 columns on its right
+// 4(m−k) each (dot product and rank-1 update).
+double landmarkQrFlops(int m, int n);
+
+template <typename Scalar>
+class WindowKernels {
+ public:
+  WindowKernels(const WindowSnapshot& window, const Variant& variant);
+  ~WindowKernels();
+
+  void linearize();
+  Status eliminate();
+  Status solve();
+  Status iteration();
+  // optimize() with lm_max_iterations = 1 on a copy of the window; returns the status.
+  Status optimizeOnce();
+  // optimize() to convergence on a copy; iterations in *iterations.
+  Status optimizeFull(int* iterations, double* cost_final = nullptr);
+  Status marginalize(MargMethod method);
+
+  // After linearize(): the landmark blocks, as the QR kernel's inputs.
+  int numLandmarkBlocks() const;
+  const MatX<Scalar>& blockJp(int i) const;
+  const Mat<Scalar, Eigen::Dynamic, 3>& blockJl(int i) const;
+  const VecX<Scalar>& blockR(int i) const;
+  PoseBlockMap blockMap(int i) const;
+  int numColumns() const;
+  const VecX<Scalar>& step() const;  // after solve()
+
+ private:
+  struct State;
+  std::unique_ptr<State> s_;
+};
+
+}  // namespace marglab
