@@ -1112,13 +1112,16 @@ int WindowSnapshot::numObservations() const {
 namespace {
 
 // SE3 normalizes its quaternion on construction, and normalizing a unit quaternion again changes
-// its last bits for about a third of all rotations; a restored window must hold the very same
-// bits, so the quaternion is assigned after construction.
+// its last bits for about a third of all rotations; a window restored in its own precision must
+// hold the very same bits, so a quaternion that is unit to the precision of S is assigned after
+// construction. A float quaternion restored in double (‖q‖² − 1 ~ 1e-7) is normalized in double.
 template <typename S>
 SE3<S> exactPose(const SE3<double>& T) {
   const Eigen::Quaternion<S> q = T.unitQuaternion().template cast<S>();
   SE3<S> out(q, T.translation().template cast<S>());
-  const_cast<Eigen::Quaternion<S>&>(out.unitQuaternion()) = q;
+  if (std::abs(q.coeffs().squaredNorm() - S(1)) <= S(8) * std::numeric_limits<S>::epsilon()) {
+    const_cast<Eigen::Quaternion<S>&>(out.unitQuaternion()) = q;
+  }
   return out;
 }
 
