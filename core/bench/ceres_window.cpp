@@ -367,8 +367,10 @@ CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindo
   o.max_num_iterations = opt.max_iterations > 0 ? opt.max_iterations : cfg.lm_max_iterations;
   o.function_tolerance =
       opt.function_tolerance >= 0 ? opt.function_tolerance : cfg.stop_relative_cost;
-  o.parameter_tolerance =
-      opt.parameter_tolerance >= 0 ? opt.parameter_tolerance : cfg.stop_max_step;
+  // The estimator stops on max|δ| < stop_max_step (absolute); Ceres' parameter tolerance is
+  // relative to ‖x‖, which on KITTI (positions of hundreds of metres) stops before the first step.
+  // Not mapped: Ceres stops on the relative cost decrease and the iteration cap.
+  o.parameter_tolerance = opt.parameter_tolerance >= 0 ? opt.parameter_tolerance : 1e-12;
   o.gradient_tolerance = opt.gradient_tolerance;
   o.jacobi_scaling = false;
   o.num_threads = 1;

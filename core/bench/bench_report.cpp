@@ -1,0 +1,417 @@
+#include "core/bench/bench_report.h"
+
+#include <fcntl.h>
+#include <fmt/core.h>
+#include <fmt/format.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+
+#include "core/bench/ceres_window.h"
+#include "core/bench/perf_suite.h"
+#include "core/bench/window_kernels.h"
+#include "core/common/error.h"
+#include "core/estimator/run.h"
+#include "core/io/results_file.h"
+#include "core/linalg/landmark_block.h"
+#include "marglab/version.h"
+
+namespace marglab {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::string firstLine(const std::string& path, const std::string& prefix = "") {
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (prefix.empty() || line.rfind(prefix, 0) == 0) return line;
+  }
+  return "";
+}
+
+std::string loadAverage() {
+  const std::string line = firstLine("/proc/loadavg");
+  return line.substr(0, line.find(' ', line.find(' ', line.find(' ') + 1) + 1));
+}
+
+std::string cpuName() {
+  std::string line = firstLine("/proc/cpuinfo", "model name");
+  const size_t colon = line.find(':');
+  return colon == std::string::npos ? "unknown" : line.substr(colon + 2);
+}
+
+std::string utcNow() {
+  const std::time_t t = std::time(nullptr);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%d %H:%M UTC", std::gmtime(&t));
+  return buf;
+}
+
+void progress(const BenchOptions& o, const std::string& what) {
+  if (o.verbose) fmt::print(stderr, "bench: {}\n", what);
+}
+
+template <typename Scalar>
+std::function<void()> iterationOf(WindowKernels<Scalar>& k) {
+  return [&k] {
+    if (!k.iteration().ok()) throw InputError("", 0, "bench: an LM iteration failed");
+  };
+}
+
+template <typename Scalar>
+std::function<void()> margOf(WindowKernels<Scalar>& k, MargMethod m) {
+  return [&k, m] {
+    if (!k.marginalize(m).ok()) throw InputError("", 0, "bench: a marginalization failed");
+  };
+}
+
+template <typename Scalar>
+std::function<void()> qrOf(const WindowKernels<Scalar>& k, const std::vector<PoseBlockMap>& maps,
+                           LandmarkBlockNs<Scalar>& block) {
+  return [&k, &maps, &block] {
+    for (int i = 0; i < k.numLandmarkBlocks(); ++i) {
+      if (!block.setFromJacobians(k.blockJp(i), k.blockJl(i), k.blockR(i), maps[i]).ok()) {
+        throw InputError("", 0, "bench: a landmark QR failed");
+      }
+    }
+  };
+}
+
+WholeRun wholeRun(const BenchOptions& o, const std::string& dataset) {
+  WholeRun run;
+  run.dataset = dataset;
+  std::string name = dataset;
+  for (char& c : name) c = c == '/' ? '-' : c;
+  const std::string out = (std::filesystem::path(o.work_dir) / ("run_" + name + ".h5")).string();
+  std::vector<std::string> args = {o.run_exe,
+                                   "run",
+                                   "--dataset",
+                                   dataset,
+                                   "--variant",
+                                   "ns-qr-sqrt-f32",
+                                   "--no-diagnostics",
+                                   "--frames",
+                                   std::to_string(o.run_frames),
+                                   "-o",
+                                   out};
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  const auto t0 = Clock::now();
+  const pid_t pid = fork();
+  if (pid < 0) throw InputError("", 0, "bench: fork failed");
+  if (pid == 0) {
+    const int null = open("/dev/null", O_WRONLY);
+    if (null >= 0) {
+      dup2(null, STDOUT_FILENO);
+      dup2(null, STDERR_FILENO);
+    }
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  int status = 0;
+  rusage usage{};
+  if (wait4(pid, &status, 0, &usage) != pid) throw InputError("", 0, "bench: wait4 failed");
+  run.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  run.peak_rss_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    run.status = fmt::format("failed (exit {})", WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+    return run;
+  }
+  const SummaryValues s = ResultsReader(out).summary();
+  run.frames = static_cast<int>(s.n_frames);
+  run.data_s = s.duration_s;
+  run.estimator_s = s.t_opt_total_s + s.t_marg_total_s;
+  run.realtime_factor = s.realtime_factor;
+  run.status = "ok";
+  std::filesystem::remove(out);
+  std::filesystem::remove(tumPathFor(out));
+  return run;
+}
+
+double sum(const std::vector<WindowTimes>& w, double WindowTimes::*field) {
+  double s = 0;
+  for (const auto& x : w) s += x.*field;
+  return s;
+}
+
+}  // namespace
+
+BenchReport runBench(const BenchOptions& o) {
+  BenchReport r;
+  r.date_utc = utcNow();
+  r.git_sha = MARGLAB_GIT_SHA;
+  r.cpu = cpuName();
+  r.load_before = loadAverage();
+  r.rounds = o.rounds;
+  const std::vector<NamedWindow> windows = loadWindows(o.windows_dir);
+  if (windows.empty()) throw InputError(o.windows_dir, 0, "bench: no captured windows");
+
+  for (const NamedWindow& nw : windows) {
+    progress(o, nw.name);
+    const WindowSnapshot& w = nw.window;
+    WindowTimes t;
+    t.name = nw.name;
+    // LM iteration, four variants side by side.
+    WindowKernels<float> ns32(w, Variant::parse("ns-qr-sqrt-f32")),
+        sc32(w, Variant::parse("sc-sc-sq-f32"));
+    WindowKernels<double> ns64(w, Variant::parse("ns-qr-sqrt-f64")),
+        sc64(w, Variant::parse("sc-sc-sq-f64"));
+    ns32.linearize();
+    t.landmarks = ns32.numLandmarkBlocks();
+    std::vector<double> it =
+        timeSideBySide({iterationOf(ns32), iterationOf(ns64), iterationOf(sc32), iterationOf(sc64)},
+                       o.rounds, o.batch_s);
+    t.ns_f32 = it[0];
+    t.ns_f64 = it[1];
+    t.sc_f32 = it[2];
+    t.sc_f64 = it[3];
+    // Marginalization, qr vs sc (square-root storage), side by side.
+    WindowKernels<float> mq32(w, Variant::parse("ns-qr-sqrt-f32")),
+        ms32(w, Variant::parse("ns-sc-sqrt-f32"));
+    WindowKernels<double> mq64(w, Variant::parse("ns-qr-sqrt-f64")),
+        ms64(w, Variant::parse("ns-sc-sqrt-f64"));
+    std::vector<double> mg =
+        timeSideBySide({margOf(mq32, MargMethod::kQr), margOf(ms32, MargMethod::kSchur),
+                        margOf(mq64, MargMethod::kQr), margOf(ms64, MargMethod::kSchur)},
+                       o.rounds, o.batch_s);
+    t.marg_qr_f32 = mg[0];
+    t.marg_sc_f32 = mg[1];
+    t.marg_qr_f64 = mg[2];
+    t.marg_sc_f64 = mg[3];
+    // QR kernel.
+    ns64.linearize();
+    std::vector<PoseBlockMap> maps32, maps64;
+    for (int i = 0; i < ns32.numLandmarkBlocks(); ++i) {
+      maps32.push_back(ns32.blockMap(i));
+      t.qr_flops += landmarkQrFlops(static_cast<int>(ns32.blockJp(i).rows()),
+                                    static_cast<int>(ns32.blockJp(i).cols()) + 4);
+    }
+    for (int i = 0; i < ns64.numLandmarkBlocks(); ++i) maps64.push_back(ns64.blockMap(i));
+    LandmarkBlockNs<float> b32;
+    LandmarkBlockNs<double> b64;
+    std::vector<double> qr =
+        timeSideBySide({qrOf(ns32, maps32, b32), qrOf(ns64, maps64, b64)}, o.rounds, o.batch_s);
+    t.qr_f32_s = qr[0];
+    t.qr_f64_s = qr[1];
+    // To convergence: marglab ns-f64 optimize() vs Ceres DENSE_SCHUR / SPARSE_SCHUR, each round
+    // in turn, best per candidate (Ceres: its Solver::Summary total time).
+    WindowKernels<double> full(w, Variant::parse("ns-qr-sqrt-f64"));
+    t.marglab_s = t.dense_s = t.sparse_s = 1e300;
+    for (int round = 0; round < o.rounds; ++round) {
+      const auto t0 = Clock::now();
+      double cost = 0;
+      if (!full.optimizeFull(&t.marglab_iterations, &cost).ok()) {
+        throw InputError("", 0, "bench: marglab optimize() failed on " + nw.name);
+      }
+      t.marglab_s = std::min(t.marglab_s, std::chrono::duration<double>(Clock::now() - t0).count());
+      t.marglab_cost = cost;
+      for (auto solver : {ceres::DENSE_SCHUR, ceres::SPARSE_SCHUR}) {
+        CeresWindowOptions co;
+        co.linear_solver = solver;
+        const CeresWindowResult c = solveWindowWithCeres(w, co);
+        if (!c.ok) throw InputError("", 0, "bench: Ceres failed on " + nw.name + ": " + c.message);
+        if (solver == ceres::DENSE_SCHUR) {
+          t.dense_s = std::min(t.dense_s, c.seconds);
+          t.dense_iterations = c.iterations;
+          t.dense_cost = c.cost_final;
+        } else {
+          t.sparse_s = std::min(t.sparse_s, c.seconds);
+          t.sparse_iterations = c.iterations;
+          t.sparse_cost = c.cost_final;
+        }
+      }
+    }
+    r.windows.push_back(t);
+  }
+  progress(o, "single-core peak");
+  const FmaPeak p32 = machinePeak(true, 0.3), p64 = machinePeak(false, 0.3);
+  const FmaPeak i32 = buildIsaPeak(true, 0.3), i64 = buildIsaPeak(false, 0.3);
+  r.peak_f32 = p32.gflops;
+  r.peak_f64 = p64.gflops;
+  r.peak_isa = p32.isa;
+  r.isa_peak_f32 = i32.gflops;
+  r.isa_peak_f64 = i64.gflops;
+  r.build_isa = i32.isa;
+
+  r.run_frames = o.run_frames;
+  if (!o.run_exe.empty()) {
+    for (const char* dataset : {"euroc/MH_01_easy", "kitti/00"}) {
+      progress(o, fmt::format("whole run {} ({} frames)", dataset,
+                              o.run_frames > 0 ? std::to_string(o.run_frames) : "all"));
+      r.runs.push_back(wholeRun(o, dataset));
+    }
+  }
+  r.load_after = loadAverage();
+
+  const auto& W = r.windows;
+  r.speedup_ns_f32_over_sc_f64 = sum(W, &WindowTimes::sc_f64) / sum(W, &WindowTimes::ns_f32);
+  double m_it = 0, d_it = 0, s_it = 0;
+  for (const auto& t : W) {
+    m_it += t.marglab_s / std::max(1, t.marglab_iterations);
+    d_it += t.dense_s / std::max(1, t.dense_iterations);
+    s_it += t.sparse_s / std::max(1, t.sparse_iterations);
+  }
+  r.speedup_over_ceres_dense_schur = d_it / m_it;
+  r.speedup_over_ceres_sparse_schur = s_it / m_it;
+  const double flops = sum(W, &WindowTimes::qr_flops);
+  r.qr_gflops_f32 = flops / sum(W, &WindowTimes::qr_f32_s) * 1e-9;
+  r.qr_gflops_f64 = flops / sum(W, &WindowTimes::qr_f64_s) * 1e-9;
+  r.qr_kernel_peak_fraction = r.qr_gflops_f32 / r.peak_f32;
+  return r;
+}
+
+std::string benchMarkdown(const BenchReport& r) {
+  std::string s;
+  auto us = [](double x) { return fmt::format("{:.1f}", x * 1e6); };
+  s += fmt::format(
+      "# marglab bench\n\n{} · git {} · {} · load average {} (start) / {} (end) · "
+      "best of {} rounds, candidates interleaved\n\n",
+      r.date_utc, r.git_sha, r.cpu, r.load_before, r.load_after, r.rounds);
+  s += "## One LM iteration on the captured windows (linearize + eliminate + solve), µs\n\n";
+  s += "| window | landmarks | ns-f32 | ns-f64 | sc-f32 | sc-f64 | sc-f64 / ns-f32 |\n"
+       "|---|---:|---:|---:|---:|---:|---:|\n";
+  for (const auto& t : r.windows) {
+    s += fmt::format("| {} | {} | {} | {} | {} | {} | {:.2f} |\n", t.name, t.landmarks,
+                     us(t.ns_f32), us(t.ns_f64), us(t.sc_f32), us(t.sc_f64), t.sc_f64 / t.ns_f32);
+  }
+  s += fmt::format("| **all** | | {} | {} | {} | {} | **{:.2f}** |\n\n",
+                   us(sum(r.windows, &WindowTimes::ns_f32)),
+                   us(sum(r.windows, &WindowTimes::ns_f64)),
+                   us(sum(r.windows, &WindowTimes::sc_f32)),
+                   us(sum(r.windows, &WindowTimes::sc_f64)), r.speedup_ns_f32_over_sc_f64);
+  s += "ns = ns-qr-sqrt (nullspace projection), sc = sc-sc-sq (Schur complement, Hessian "
+       "prior).\n\n";
+  s += "## To convergence, f64, the window's LM settings: marglab ns-qr-sqrt-f64 vs Ceres\n\n";
+  s += "| window | marglab it | ms | µs/it | DENSE_SCHUR it | ms | µs/it | SPARSE_SCHUR it | ms | "
+       "µs/it | dense/marglab per it | final cost marglab / dense / sparse |\n"
+       "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
+  for (const auto& t : r.windows) {
+    s += fmt::format(
+        "| {} | {} | {:.2f} | {:.0f} | {} | {:.2f} | {:.0f} | {} | {:.2f} | {:.0f} | {:.2f} | "
+        "{:.6f} / "
+        "{:.6f} / {:.6f} |\n",
+        t.name, t.marglab_iterations, t.marglab_s * 1e3, t.marglab_s / t.marglab_iterations * 1e6,
+        t.dense_iterations, t.dense_s * 1e3, t.dense_s / t.dense_iterations * 1e6,
+        t.sparse_iterations, t.sparse_s * 1e3, t.sparse_s / t.sparse_iterations * 1e6,
+        (t.dense_s / t.dense_iterations) / (t.marglab_s / t.marglab_iterations), t.marglab_cost,
+        t.dense_cost, t.sparse_cost);
+  }
+  s += fmt::format(
+      "\nPer-iteration speedup over Ceres (sum over windows of time per iteration): DENSE_SCHUR "
+      "**{:.2f}×**, SPARSE_SCHUR **{:.2f}×**. An iteration is one linearization for marglab "
+      "(possibly several λ trials) and one trust-region step for Ceres; Ceres' time is its "
+      "Solver::Summary total (preprocessing included, problem construction not).\n\n",
+      r.speedup_over_ceres_dense_schur, r.speedup_over_ceres_sparse_schur);
+  s += "## One marginalization event (oldest keyframe + its landmarks; VIO: + oldest speed-bias), "
+       "µs\n\n";
+  s += "| window | qr-f32 | sc-f32 | qr-f64 | sc-f64 |\n|---|---:|---:|---:|---:|\n";
+  for (const auto& t : r.windows) {
+    s += fmt::format("| {} | {} | {} | {} | {} |\n", t.name, us(t.marg_qr_f32), us(t.marg_sc_f32),
+                     us(t.marg_qr_f64), us(t.marg_sc_f64));
+  }
+  s += "\n## Landmark-block Householder QR kernel (LandmarkBlockNs::setFromJacobians, all "
+       "windows)\n\n";
+  s += "| precision | GFLOP/s | machine peak (" + r.peak_isa + ") | fraction | build-ISA peak (" +
+       r.build_isa + ") | fraction |\n|---|---:|---:|---:|---:|---:|\n";
+  s += fmt::format("| f32 | {:.2f} | {:.1f} | {:.1f} % | {:.1f} | {:.1f} % |\n", r.qr_gflops_f32,
+                   r.peak_f32, 100 * r.qr_gflops_f32 / r.peak_f32, r.isa_peak_f32,
+                   100 * r.qr_gflops_f32 / r.isa_peak_f32);
+  s += fmt::format("| f64 | {:.2f} | {:.1f} | {:.1f} % | {:.1f} | {:.1f} % |\n\n", r.qr_gflops_f64,
+                   r.peak_f64, 100 * r.qr_gflops_f64 / r.peak_f64, r.isa_peak_f64,
+                   100 * r.qr_gflops_f64 / r.isa_peak_f64);
+  s += "Flops counted analytically: per block m × (n_p + 4), Σ_k=0..2 2(m−k) + 4(m−k)(n_p + 3 − "
+       "k).\n\n";
+  if (!r.runs.empty()) {
+    s += fmt::format("## Whole runs: ns-qr-sqrt-f32, diagnostics off, one core ({})\n\n",
+                     r.run_frames > 0 ? fmt::format("first {} frames", r.run_frames)
+                                      : std::string("whole sequences"));
+    s += "| sequence | status | frames | data s | estimator s | real-time factor | peak RSS MB | "
+         "wall s |\n"
+         "|---|---|---:|---:|---:|---:|---:|---:|\n";
+    for (const auto& run : r.runs) {
+      s += fmt::format("| {} | {} | {} | {:.1f} | {:.2f} | {:.1f}× | {:.0f} | {:.1f} |\n",
+                       run.dataset, run.status, run.frames, run.data_s, run.estimator_s,
+                       run.realtime_factor, run.peak_rss_mb, run.wall_s);
+    }
+    s += "\nReal-time factor = data duration / (optimization + marginalization time) as in the "
+         "results file; peak RSS of the whole `marglab run` process (simulation included).\n\n";
+  }
+  auto rtf = [&r](const std::string& ds) {
+    for (const auto& run : r.runs) {
+      if (run.dataset == ds) return run.realtime_factor;
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+  };
+  auto rss = [&r](const std::string& ds) {
+    for (const auto& run : r.runs) {
+      if (run.dataset == ds) return run.peak_rss_mb;
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+  };
+  auto met = [](bool b) { return b ? "yes" : "**no**"; };
+  s += "## Targets (issue #8)\n\n| target | measured | met |\n|---|---:|---|\n";
+  s += fmt::format("| ns-f32 per iteration ≥ 1.9× faster than sc-f64 | {:.2f}× | {} |\n",
+                   r.speedup_ns_f32_over_sc_f64, met(r.speedup_ns_f32_over_sc_f64 >= 1.9));
+  s += fmt::format("| ns-f64 per iteration ≥ 3× faster than Ceres DENSE_SCHUR | {:.2f}× | {} |\n",
+                   r.speedup_over_ceres_dense_schur, met(r.speedup_over_ceres_dense_schur >= 3));
+  s += fmt::format("| QR kernel ≥ 30 % of single-core peak | {:.1f} % | {} |\n",
+                   100 * r.qr_kernel_peak_fraction, met(r.qr_kernel_peak_fraction >= 0.3));
+  s += fmt::format("| RTF EuRoC MH_01 ≥ 20× | {:.1f}× | {} |\n", rtf("euroc/MH_01_easy"),
+                   met(rtf("euroc/MH_01_easy") >= 20));
+  s += fmt::format("| RTF KITTI 00 ≥ 20× | {:.1f}× | {} |\n", rtf("kitti/00"),
+                   met(rtf("kitti/00") >= 20));
+  s += fmt::format("| peak memory of a EuRoC run < 200 MB | {:.0f} MB | {} |\n",
+                   rss("euroc/MH_01_easy"), met(rss("euroc/MH_01_easy") < 200));
+  return s;
+}
+
+std::string benchJson(const BenchReport& r) {
+  auto num = [](double x) {
+    return std::isfinite(x) ? fmt::format("{:.6g}", x) : std::string("null");
+  };
+  double rtf_euroc = std::numeric_limits<double>::quiet_NaN(), rtf_kitti = rtf_euroc,
+         rss = rtf_euroc;
+  for (const auto& run : r.runs) {
+    if (run.dataset == "euroc/MH_01_easy") {
+      rtf_euroc = run.realtime_factor;
+      rss = run.peak_rss_mb;
+    }
+    if (run.dataset == "kitti/00") rtf_kitti = run.realtime_factor;
+  }
+  double it_ns32 = 0, it_sc64 = 0;
+  for (const auto& t : r.windows) {
+    it_ns32 += t.ns_f32;
+    it_sc64 += t.sc_f64;
+  }
+  return fmt::format(
+      "{{\"speedup_ns_f32_over_sc_f64\": {}, \"speedup_over_ceres_dense_schur\": {}, "
+      "\"speedup_over_ceres_sparse_schur\": {}, \"qr_kernel_peak_fraction\": {}, "
+      "\"qr_kernel_gflops_f32\": {}, \"qr_kernel_gflops_f64\": {}, \"peak_gflops_f32\": {}, "
+      "\"peak_gflops_f64\": {}, \"peak_isa\": \"{}\", \"realtime_factor_euroc_mh01\": {}, "
+      "\"realtime_factor_kitti00\": {}, \"peak_rss_mb_euroc_mh01\": {}, \"run_frames\": {}, "
+      "\"run_frames_note\": \"{}\", \"lm_iteration_us_ns_f32\": {}, \"lm_iteration_us_sc_f64\": "
+      "{}, "
+      "\"windows\": {}, \"rounds\": {}, \"load_before\": \"{}\", \"load_after\": \"{}\", "
+      "\"git\": \"{}\", \"date\": \"{}\"}}",
+      num(r.speedup_ns_f32_over_sc_f64), num(r.speedup_over_ceres_dense_schur),
+      num(r.speedup_over_ceres_sparse_schur), num(r.qr_kernel_peak_fraction), num(r.qr_gflops_f32),
+      num(r.qr_gflops_f64), num(r.peak_f32), num(r.peak_f64), r.peak_isa, num(rtf_euroc),
+      num(rtf_kitti), num(rss), r.run_frames,
+      r.runs.empty()
+          ? "no whole runs"
+          : (r.run_frames > 0 ? fmt::format("whole-run RTFs over the first {} frames", r.run_frames)
+                              : std::string("whole sequences")),
+      num(it_ns32 * 1e6), num(it_sc64 * 1e6), r.windows.size(), r.rounds, r.load_before,
+      r.load_after, r.git_sha, r.date_utc);
+}
+
+}  // namespace marglab

@@ -1,0 +1,67 @@
+#pragma once
+// `marglab bench`: the key measurements of the benchmark suite in one process, side by side
+// (timeSideBySide: every candidate in every round, best batch kept), on the shipped captured
+// windows, plus whole runs of ns-qr-sqrt-f32 (diagnostics off) on EuRoC MH_01 and KITTI 00 in
+// child processes (their peak resident memory from wait4). Ratios are what carries over between
+// machines; absolute times do not.
+
+#include <string>
+#include <vector>
+
+namespace marglab {
+
+struct BenchOptions {
+  int rounds = 5;
+  double batch_s = 0.03;
+  // Whole runs: frames per sequence (0: the whole sequence); no runs when run_exe is empty.
+  int run_frames = 0;
+  std::string run_exe;      // the marglab executable
+  std::string work_dir;     // for the runs' results files
+  std::string windows_dir;  // default: <datasets>/windows
+  // Progress lines on stderr.
+  bool verbose = false;
+};
+
+struct WindowTimes {
+  std::string name;
+  int landmarks = 0;
+  // LM iteration (linearize + eliminate + solve), seconds.
+  double ns_f32 = 0, ns_f64 = 0, sc_f32 = 0, sc_f64 = 0;
+  // To convergence with the window's LM settings, f64 (FEJ as captured).
+  int marglab_iterations = 0, dense_iterations = 0, sparse_iterations = 0;
+  double marglab_s = 0, dense_s = 0, sparse_s = 0;
+  double marglab_cost = 0, dense_cost = 0, sparse_cost = 0;
+  // Marginalization event, seconds.
+  double marg_qr_f32 = 0, marg_sc_f32 = 0, marg_qr_f64 = 0, marg_sc_f64 = 0;
+  // Landmark-block QR kernel.
+  double qr_flops = 0, qr_f32_s = 0, qr_f64_s = 0;
+};
+
+struct WholeRun {
+  std::string dataset;
+  int frames = 0;
+  double data_s = 0, estimator_s = 0, realtime_factor = 0, peak_rss_mb = 0, wall_s = 0;
+  std::string status;
+};
+
+struct BenchReport {
+  std::string date_utc, git_sha, cpu, load_before, load_after;
+  int rounds = 0;
+  std::vector<WindowTimes> windows;
+  double peak_f32 = 0, peak_f64 = 0, isa_peak_f32 = 0, isa_peak_f64 = 0;
+  std::string peak_isa, build_isa;
+  std::vector<WholeRun> runs;
+  int run_frames = 0;
+  // Derived.
+  double speedup_ns_f32_over_sc_f64 = 0;
+  double speedup_over_ceres_dense_schur = 0;  // per iteration, ns-f64 vs DENSE_SCHUR
+  double speedup_over_ceres_sparse_schur = 0;
+  double qr_gflops_f32 = 0, qr_gflops_f64 = 0;
+  double qr_kernel_peak_fraction = 0;  // f32 kernel / f32 machine peak
+};
+
+BenchReport runBench(const BenchOptions& options);
+std::string benchMarkdown(const BenchReport& report);
+std::string benchJson(const BenchReport& report);
+
+}  // namespace marglab

@@ -1,0 +1,86 @@
+// `marglab bench`: the benchmark suite's key measurements in one process, side by side on the
+// shipped captured windows, plus whole runs (core/bench/bench_report.h). Writes a Markdown table
+// (and the JSON) to results/perf/; --json prints the JSON object on stdout.
+
+#include <fmt/core.h>
+#include <unistd.h>
+
+#include <climits>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+
+#include "core/bench/bench_report.h"
+#include "core/common/error.h"
+#include "tools/command.h"
+
+namespace marglab {
+namespace {
+
+struct BenchArgs {
+  bool json = false;
+  std::string out = "results/perf";
+  int rounds = 5;
+  double batch_ms = 30;
+  int frames = 0;
+  bool no_runs = false;
+  bool quick = false;
+};
+
+std::string selfExe() {
+  char buf[PATH_MAX];
+  const ssize_t n = readlink("/proc/self/exe", buf, sizeof(buf) - 1);
+  if (n <= 0) throw InputError("/proc/self/exe", 0, "cannot find the marglab executable");
+  buf[n] = '\0';
+  return buf;
+}
+
+int runBenchCommand(const BenchArgs& a) {
+  BenchOptions o;
+  o.rounds = a.quick ? 1 : a.rounds;
+  o.batch_s = (a.quick ? 2 : a.batch_ms) * 1e-3;
+  o.run_frames = a.frames;
+  o.verbose = !a.json || cli::stderrIsTerminal();
+  std::filesystem::create_directories(a.out);
+  o.work_dir = a.out;
+  if (!a.no_runs) o.run_exe = selfExe();
+  const BenchReport report = runBench(o);
+  const std::string md = benchMarkdown(report);
+  const std::string json = benchJson(report);
+  const std::filesystem::path md_path = std::filesystem::path(a.out) / "bench.md";
+  const std::filesystem::path json_path = std::filesystem::path(a.out) / "bench.json";
+  std::ofstream(md_path) << md;
+  std::ofstream(json_path) << json << "\n";
+  if (a.json) {
+    fmt::print("{}\n", json);
+  } else {
+    fmt::print("{}\nwritten: {} and {}\n", md, md_path.string(), json_path.string());
+  }
+  return 0;
+}
+
+const bool kRegistered = cli::registerCommand(
+    {"bench",
+     "Benchmarks on the captured windows (LM iteration ns/sc x f32/f64, Ceres peer, "
+     "marginalization, QR kernel vs peak) and whole runs; writes results/perf/",
+     85, [](CLI::App& sub) -> cli::CommandRun {
+       auto a = std::make_shared<BenchArgs>();
+       sub.add_flag("--json", a->json, "Print one JSON object instead of the table");
+       sub.add_option("--out", a->out, "Folder of bench.md / bench.json")->capture_default_str();
+       sub.add_option("--rounds", a->rounds, "Rounds per side-by-side measurement (best kept)")
+           ->capture_default_str()
+           ->check(CLI::PositiveNumber);
+       sub.add_option("--batch-ms", a->batch_ms, "Minimum batch duration per candidate and round")
+           ->capture_default_str()
+           ->check(CLI::PositiveNumber);
+       sub.add_option("--frames", a->frames,
+                      "Whole runs: only the first N frames of EuRoC MH_01 and KITTI 00 (0: all)")
+           ->capture_default_str()
+           ->check(CLI::NonNegativeNumber);
+       sub.add_flag("--no-runs", a->no_runs, "Skip the whole runs");
+       sub.add_flag("--quick", a->quick, "One round, short batches (for tests; noisy)");
+       return [a] { return runBenchCommand(*a); };
+     }});
+
+}  // namespace
+}  // namespace marglab
