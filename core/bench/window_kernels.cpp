@@ -51,15 +51,18 @@ void WindowKernels<Scalar>::linearize() {
   State& s = *s_;
   auto& est = s.est;
   const auto rel = est.relativePoses(true);
-  s.lins.clear();
-  s.maps.clear();
+  // As optimize(): the Jacobians' storage is reused from the previous linearization.
+  s.lins.resize(est.landmarks_.size());
+  s.maps.resize(est.landmarks_.size());
+  size_t n = 0;
   for (const auto& [id, lm] : est.landmarks_) {
-    typename State::Est::Linearized lin;
-    if (est.linearizeLandmark(id, lm, s.system, rel, &lin)) {
-      s.maps.push_back(est.blockMap(lin, s.column_of));
-      s.lins.push_back(std::move(lin));
+    if (est.linearizeLandmark(id, lm, s.system, rel, &s.lins[n])) {
+      s.maps[n] = est.blockMap(s.lins[n], s.column_of);
+      ++n;
     }
   }
+  s.lins.resize(n);
+  s.maps.resize(n);
   s.links.assign(est.imu_links_.size(), {});
   size_t k = 0;
   for (const auto& [from, link] : est.imu_links_) est.linearizeLink(from, link, &s.links[k++]);

@@ -260,8 +260,9 @@ bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const L
     Mat<Scalar, 2, 3> J_l;
     Vec2S r;
   };
-  std::vector<Row2> rows;
-  rows.reserve(2 * lm.obs.size());
+  // Scratch reused across calls (no allocation per landmark once warm); one per thread.
+  thread_local std::vector<Row2> rows;
+  rows.clear();
   out->cost = 0;
   for (const auto& [frame_id, obs] : lm.obs) {
     if (system_frames.count(frame_id) == 0) continue;
@@ -297,26 +298,32 @@ bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const L
   }
   const int m = 2 * static_cast<int>(rows.size());
   if (m < 3) return false;
-  std::set<int64_t> frames;
+  // The pose blocks: the host and every target with a pose Jacobian, in id order (a small sorted
+  // vector; the observations come in id order already).
+  std::vector<int64_t>& frames = out->frames;
+  frames.clear();
   for (const Row2& row : rows) {
-    if (row.target >= 0) {
-      frames.insert(row.target);
-      frames.insert(lm.host);
+    if (row.target < 0) continue;
+    for (const int64_t f : {lm.host, row.target}) {
+      const auto it = std::lower_bound(frames.begin(), frames.end(), f);
+      if (it == frames.end() || *it != f) frames.insert(it, f);
     }
   }
+  auto local = [&frames](int64_t f) {
+    return kPoseDim *
+           static_cast<int>(std::lower_bound(frames.begin(), frames.end(), f) - frames.begin());
+  };
   out->track_id = track_id;
-  out->frames.assign(frames.begin(), frames.end());
-  std::map<int64_t, int> local;
-  for (size_t j = 0; j < out->frames.size(); ++j) local[out->frames[j]] = kPoseDim * j;
-  out->J_p.setZero(m, kPoseDim * out->frames.size());
+  out->J_p.setZero(m, kPoseDim * static_cast<Eigen::Index>(frames.size()));
   out->J_l.resize(m, 3);
   out->r.resize(m);
+  const int host_col = frames.empty() ? 0 : local(lm.host);
   for (size_t i = 0; i < rows.size(); ++i) {
     out->J_l.template middleRows<2>(2 * i) = rows[i].J_l;
     out->r.template segment<2>(2 * i) = rows[i].r;
     if (rows[i].target >= 0) {
-      out->J_p.template block<2, kPoseDim>(2 * i, local[lm.host]) += rows[i].J_h;
-      out->J_p.template block<2, kPoseDim>(2 * i, local[rows[i].target]) += rows[i].J_t;
+      out->J_p.template block<2, kPoseDim>(2 * i, host_col) += rows[i].J_h;
+      out->J_p.template block<2, kPoseDim>(2 * i, local(rows[i].target)) += rows[i].J_t;
     }
   }
   return true;
@@ -445,14 +452,18 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
   if (!std::isfinite(cost)) {
     return Status::Error(Status::Code::kNotFinite, "the cost of the window is not finite");
   }
+  // Reused across iterations: the landmarks' Jacobians and elimination blocks keep their storage
+  // (same sizes from one linearization to the next), so the loop does not allocate per landmark.
+  std::vector<Linearized> lins;
+  ReducedSystem<Scalar> rs;
   for (int it = 0; it < config_.lm_max_iterations; ++it) {
-    std::vector<Linearized> lins;
     const RelativePoses rel = relativePoses(true);
+    lins.resize(landmarks_.size());
+    size_t n_lins = 0;
     for (const auto& [id, lm] : landmarks_) {
-      Linearized lin;
-      if (linearizeLandmark(id, lm, system, rel, &lin)) lins.push_back(std::move(lin));
+      if (linearizeLandmark(id, lm, system, rel, &lins[n_lins])) ++n_lins;
     }
-    ReducedSystem<Scalar> rs;
+    lins.resize(n_lins);
     rs.H_fixed = MatX<Scalar>::Zero(n, n);
     rs.b_fixed = VecX<Scalar>::Zero(n);
     std::vector<LinkLinearized> links(imu_links_.size());
@@ -469,16 +480,16 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
       prior_delta = priorDelta(prior_);
       addPrior(prior_, prior_delta, column_of, rs.H_fixed, rs.b_fixed);
     }
-    for (const Linearized& lin : lins) {
-      if (ns) {
-        rs.ns.emplace_back();
-        Status s = rs.ns.back().setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, column_of));
-        if (!s.ok()) return s;
-      } else {
-        rs.sc.emplace_back();
-        Status s = rs.sc.back().setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, column_of));
-        if (!s.ok()) return s;
-      }
+    if (ns) {
+      rs.ns.resize(std::max(rs.ns.size(), lins.size()));
+    } else {
+      rs.sc.resize(std::max(rs.sc.size(), lins.size()));
+    }
+    for (size_t l = 0; l < lins.size(); ++l) {
+      const Linearized& lin = lins[l];
+      Status s = ns ? rs.ns[l].setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, column_of))
+                    : rs.sc[l].setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, column_of));
+      if (!s.ok()) return s;
     }
 
     // Without landmark damping (the paper's setting, §5) the reduced system does not depend on λ:

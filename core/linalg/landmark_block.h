@@ -75,8 +75,10 @@ class LandmarkBlockNs {
   Eigen::Index m_ = 0;
   Eigen::Index n_p_ = 0;
   Eigen::Index reduced_rows_ = 0;
-  // Rows: [3 Q1ᵀ rows | m − 3 Q2ᵀ rows | 3 damping rows]; columns [J_p | J_l | r].
-  MatX<Scalar> storage_;
+  // Rows: [3 Q1ᵀ rows | m − 3 Q2ᵀ rows | 3 damping rows]; columns [J_p | J_l | r]. Row-major:
+  // the reflections and the rank update work on contiguous rows (axpys that vectorize, no
+  // short reductions).
+  Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> storage_;
   Mat<Scalar, 3, Eigen::Dynamic> undamped_top_;  // Q1ᵀ rows before damping
   Vec3<Scalar> H_ll_diagonal_ = Vec3<Scalar>::Zero();
 };
@@ -109,6 +111,13 @@ class LandmarkBlockSc {
   Scalar r_squared_norm_ = 0;
   Vec3<Scalar> damping_ = Vec3<Scalar>::Zero();
 };
+
+// The in-place Householder QR of the three landmark columns n_p .. n_p + 2 of the row-major
+// m-row block A (row stride ld ≥ n_p + 4, columns [J_p | J_l | r]): each reflection acts on every
+// other column; below the diagonal of the landmark columns it leaves zeros. Eigen's
+// makeHouseholder convention (β = −sign(x₀)‖x‖).
+template <typename Scalar>
+void householderLandmarkColumns(Scalar* A, Eigen::Index ld, Eigen::Index m, Eigen::Index n_p);
 
 // Gathers a landmark's local pose increment from the reduced-camera-system increment.
 template <typename Scalar>
