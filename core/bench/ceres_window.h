@@ -23,8 +23,9 @@
 // [1/λ_max, 1/λ_min], max_num_iterations = lm.max_iterations, function_tolerance =
 // stop_relative_cost, no Jacobian scaling (the estimator has none), one thread. The estimator's
 // absolute max|δ| < stop_max_step has no Ceres equivalent (parameter_tolerance is relative to ‖x‖
-// and on KITTI stops before the first step); it is left out (parameter_tolerance 1e-12). Ceres damps with diag(JᵀJ)/μ clamped to [min_lm_diagonal, max_lm_diagonal]
-// where the estimator adds max(λH_ii, λ_min): the same rule up to the floor.
+// and on KITTI stops before the first step); it is left out (parameter_tolerance 1e-12). Ceres
+// damps with diag(JᵀJ)/μ clamped to [min_lm_diagonal, max_lm_diagonal] where the estimator adds
+// max(λH_ii, λ_min): the same rule up to the floor.
 
 #include <ceres/types.h>
 
