@@ -21,6 +21,7 @@
 #include <thread>
 
 #include "core/common/error.h"
+#include "core/common/utc_time.h"
 #include "core/data/sequence.h"
 #include "core/estimator/variant.h"
 #include "core/experiment/sweep_index.h"
@@ -35,15 +36,6 @@ using Clock = std::chrono::steady_clock;
 
 volatile std::sig_atomic_t g_stop_signal = 0;
 extern "C" void onStopSignal(int signal) { g_stop_signal = signal; }
-
-std::string utcNow() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buffer[32];
-  std::strftime(buffer, sizeof(buffer), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buffer;
-}
 
 std::string readFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -261,8 +253,9 @@ class Runner {
     writeFileAtomically((out / "runs" / (run.id + ".cmd")).string(), runFingerprint(run));
     {
       std::ofstream header(log, std::ios::trunc);
-      header << "# marglab sweep " << plan_.name << ": run " << run.id << "\n# started " << utcNow()
-             << " in " << fs::absolute(out).string() << "\n# " << row.get("command") << "\n";
+      header << "# marglab sweep " << plan_.name << ": run " << run.id << "\n# started "
+             << utcNowIso8601() << " in " << fs::absolute(out).string() << "\n# "
+             << row.get("command") << "\n";
     }
 
     std::vector<std::string> args = runArguments(run, row.get("results"), row.get("config"));
@@ -292,7 +285,7 @@ class Runner {
       [[maybe_unused]] const ssize_t n = write(STDERR_FILENO, message, sizeof(message) - 1);
       _exit(127);
     }
-    row.set("started_utc", utcNow());
+    row.set("started_utc", utcNowIso8601());
     if (pid < 0) {
       row.set("status", "failed");
       row.set("failure_kind", "error");

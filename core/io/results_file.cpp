@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "core/common/error.h"
+#include "core/common/utc_time.h"
 #include "core/diagnostics/ate.h"
 #include "marglab/version.h"
 
@@ -15,15 +16,6 @@ namespace marglab {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-std::string utcNow() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buffer[32];
-  std::strftime(buffer, sizeof(buffer), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buffer;
-}
 
 void describe(const h5::Object& o, const char* units, const char* description) {
   o.setAttr("units", units);
@@ -96,7 +88,7 @@ ResultsWriter ResultsWriter::create(const std::string& path, const RunMetadata& 
   f.setAttr("schema_version", static_cast<std::int64_t>(kResultsSchemaVersion));
   f.setAttr("marglab_version", MARGLAB_VERSION_STRING);
   f.setAttr("git_sha", MARGLAB_GIT_SHA);
-  f.setAttr("created_utc", utcNow());
+  f.setAttr("created_utc", utcNowIso8601());
   f.setAttr("dataset", metadata.dataset);
   f.setAttr("sequence", metadata.sequence);
   f.setAttr("variant", metadata.variant);

@@ -15,6 +15,7 @@
 #include "core/sim/feature_tracker.h"
 #include "core/sim/imu_synth.h"
 #include "core/sim/trajectory_spline.h"
+#include "estimator/variant_params.h"
 
 namespace marglab {
 namespace {
@@ -40,7 +41,8 @@ struct VioScenario {
   ImuSetup imu;
 
   VioScenario(double t_begin_s, double duration_s)
-      : sequence(loadSequence("euroc/MH_01_easy")), spline(TrajectorySpline::fromSequence(sequence)) {
+      : sequence(loadSequence("euroc/MH_01_easy")),
+        spline(TrajectorySpline::fromSequence(sequence)) {
     const int64_t t0 = spline.startTimeNs() + static_cast<int64_t>(t_begin_s * 1e9);
     const int64_t t1 = t0 + static_cast<int64_t>(duration_s * 1e9);
     std::vector<int64_t> cams;
@@ -94,21 +96,15 @@ TEST_P(VioVariantTest, NoiseFreeSimulationTracksTheTruthToACentimetre) {
   for (const TrackFrame& frame : scenario.stream.frames) {
     const FrameResult result = estimator.processFrame(frame);
     ASSERT_TRUE(result.status.ok()) << result.status.toString();
-    max_error = std::max(
-        max_error, (result.T_w_i.translation() - scenario.truePosition(frame.t_ns)).norm());
+    max_error = std::max(max_error,
+                         (result.T_w_i.translation() - scenario.truePosition(frame.t_ns)).norm());
   }
   EXPECT_GT(scenario.stream.frames.size(), 590u);
   EXPECT_LT(max_error, 0.01);
 }
 
-INSTANTIATE_TEST_SUITE_P(F64, VioVariantTest,
-                         ::testing::Values("ns-qr-sqrt-f64", "sc-sc-sq-f64", "sc-qr-sqrt-f64",
-                                           "ns-sc-sqrt-f64", "sc-sc-sqrt-f64"),
-                         [](const auto& info) {
-                           std::string name = info.param;
-                           std::replace(name.begin(), name.end(), '-', '_');
-                           return name;
-                         });
+INSTANTIATE_TEST_SUITE_P(F64, VioVariantTest, test::doublePrecisionVariants(),
+                         test::variantTestName);
 
 TEST(VioGauge, GaugeFreePriorHasTheFourDofVioGauge) {
   const VioScenario scenario(10.0, 12.0);
@@ -129,9 +125,9 @@ TEST(VioGauge, GaugeFreePriorHasTheFourDofVioGauge) {
 
   const PriorDiagnostics diagnostics =
       diagnoseSqrtPrior(last->J_m, last->r_m, last->layout, last->state, 11);
-  const double observable = std::min({std::abs(diagnostics.dEm[kGaugeRoll]),
-                                      std::abs(diagnostics.dEm[kGaugePitch]),
-                                      std::abs(diagnostics.dEm[kGaugeRandom])});
+  const double observable =
+      std::min({std::abs(diagnostics.dEm[kGaugeRoll]), std::abs(diagnostics.dEm[kGaugePitch]),
+                std::abs(diagnostics.dEm[kGaugeRandom])});
   for (int d : {kGaugeX, kGaugeY, kGaugeZ, kGaugeYaw}) {
     EXPECT_LT(std::abs(diagnostics.dEm[d]), 1e-6 * observable)
         << kGaugeDirectionNames[d] << ": " << diagnostics.dEm.transpose();

@@ -11,6 +11,7 @@
 #include "core/estimator/estimator.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
+#include "estimator/variant_params.h"
 
 namespace marglab {
 namespace {
@@ -95,7 +96,7 @@ class VoVariantTest : public ::testing::TestWithParam<std::string> {};
 template <typename Scalar>
 double maxPositionError(const Scenario& scenario, const Variant& variant) {
   SlidingWindowEstimator<Scalar> estimator(testConfig(), variant, rigOf(scenario.calib),
-                                scenario.truth(scenario.stream.frames.front().t_ns));
+                                           scenario.truth(scenario.stream.frames.front().t_ns));
   double max_error = 0;
   for (const TrackFrame& frame : scenario.stream.frames) {
     const FrameResult result = estimator.processFrame(frame);
@@ -114,20 +115,14 @@ TEST_P(VoVariantTest, NoiseFreeTracksRecoverTheTruthToAMillimetre) {
   EXPECT_LT(maxPositionError<double>(scenario, variant), 1e-3);
 }
 
-INSTANTIATE_TEST_SUITE_P(F64, VoVariantTest,
-                         ::testing::Values("ns-qr-sqrt-f64", "sc-sc-sq-f64", "sc-qr-sqrt-f64",
-                                           "ns-sc-sqrt-f64", "sc-sc-sqrt-f64"),
-                         [](const auto& info) {
-                           std::string name = info.param;
-                           std::replace(name.begin(), name.end(), '-', '_');
-                           return name;
-                         });
+INSTANTIATE_TEST_SUITE_P(F64, VoVariantTest, test::doublePrecisionVariants(),
+                         test::variantTestName);
 
 // Runs a few frames so that the window is full and has a prior, then compares.
 TEST(VoEquivalence, NullspaceAndSchurGiveTheSameStep) {
   const Scenario scenario(40);
-  SlidingWindowEstimator<double> ns(testConfig(), Variant::parse("ns-qr-sqrt-f64"), rigOf(scenario.calib),
-                         scenario.truth(0));
+  SlidingWindowEstimator<double> ns(testConfig(), Variant::parse("ns-qr-sqrt-f64"),
+                                    rigOf(scenario.calib), scenario.truth(0));
   for (int i = 0; i < 30; ++i) ASSERT_TRUE(ns.processFrame(scenario.stream.frames[i]).status.ok());
   // Same window, linearized once, eliminated both ways (the variant only switches elimination).
   VecXd step_ns, step_sc;
@@ -140,7 +135,7 @@ TEST(VoEquivalence, NullspaceAndSchurGiveTheSameStep) {
 TEST(VoEquivalence, QrAndSchurMarginalizationGiveTheSamePriorHessian) {
   const Scenario scenario(40);
   SlidingWindowEstimator<double> estimator(testConfig(), Variant::parse("ns-qr-sqrt-f64"),
-                                rigOf(scenario.calib), scenario.truth(0));
+                                           rigOf(scenario.calib), scenario.truth(0));
   for (int i = 0; i < 30; ++i) {
     ASSERT_TRUE(estimator.processFrame(scenario.stream.frames[i]).status.ok());
   }
@@ -155,7 +150,7 @@ TEST(VoEquivalence, QrAndSchurMarginalizationGiveTheSamePriorHessian) {
 TEST(VoGauge, GaugeFreePriorHasASixDimensionalNullspace) {
   const Scenario scenario(60);
   SlidingWindowEstimator<double> estimator(testConfig(), Variant::parse("ns-qr-sqrt-f64"),
-                                rigOf(scenario.calib), scenario.truth(0));
+                                           rigOf(scenario.calib), scenario.truth(0));
   std::optional<MargEvent> last;
   for (const TrackFrame& frame : scenario.stream.frames) {
     FrameResult result = estimator.processFrame(frame);
