@@ -31,6 +31,7 @@ struct RunArgs {
   std::optional<double> qr_threshold;
   bool no_diagnostics = false;
   std::optional<int> store_prior_every;
+  std::optional<int> threads;
   int inject_nan_frame = -1;
   std::vector<int> dump_windows;
   std::string dump_dir = "windows";
@@ -70,6 +71,7 @@ int runRun(const RunArgs& args) {
   if (args.qr_threshold) options.config.qr_threshold = *args.qr_threshold;
   if (args.no_diagnostics) options.config.diagnostics = false;
   if (args.store_prior_every) options.config.store_prior_every = *args.store_prior_every;
+  if (args.threads) options.config.lm_threads = *args.threads;
 
   const auto start = std::chrono::steady_clock::now();
   const bool terminal = cli::stderrIsTerminal();
@@ -136,6 +138,10 @@ const bool kRegistered = cli::registerCommand(
                       "Flat-QR rank threshold: absolute (default) or relative");
        sub.add_option("--qr-threshold", args->qr_threshold,
                       "Flat-QR rank threshold value (default: sqrt(eps) of the precision)");
+       sub.add_option("--threads", args->threads,
+                      "Threads of the LM loop over landmark blocks (default 1 = lm.threads: "
+                      "timings comparable between variants)")
+           ->check(CLI::PositiveNumber);
        sub.add_flag("--no-diagnostics", args->no_diagnostics,
                     "Skip the shadow prior and its eigenvalues");
        sub.add_option("--store-prior-every", args->store_prior_every,

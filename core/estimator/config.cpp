@@ -45,6 +45,7 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
   D("lm", "stop_max_step", &c.stop_max_step);
   I("lm", "max_failed_solves", &c.max_failed_solves);
   list.push_back({"lm", "landmark_damping", nullptr, nullptr, &c.lm_landmark_damping});
+  I("lm", "threads", &c.lm_threads);
   list.push_back({"marginalization", "qr_threshold_mode", nullptr, nullptr, nullptr, nullptr,
                   &c.qr_threshold_mode});
   D("marginalization", "qr_threshold", &c.qr_threshold);
@@ -77,6 +78,9 @@ void apply(EstimatorConfig& config, const toml::table& root, const std::string& 
       } else if (it->i != nullptr) {
         auto v = node.value<int64_t>();
         if (!v) throw error(node, fmt::format("expected an integer for {}.{}", section, key));
+        if (it->i == &config.lm_threads && *v < 1) {
+          throw error(node, "expected lm.threads >= 1");
+        }
         *it->i = static_cast<int>(*v);
       } else if (it->b != nullptr) {
         auto v = node.value<bool>();

@@ -11,7 +11,7 @@
 //   [keyframes]     connected_ratio, min_frames_after_kf (−1: dataset default), min_baseline_m,
 //                   marg_connected_share
 //   [lm]            max_iterations, lambda_init, lambda_min, lambda_max, stop_relative_cost,
-//                   stop_max_step, max_failed_solves, landmark_damping
+//                   stop_max_step, max_failed_solves, landmark_damping, threads
 //   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
 //                   scalar type)
 //   [failure]       max_position_error_m (−1: dataset default)
@@ -52,6 +52,10 @@ struct EstimatorConfig {
   // Jacobian scaling and landmark damping"), which lets the reduced system be formed once per
   // linearization.
   bool lm_landmark_damping = false;
+  // Threads of the LM loop over landmark blocks (linearize, eliminate, reduce, back-substitute,
+  // cost). 1 keeps timings comparable between variants and machines; the landmark-damped variant
+  // of the loop stays serial.
+  int lm_threads = 1;
   // marginalization
   RankThresholdMode qr_threshold_mode = RankThresholdMode::kAbsolute;
   double qr_threshold = -1;

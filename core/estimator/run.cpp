@@ -26,6 +26,8 @@ SE3<double> cameraExtrinsic(const CameraCalib& camera) {
   return SE3<double>(camera.R_b_c, camera.t_b_c);
 }
 
+}  // namespace
+
 StereoRig<double> rigFromCalib(const StereoCalib& calib) {
   StereoRig<double> rig;
   auto camera = [](const CameraCalib& c) {
@@ -37,6 +39,8 @@ StereoRig<double> rigFromCalib(const StereoCalib& calib) {
   rig.T_i_c1 = cameraExtrinsic(calib.cam1);
   return rig;
 }
+
+namespace {
 
 // The ground truth of the left camera: T_w_c0 = T_w_b T_b_c0 at every GT sample.
 Trajectory cameraGroundTruth(const Trajectory& gt, const SE3<double>& T_b_c0) {

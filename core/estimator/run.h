@@ -17,8 +17,10 @@
 #include <string>
 #include <vector>
 
+#include "core/data/types.h"
 #include "core/estimator/config.h"
 #include "core/estimator/variant.h"
+#include "core/geometry/camera.h"
 #include "core/io/results_file.h"
 
 namespace marglab {
@@ -62,6 +64,10 @@ struct RunOutcome {
 // Throws InputError for bad input (unknown dataset, sequence without trajectory, unwritable
 // output); numerical failure is a result (status failed), not an exception.
 RunOutcome runSequence(const RunOptions& options);
+
+// The estimator's rig from a calibration: pinhole intrinsics (images are undistorted) and the
+// body-to-camera extrinsics T_i_c0, T_i_c1.
+StereoRig<double> rigFromCalib(const StereoCalib& calib);
 
 // The TUM path written next to a results file.
 std::string tumPathFor(const std::string& results_path);

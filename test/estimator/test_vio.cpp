@@ -12,6 +12,7 @@
 #include "core/data/sequence.h"
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
+#include "core/estimator/run.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/imu_synth.h"
 #include "core/sim/trajectory_spline.h"
@@ -19,16 +20,6 @@
 
 namespace marglab {
 namespace {
-
-StereoRig<double> rigOf(const StereoCalib& calib) {
-  StereoRig<double> rig;
-  for (auto [cam, c] : {std::pair{&rig.cam0, &calib.cam0}, std::pair{&rig.cam1, &calib.cam1}}) {
-    *cam = PinholeCamera<double>{c->fx, c->fy, c->cx, c->cy, c->width, c->height};
-  }
-  rig.T_i_c0 = SE3<double>(calib.cam0.R_b_c, calib.cam0.t_b_c);
-  rig.T_i_c1 = SE3<double>(calib.cam1.R_b_c, calib.cam1.t_b_c);
-  return rig;
-}
 
 // MH_01 from t_begin_s for duration_s, cameras at 10 Hz (every other EuRoC frame, to keep the
 // test fast), tracks and IMU without noise or outliers.
@@ -73,8 +64,8 @@ struct VioScenario {
                                            const EstimatorConfig& config = {}) const {
     EstimatorConfig c = config;
     c.min_frames_after_kf = 3;  // 5 at 20 Hz
-    return SlidingWindowEstimator<Scalar>(c, variant, rigOf(sequence.calib), imu.initial.T_w_i,
-                                          imu);
+    return SlidingWindowEstimator<Scalar>(c, variant, rigFromCalib(sequence.calib),
+                                          imu.initial.T_w_i, imu);
   }
 };
 
