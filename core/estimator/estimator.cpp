@@ -115,7 +115,8 @@ SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorConfig& co
       rig_(rig.template cast<Scalar>()),
       imu_(std::move(imu)),
       last_pose_(imu_ ? imu_->initial.T_w_i : T_w_i_initial),
-      lambda_(static_cast<Scalar>(config.lambda_init)) {
+      lambda_(static_cast<Scalar>(config.lambda_init)),
+      pool_(std::make_shared<ThreadPool>(std::max(config.lm_threads, 1))) {
   if (imu_) {
     T_i_c_ = {rig.T_i_c0.template cast<Scalar>(), rig.T_i_c1.template cast<Scalar>()};
     g_w_ = imu_->g_w.template cast<Scalar>();
@@ -239,9 +240,18 @@ VecX<Scalar> SlidingWindowEstimator<Scalar>::priorDelta(const MargPrior<Scalar>&
 
 template <typename Scalar>
 Scalar SlidingWindowEstimator<Scalar>::totalCost() const {
-  Scalar cost = 0;
   const RelativePoses rel = relativePoses(false);
-  for (const auto& [id, lm] : landmarks_) cost += landmarkCost(lm, rel);
+  std::vector<const Landmark*> lms;
+  lms.reserve(landmarks_.size());
+  for (const auto& [id, lm] : landmarks_) lms.push_back(&lm);
+  std::vector<Scalar> chunk_cost(static_cast<size_t>(pool_->threads()), Scalar(0));
+  pool_->forChunks(lms.size(), [&](size_t begin, size_t end, int chunk) {
+    Scalar sum = 0;
+    for (size_t i = begin; i < end; ++i) sum += landmarkCost(*lms[i], rel);
+    chunk_cost[static_cast<size_t>(chunk)] = sum;
+  });
+  Scalar cost = 0;
+  for (const Scalar c : chunk_cost) cost += c;
   for (const auto& [from, link] : imu_links_) cost += linkCost(from, link);
   if (!prior_.empty()) cost += prior_.cost(priorDelta(prior_));
   return cost;
@@ -456,12 +466,36 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
   // (same sizes from one linearization to the next), so the loop does not allocate per landmark.
   std::vector<Linearized> lins;
   ReducedSystem<Scalar> rs;
+  // The landmark loops run in the pool's chunks; per-chunk results are combined in chunk order.
+  const size_t n_chunks = static_cast<size_t>(pool_->threads());
+  std::vector<std::pair<int64_t, const Landmark*>> lms;
+  std::vector<char> linearized;
+  std::vector<Status> chunk_status(n_chunks);
+  std::vector<Scalar> chunk_change(n_chunks);
+  std::vector<MatX<Scalar>> chunk_H(n_chunks - 1);
+  std::vector<VecX<Scalar>> chunk_b(n_chunks - 1);
+  auto firstError = [&chunk_status]() {
+    for (const Status& s : chunk_status) {
+      if (!s.ok()) return s;
+    }
+    return Status::Ok();
+  };
   for (int it = 0; it < config_.lm_max_iterations; ++it) {
     const RelativePoses rel = relativePoses(true);
-    lins.resize(landmarks_.size());
+    lms.clear();
+    for (const auto& [id, lm] : landmarks_) lms.emplace_back(id, &lm);
+    lins.resize(lms.size());
+    linearized.assign(lms.size(), 0);
+    pool_->forChunks(lms.size(), [&](size_t begin, size_t end, int) {
+      for (size_t i = begin; i < end; ++i) {
+        linearized[i] = linearizeLandmark(lms[i].first, *lms[i].second, system, rel, &lins[i]);
+      }
+    });
     size_t n_lins = 0;
-    for (const auto& [id, lm] : landmarks_) {
-      if (linearizeLandmark(id, lm, system, rel, &lins[n_lins])) ++n_lins;
+    for (size_t i = 0; i < lins.size(); ++i) {
+      if (!linearized[i]) continue;
+      if (i != n_lins) std::swap(lins[n_lins], lins[i]);
+      ++n_lins;
     }
     lins.resize(n_lins);
     rs.H_fixed = MatX<Scalar>::Zero(n, n);
@@ -485,12 +519,20 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
     } else {
       rs.sc.resize(std::max(rs.sc.size(), lins.size()));
     }
-    for (size_t l = 0; l < lins.size(); ++l) {
-      const Linearized& lin = lins[l];
-      Status s = ns ? rs.ns[l].setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, column_of))
-                    : rs.sc[l].setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, column_of));
-      if (!s.ok()) return s;
-    }
+    std::fill(chunk_status.begin(), chunk_status.end(), Status::Ok());
+    pool_->forChunks(lins.size(), [&](size_t begin, size_t end, int chunk) {
+      for (size_t l = begin; l < end; ++l) {
+        const Linearized& lin = lins[l];
+        const PoseBlockMap blocks = blockMap(lin, column_of);
+        Status s = ns ? rs.ns[l].setFromJacobians(lin.J_p, lin.J_l, lin.r, blocks)
+                      : rs.sc[l].setFromJacobians(lin.J_p, lin.J_l, lin.r, blocks);
+        if (!s.ok()) {
+          chunk_status[static_cast<size_t>(chunk)] = s;
+          return;
+        }
+      }
+    });
+    if (Status s = firstError(); !s.ok()) return s;
 
     // Without landmark damping (the paper's setting, §5) the reduced system does not depend on λ:
     // it is formed once per linearization and only the pose diagonal is damped per trial.
@@ -498,13 +540,26 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
     const bool damp_landmarks = config_.lm_landmark_damping;
     std::vector<char> active(lins.size(), 1);
     if (!damp_landmarks) {
-      for (size_t l = 0; l < lins.size(); ++l) {
-        if (ns) {
-          active[l] = rs.ns[l].landmarkSolvable();
-          if (active[l]) rs.ns[l].addToReducedSystem(rs.H_fixed, rs.b_fixed);
-        } else {
-          active[l] = rs.sc[l].addToReducedSystem(rs.H_fixed, rs.b_fixed).ok();
+      // Chunk 0 adds into the system itself, the others into their own, summed in chunk order.
+      for (size_t c = 1; c < n_chunks; ++c) {
+        chunk_H[c - 1].setZero(n, n);
+        chunk_b[c - 1].setZero(n);
+      }
+      pool_->forChunks(lins.size(), [&](size_t begin, size_t end, int chunk) {
+        MatX<Scalar>& H = chunk == 0 ? rs.H_fixed : chunk_H[static_cast<size_t>(chunk) - 1];
+        VecX<Scalar>& b = chunk == 0 ? rs.b_fixed : chunk_b[static_cast<size_t>(chunk) - 1];
+        for (size_t l = begin; l < end; ++l) {
+          if (ns) {
+            active[l] = rs.ns[l].landmarkSolvable();
+            if (active[l]) rs.ns[l].addToReducedSystem(H, b);
+          } else {
+            active[l] = rs.sc[l].addToReducedSystem(H, b).ok();
+          }
         }
+      });
+      for (size_t c = 1; c < n_chunks; ++c) {
+        rs.H_fixed += chunk_H[c - 1];
+        rs.b_fixed += chunk_b[c - 1];
       }
     }
 
@@ -535,11 +590,26 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
         solve = solveDampedLdlt<Scalar>(rs.H, rs.b, lambda_, lambda_min);
         status = solve.status;
       }
+      // Back-substitution and the landmarks' share of the model decrease, per chunk.
       std::vector<Vec3<Scalar>> delta_l(lins.size(), Vec3<Scalar>::Zero());
-      for (size_t l = 0; l < lins.size() && status.ok(); ++l) {
-        if (!active[l]) continue;
-        status = ns ? rs.ns[l].backSubstitute(solve.delta, &delta_l[l])
-                    : rs.sc[l].backSubstitute(solve.delta, &delta_l[l]);
+      std::fill(chunk_change.begin(), chunk_change.end(), Scalar(0));
+      if (status.ok()) {
+        std::fill(chunk_status.begin(), chunk_status.end(), Status::Ok());
+        pool_->forChunks(lins.size(), [&](size_t begin, size_t end, int chunk) {
+          const size_t c = static_cast<size_t>(chunk);
+          for (size_t l = begin; l < end; ++l) {
+            if (!active[l]) continue;
+            Status s = ns ? rs.ns[l].backSubstitute(solve.delta, &delta_l[l])
+                          : rs.sc[l].backSubstitute(solve.delta, &delta_l[l]);
+            if (!s.ok()) {
+              chunk_status[c] = s;
+              return;
+            }
+            chunk_change[c] += ns ? rs.ns[l].linearizedCostChange(solve.delta, delta_l[l])
+                                  : rs.sc[l].linearizedCostChange(solve.delta, delta_l[l]);
+          }
+        });
+        status = firstError();
       }
       if (!status.ok()) {
         if (++failed_solves_ >= config_.max_failed_solves) {
@@ -555,11 +625,7 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
 
       // Model decrease of the undamped linearized energy.
       Scalar model_change = 0;
-      for (size_t l = 0; l < lins.size(); ++l) {
-        if (!active[l]) continue;
-        model_change += ns ? rs.ns[l].linearizedCostChange(solve.delta, delta_l[l])
-                           : rs.sc[l].linearizedCostChange(solve.delta, delta_l[l]);
-      }
+      for (const Scalar change : chunk_change) model_change += change;
       for (const LinkLinearized& lin : links) {
         const Vec<Scalar, 15> J_step =
             lin.J * gatherBlocks<Scalar>(linkVars(lin.from, lin.to), 30, solve.delta, column_of);
@@ -778,36 +844,39 @@ Status SlidingWindowEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior,
   } else {
     MatX<Scalar> H = MatX<Scalar>::Zero(n, n);
     VecX<Scalar> b = VecX<Scalar>::Zero(n);
-    // The energy of the marginalized terms at the current state (after eliminating the
-    // landmarks), for the constant of a Hessian prior.
-    Scalar c = prior.empty() ? Scalar(0) : prior.cost(old_delta);
     for (const Linearized& lin : lins) {
       LandmarkBlockSc<Scalar> block;
       Status s = block.setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, column_of));
       if (!s.ok()) return s;
       // A landmark whose H_ll is singular carries no usable pose information: skip it.
-      if (block.addToReducedSystem(H, b).ok()) c += block.eliminatedCost();
+      block.addToReducedSystem(H, b).ok();
     }
     for (const LinkLinearized& lin : links) {
       const MatX<Scalar> H_link = lin.J.transpose() * lin.J;
       const VecX<Scalar> b_link = lin.J.transpose() * lin.r;
       scatterBlocks(linkVars(lin.from, lin.to), H_link, b_link, column_of, H, b);
-      c += Scalar(0.5) * lin.r.squaredNorm();
     }
     if (!prior.empty()) addPrior(prior, old_delta, column_of, H, b);
     SchurMarginalization<Scalar> sc = schurMarginalize<Scalar>(H, b, n_marg);
     if (!sc.status.ok()) return sc.status;
     const VecX<Scalar> b_m = sc.prior.b - sc.prior.H * new_delta;
+    // The square root ½‖r + Jδ‖² of the prior (anchored at x⁰); a Hessian prior keeps its value
+    // at δ = 0 as its constant c = ½ b_mᵀ H⁺ b_m, so that both storages are the same function
+    // and the flat QR's (rows without Jacobian carry no constant either). The energy of the
+    // marginalized residuals themselves would grow with every marginalization and loosen the
+    // relative-decrease stopping rule for the Hessian storage alone.
+    LdltSqrt<Scalar> ldlt = hessianToSqrtLdlt<Scalar>(sc.prior.H, b_m);
+    if (!ldlt.status.ok()) {
+      return storage == PriorStorage::kHessian
+                 ? Status::Error(ldlt.status.code(),
+                                 "the constant of the Hessian prior: " + ldlt.status.message())
+                 : ldlt.status;
+    }
     if (storage == PriorStorage::kHessian) {
-      // Re-anchored at x⁰ so that E_m(current) = c + c̃ (the minimum over the marginalized
-      // variables).
-      next.hessian.c = c + sc.prior.c - sc.prior.b.dot(new_delta) +
-                       Scalar(0.5) * new_delta.dot(sc.prior.H * new_delta);
+      next.hessian.c = Scalar(0.5) * ldlt.prior.r.squaredNorm();
       next.hessian.H = std::move(sc.prior.H);
       next.hessian.b = b_m;
     } else {
-      LdltSqrt<Scalar> ldlt = hessianToSqrtLdlt<Scalar>(sc.prior.H, b_m);
-      if (!ldlt.status.ok()) return ldlt.status;
       next.sqrt = std::move(ldlt.prior);
     }
   }

@@ -55,6 +55,7 @@
 #include <chrono>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
@@ -62,6 +63,7 @@
 
 #include "core/common/eigen_types.h"
 #include "core/common/status.h"
+#include "core/common/thread_pool.h"
 #include "core/data/types.h"
 #include "core/diagnostics/gauge.h"
 #include "core/estimator/config.h"
@@ -357,6 +359,9 @@ class SlidingWindowEstimator {
   int failed_solves_ = 0;
   bool capture_next_ = false;
   std::optional<WindowSnapshot> captured_;
+  // config_.lm_threads workers for optimize(); shared by copies of the estimator, which are never
+  // optimized concurrently.
+  std::shared_ptr<ThreadPool> pool_;
 
   // The benchmark suite times the phases of one LM iteration on captured windows.
   template <typename>

@@ -258,15 +258,7 @@ Status LandmarkBlockSc<Scalar>::setFromJacobians(const MatX<Scalar>& J_p,
   H_ll_ = J_l.transpose() * J_l;
   b_p_ = J_p.transpose() * r;
   b_l_ = J_l.transpose() * r;
-  r_squared_norm_ = r.squaredNorm();
   return Status::Ok();
-}
-
-template <typename Scalar>
-Scalar LandmarkBlockSc<Scalar>::eliminatedCost() const {
-  Eigen::LLT<Mat3<Scalar>> llt;
-  if (!dampedFactor(&llt).ok()) return Scalar(0);
-  return Scalar(0.5) * (r_squared_norm_ - b_l_.dot(llt.solve(b_l_)));
 }
 
 template <typename Scalar>

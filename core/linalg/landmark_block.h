@@ -91,9 +91,6 @@ class LandmarkBlockSc {
   Vec3<Scalar> landmarkHessianDiagonal() const { return H_ll_.diagonal(); }
   void setLandmarkDamping(const Vec3<Scalar>& d) { damping_ = d; }
   // H += H_pp − H_pl H_ll⁻¹ H_lp, b += b_p − H_pl H_ll⁻¹ b_l. Fails if H_ll + diag(d) is singular.
-  // The constant of the reduced energy: min over δl of the landmark's energy at δp = 0,
-  // ½‖r‖² − ½ b_lᵀ (H_ll + diag(d))⁻¹ b_l (0 when H_ll is singular).
-  Scalar eliminatedCost() const;
   Status addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const;
   Status backSubstitute(const VecX<Scalar>& delta_rcs, Vec3<Scalar>* delta_l) const;
   // ½‖J δ + r‖² − ½‖r‖² = bᵀδ + ½ δᵀHδ with the undamped blocks, δ = (δp, δl).
@@ -108,7 +105,6 @@ class LandmarkBlockSc {
   Mat3<Scalar> H_ll_ = Mat3<Scalar>::Zero();
   VecX<Scalar> b_p_;
   Vec3<Scalar> b_l_ = Vec3<Scalar>::Zero();
-  Scalar r_squared_norm_ = 0;
   Vec3<Scalar> damping_ = Vec3<Scalar>::Zero();
 };
 

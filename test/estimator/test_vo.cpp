@@ -9,6 +9,7 @@
 
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
+#include "core/estimator/run.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
 #include "estimator/variant_params.h"
@@ -53,27 +54,17 @@ StereoCalib kittiLikeCalib() {
   return calib;
 }
 
-StereoRig<double> rigOf(const StereoCalib& calib) {
-  StereoRig<double> rig;
-  for (auto [cam, c] : {std::pair{&rig.cam0, &calib.cam0}, std::pair{&rig.cam1, &calib.cam1}}) {
-    *cam = PinholeCamera<double>{c->fx, c->fy, c->cx, c->cy, c->width, c->height};
-  }
-  rig.T_i_c0 = SE3<double>(calib.cam0.R_b_c, calib.cam0.t_b_c);
-  rig.T_i_c1 = SE3<double>(calib.cam1.R_b_c, calib.cam1.t_b_c);
-  return rig;
-}
-
 struct Scenario {
   CircleTrajectory trajectory;
   StereoCalib calib = kittiLikeCalib();
   TrackStream stream;
-  explicit Scenario(int frames) {
+  explicit Scenario(int frames, bool noise = false) {
     WorldOptions world_options = defaultWorldOptions(DatasetKind::kKitti);
     const World world = makeWorld(trajectory, world_options, 3);
     TrackerOptions tracker;
     tracker.grid_cell_px = 30;
     tracker.max_depth = 250;
-    tracker.noise = false;
+    tracker.noise = noise;
     tracker.outliers = false;
     std::vector<int64_t> t_ns;
     for (int i = 0; i < frames; ++i) t_ns.push_back(int64_t{100'000'000} * i);
@@ -95,7 +86,7 @@ class VoVariantTest : public ::testing::TestWithParam<std::string> {};
 
 template <typename Scalar>
 double maxPositionError(const Scenario& scenario, const Variant& variant) {
-  SlidingWindowEstimator<Scalar> estimator(testConfig(), variant, rigOf(scenario.calib),
+  SlidingWindowEstimator<Scalar> estimator(testConfig(), variant, rigFromCalib(scenario.calib),
                                            scenario.truth(scenario.stream.frames.front().t_ns));
   double max_error = 0;
   for (const TrackFrame& frame : scenario.stream.frames) {
@@ -122,7 +113,7 @@ INSTANTIATE_TEST_SUITE_P(F64, VoVariantTest, test::doublePrecisionVariants(),
 TEST(VoEquivalence, NullspaceAndSchurGiveTheSameStep) {
   const Scenario scenario(40);
   SlidingWindowEstimator<double> ns(testConfig(), Variant::parse("ns-qr-sqrt-f64"),
-                                    rigOf(scenario.calib), scenario.truth(0));
+                                    rigFromCalib(scenario.calib), scenario.truth(0));
   for (int i = 0; i < 30; ++i) ASSERT_TRUE(ns.processFrame(scenario.stream.frames[i]).status.ok());
   // Same window, linearized once, eliminated both ways (the variant only switches elimination).
   VecXd step_ns, step_sc;
@@ -135,7 +126,7 @@ TEST(VoEquivalence, NullspaceAndSchurGiveTheSameStep) {
 TEST(VoEquivalence, QrAndSchurMarginalizationGiveTheSamePriorHessian) {
   const Scenario scenario(40);
   SlidingWindowEstimator<double> estimator(testConfig(), Variant::parse("ns-qr-sqrt-f64"),
-                                           rigOf(scenario.calib), scenario.truth(0));
+                                           rigFromCalib(scenario.calib), scenario.truth(0));
   for (int i = 0; i < 30; ++i) {
     ASSERT_TRUE(estimator.processFrame(scenario.stream.frames[i]).status.ok());
   }
@@ -147,10 +138,61 @@ TEST(VoEquivalence, QrAndSchurMarginalizationGiveTheSamePriorHessian) {
   EXPECT_LT((H_qr - H_sc).norm() / H_qr.norm(), 1e-8);
 }
 
+// Hessian and square-root storage of the same Schur-complement prior are the same energy (the
+// Hessian prior's constant is ½ bᵀH⁺b), so with pixel noise both take the same LM iterations and
+// reach the same costs, frame after frame, up to rounding.
+TEST(VoStorage, HessianAndSquareRootPriorsGiveTheSameCosts) {
+  const Scenario scenario(80, true);
+  auto run = [&](const char* name) {
+    SlidingWindowEstimator<double> estimator(testConfig(), Variant::parse(name),
+                                             rigFromCalib(scenario.calib), scenario.truth(0));
+    std::vector<FrameResult> results;
+    for (const TrackFrame& frame : scenario.stream.frames) {
+      results.push_back(estimator.processFrame(frame));
+      EXPECT_TRUE(results.back().status.ok()) << results.back().status.toString();
+    }
+    return results;
+  };
+  const std::vector<FrameResult> sq = run("sc-sc-sq-f64"), sqrt = run("sc-sc-sqrt-f64");
+  ASSERT_EQ(sq.size(), sqrt.size());
+  for (size_t i = 0; i < sq.size(); ++i) {
+    EXPECT_EQ(sq[i].lm_iterations, sqrt[i].lm_iterations) << "frame " << i;
+    EXPECT_NEAR(sq[i].cost_final, sqrt[i].cost_final, 1e-8 * sqrt[i].cost_final) << "frame " << i;
+  }
+}
+
+// The LM loop over landmark blocks in several threads: the same estimate as one thread up to the
+// order of the sums, and the same bits in every run with the same thread count.
+TEST(VoThreads, ThreadedLmLoopMatchesOneThreadAndIsReproducible) {
+  const Scenario scenario(60);
+  for (const char* name : {"ns-qr-sqrt-f64", "sc-sc-sq-f64"}) {
+    auto run = [&](int threads) {
+      EstimatorConfig config = testConfig();
+      config.lm_threads = threads;
+      SlidingWindowEstimator<double> estimator(config, Variant::parse(name),
+                                               rigFromCalib(scenario.calib), scenario.truth(0));
+      std::vector<double> out;
+      for (const TrackFrame& frame : scenario.stream.frames) {
+        const FrameResult result = estimator.processFrame(frame);
+        EXPECT_TRUE(result.status.ok()) << result.status.toString();
+        const Eigen::Vector3d p = result.T_w_i.translation();
+        out.insert(out.end(), {p.x(), p.y(), p.z(), result.cost_final});
+      }
+      return out;
+    };
+    const std::vector<double> one = run(1), three = run(3), again = run(3);
+    ASSERT_EQ(one.size(), three.size());
+    EXPECT_EQ(three, again) << name;
+    for (size_t i = 0; i < one.size(); ++i) {
+      EXPECT_NEAR(three[i], one[i], 1e-9 * std::max(1.0, std::abs(one[i]))) << name << " " << i;
+    }
+  }
+}
+
 TEST(VoGauge, GaugeFreePriorHasASixDimensionalNullspace) {
   const Scenario scenario(60);
   SlidingWindowEstimator<double> estimator(testConfig(), Variant::parse("ns-qr-sqrt-f64"),
-                                           rigOf(scenario.calib), scenario.truth(0));
+                                           rigFromCalib(scenario.calib), scenario.truth(0));
   std::optional<MargEvent> last;
   for (const TrackFrame& frame : scenario.stream.frames) {
     FrameResult result = estimator.processFrame(frame);

@@ -294,31 +294,3 @@ TYPED_TEST(LandmarkBlockTest, LinearizedCostChangeIsTheUndampedModel) {
 
 }  // namespace
 }  // namespace marglab
-
-namespace marglab {
-namespace {
-
-// The constant of the Schur-reduced energy is the least-squares minimum over the landmark,
-// ½‖(I − J_l J_l⁺) r‖², computed here by an SVD in double.
-TYPED_TEST(LandmarkBlockTest, EliminatedCostIsTheLandmarkLeastSquaresMinimum) {
-  using Scalar = TypeParam;
-  std::mt19937_64 rng(77);
-  for (double conditioning : {1.0, 1e2}) {
-    MatXd J_l = test::randomGaussian(rng, 10, 3);
-    J_l.col(2) *= 1.0 / conditioning;
-    const VecXd r = test::randomGaussian(rng, 10, 1);
-    LandmarkBlockSc<Scalar> sc;
-    ASSERT_TRUE(sc.setFromJacobians(MatX<Scalar>::Zero(10, 6), J_l.cast<Scalar>().eval(),
-                                    r.cast<Scalar>().eval(), PoseBlockMap{6, {0}})
-                    .ok());
-    Eigen::JacobiSVD<MatXd> svd(J_l, Eigen::ComputeThinU | Eigen::ComputeThinV);
-    const double expected = 0.5 * (r - J_l * svd.solve(r)).squaredNorm();
-    const double kappa = svd.singularValues()[0] / svd.singularValues()[2];
-    // The normal-equations route loses κ(J_l)² ε relative to ½‖r‖².
-    EXPECT_NEAR(static_cast<double>(sc.eliminatedCost()), expected,
-                50 * test::eps<Scalar>() * kappa * kappa * r.squaredNorm());
-  }
-}
-
-}  // namespace
-}  // namespace marglab
