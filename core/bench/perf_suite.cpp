@@ -93,7 +93,7 @@ __attribute__((target("avx2,fma"))) __attribute__((noinline)) double fmaAvx2(lon
 }
 
 // Baseline SSE2: a multiply and an add per element (the compiler has no FMA to fuse them into).
-__attribute__((noinline)) double mulAddSse2(long iters, bool sp) {
+[[maybe_unused]] __attribute__((noinline)) double mulAddSse2(long iters, bool sp) {
   if (sp) {
     __m128 acc[kChains];
     const __m128 a = _mm_set1_ps(0.999999f), b = _mm_set1_ps(1e-7f);
@@ -182,7 +182,13 @@ FmaPeak machinePeak(bool sp, double seconds) {
 }
 
 FmaPeak buildIsaPeak(bool sp, double seconds) {
+#if defined(__AVX512F__)
+  return {peakOf(fmaAvx512, sp, 2.0 * kChains * (sp ? 16 : 8), seconds), "avx512f"};
+#elif defined(__AVX2__) && defined(__FMA__)
+  return {peakOf(fmaAvx2, sp, 2.0 * kChains * (sp ? 8 : 4), seconds), "avx2+fma"};
+#else
   return {peakOf(mulAddSse2, sp, 2.0 * kChains * (sp ? 4 : 2), seconds), "sse2 mul+add"};
+#endif
 }
 
 std::vector<double> timeSideBySide(const std::vector<std::function<void()>>& candidates, int rounds,
