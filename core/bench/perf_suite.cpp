@@ -93,7 +93,7 @@ __attribute__((target("avx2,fma"))) __attribute__((noinline)) double fmaAvx2(lon
 }
 
 // Baseline SSE2: a multiply and an add per element (the compiler has no FMA to fuse them into).
-[[maybe_unused]] __attribute__((noinline)) double mulAddSse2(long iters, bool sp) {
+__attribute__((noinline)) double mulAddSse2(long iters, bool sp) {
   if (sp) {
     __m128 acc[kChains];
     const __m128 a = _mm_set1_ps(0.999999f), b = _mm_set1_ps(1e-7f);
@@ -170,24 +170,36 @@ std::vector<NamedWindow> loadWindows(const std::string& dir_in) {
   return out;
 }
 
+namespace {
+
+// Peaks per instruction set: flops per kernel iteration = 2 (FMA or mul+add) × chains × lanes.
+FmaPeak avx512Peak(bool sp, double seconds) {
+  return {peakOf(fmaAvx512, sp, 2.0 * kChains * (sp ? 16 : 8), seconds), "avx512f"};
+}
+FmaPeak avx2Peak(bool sp, double seconds) {
+  return {peakOf(fmaAvx2, sp, 2.0 * kChains * (sp ? 8 : 4), seconds), "avx2+fma"};
+}
+[[maybe_unused]] FmaPeak sse2Peak(bool sp, double seconds) {
+  return {peakOf(mulAddSse2, sp, 2.0 * kChains * (sp ? 4 : 2), seconds), "sse2 mul+add"};
+}
+
+}  // namespace
+
 FmaPeak machinePeak(bool sp, double seconds) {
-  const double lanes512 = sp ? 16 : 8, lanes256 = sp ? 8 : 4;
-  if (__builtin_cpu_supports("avx512f")) {
-    return {peakOf(fmaAvx512, sp, 2.0 * kChains * lanes512, seconds), "avx512f"};
-  }
+  if (__builtin_cpu_supports("avx512f")) return avx512Peak(sp, seconds);
   if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
-    return {peakOf(fmaAvx2, sp, 2.0 * kChains * lanes256, seconds), "avx2+fma"};
+    return avx2Peak(sp, seconds);
   }
   return buildIsaPeak(sp, seconds);
 }
 
 FmaPeak buildIsaPeak(bool sp, double seconds) {
 #if defined(__AVX512F__)
-  return {peakOf(fmaAvx512, sp, 2.0 * kChains * (sp ? 16 : 8), seconds), "avx512f"};
+  return avx512Peak(sp, seconds);
 #elif defined(__AVX2__) && defined(__FMA__)
-  return {peakOf(fmaAvx2, sp, 2.0 * kChains * (sp ? 8 : 4), seconds), "avx2+fma"};
+  return avx2Peak(sp, seconds);
 #else
-  return {peakOf(mulAddSse2, sp, 2.0 * kChains * (sp ? 4 : 2), seconds), "sse2 mul+add"};
+  return sse2Peak(sp, seconds);
 #endif
 }
 

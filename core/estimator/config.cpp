@@ -4,6 +4,7 @@
 
 #include <toml++/toml.h>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "core/common/error.h"
@@ -20,12 +21,17 @@ struct Binding {
   bool* b = nullptr;
   std::uint64_t* u = nullptr;
   RankThresholdMode* mode = nullptr;
+  int min_i = std::numeric_limits<int>::min();  // smallest accepted value of an int key
 };
 
 std::vector<Binding> bindings(EstimatorConfig& c) {
   std::vector<Binding> list;
   auto D = [&](const char* s, const char* k, double* v) { list.push_back({s, k, v}); };
-  auto I = [&](const char* s, const char* k, int* v) { list.push_back({s, k, nullptr, v}); };
+  auto I = [&](const char* s, const char* k, int* v, int min = std::numeric_limits<int>::min()) {
+    Binding binding{s, k, nullptr, v};
+    binding.min_i = min;
+    list.push_back(binding);
+  };
   D("residuals", "obs_std_px", &c.obs_std_px);
   I("window", "max_kfs", &c.max_kfs);
   I("window", "max_states", &c.max_states);
@@ -45,7 +51,7 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
   D("lm", "stop_max_step", &c.stop_max_step);
   I("lm", "max_failed_solves", &c.max_failed_solves);
   list.push_back({"lm", "landmark_damping", nullptr, nullptr, &c.lm_landmark_damping});
-  I("lm", "threads", &c.lm_threads);
+  I("lm", "threads", &c.lm_threads, 1);
   list.push_back({"marginalization", "qr_threshold_mode", nullptr, nullptr, nullptr, nullptr,
                   &c.qr_threshold_mode});
   D("marginalization", "qr_threshold", &c.qr_threshold);
@@ -78,8 +84,8 @@ void apply(EstimatorConfig& config, const toml::table& root, const std::string& 
       } else if (it->i != nullptr) {
         auto v = node.value<int64_t>();
         if (!v) throw error(node, fmt::format("expected an integer for {}.{}", section, key));
-        if (it->i == &config.lm_threads && *v < 1) {
-          throw error(node, "expected lm.threads >= 1");
+        if (*v < it->min_i) {
+          throw error(node, fmt::format("expected {}.{} >= {}", section, key, it->min_i));
         }
         *it->i = static_cast<int>(*v);
       } else if (it->b != nullptr) {
