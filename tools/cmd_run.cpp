@@ -32,6 +32,7 @@ struct RunArgs {
   bool no_diagnostics = false;
   std::optional<int> store_prior_every;
   std::optional<int> threads;
+  std::string marg_strategy;
   int inject_nan_frame = -1;
   std::vector<int> dump_windows;
   std::string dump_dir = "windows";
@@ -72,6 +73,10 @@ int runRun(const RunArgs& args) {
   if (args.no_diagnostics) options.config.diagnostics = false;
   if (args.store_prior_every) options.config.store_prior_every = *args.store_prior_every;
   if (args.threads) options.config.lm_threads = *args.threads;
+  if (!args.marg_strategy.empty() &&
+      !parseMargStrategy(args.marg_strategy, &options.config.marg_strategy)) {
+    throw UsageError("--marg-strategy must be discard, dense or nfr");
+  }
 
   const auto start = std::chrono::steady_clock::now();
   const bool terminal = cli::stderrIsTerminal();
@@ -142,6 +147,11 @@ const bool kRegistered = cli::registerCommand(
                       "Threads of the LM loop over landmark blocks (default 1 = lm.threads: "
                       "timings comparable between variants)")
            ->check(CLI::PositiveNumber);
+       sub.add_option("--marg-strategy", args->marg_strategy,
+                      "Keyframe marginalization (VIO): discard (default, OKVIS/VINS-Mono), dense "
+                      "(landmarks stay, dense prior) or nfr (dense prior sparsified by nonlinear "
+                      "factor recovery) = marginalization.strategy")
+           ->check(CLI::IsMember({"discard", "dense", "nfr"}));
        sub.add_flag("--no-diagnostics", args->no_diagnostics,
                     "Skip the shadow prior and its eigenvalues");
        sub.add_option("--store-prior-every", args->store_prior_every,

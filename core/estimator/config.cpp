@@ -21,6 +21,7 @@ struct Binding {
   bool* b = nullptr;
   std::uint64_t* u = nullptr;
   RankThresholdMode* mode = nullptr;
+  MargStrategy* strategy = nullptr;
   int min_i = std::numeric_limits<int>::min();  // smallest accepted value of an int key
 };
 
@@ -55,6 +56,11 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
   list.push_back({"marginalization", "qr_threshold_mode", nullptr, nullptr, nullptr, nullptr,
                   &c.qr_threshold_mode});
   D("marginalization", "qr_threshold", &c.qr_threshold);
+  {
+    Binding binding{"marginalization", "strategy"};
+    binding.strategy = &c.marg_strategy;
+    list.push_back(binding);
+  }
   D("failure", "max_position_error_m", &c.max_position_error_m);
   list.push_back({"diagnostics", "enabled", nullptr, nullptr, &c.diagnostics});
   I("diagnostics", "store_prior_every", &c.store_prior_every);
@@ -98,6 +104,12 @@ void apply(EstimatorConfig& config, const toml::table& root, const std::string& 
           throw error(node, fmt::format("expected a non-negative integer for {}.{}", section, key));
         }
         *it->u = static_cast<std::uint64_t>(*v);
+      } else if (it->strategy != nullptr) {
+        auto v = node.value<std::string>();
+        if (!v || !parseMargStrategy(*v, it->strategy)) {
+          throw error(node, fmt::format("expected \"discard\", \"dense\" or \"nfr\" for {}.{}",
+                                        section, key));
+        }
       } else {
         auto v = node.value<std::string>();
         if (!v || !parseRankThresholdMode(*v, it->mode)) {
@@ -110,6 +122,28 @@ void apply(EstimatorConfig& config, const toml::table& root, const std::string& 
 }
 
 }  // namespace
+
+const char* toString(MargStrategy strategy) {
+  switch (strategy) {
+    case MargStrategy::kDense:
+      return "dense";
+    case MargStrategy::kNfr:
+      return "nfr";
+    case MargStrategy::kDiscard:
+      break;
+  }
+  return "discard";
+}
+
+bool parseMargStrategy(const std::string& text, MargStrategy* strategy) {
+  for (MargStrategy s : {MargStrategy::kDiscard, MargStrategy::kDense, MargStrategy::kNfr}) {
+    if (text == toString(s)) {
+      *strategy = s;
+      return true;
+    }
+  }
+  return false;
+}
 
 void EstimatorConfig::loadTomlString(const std::string& text, const std::string& name) {
   try {
@@ -141,6 +175,8 @@ std::string EstimatorConfig::toToml() const {
       section.insert(b.key, *b.b);
     } else if (b.u != nullptr) {
       section.insert(b.key, static_cast<int64_t>(*b.u));
+    } else if (b.strategy != nullptr) {
+      section.insert(b.key, std::string(toString(*b.strategy)));
     } else {
       section.insert(b.key, std::string(toString(*b.mode)));
     }

@@ -13,7 +13,8 @@
 //   [lm]            max_iterations, lambda_init, lambda_min, lambda_max, stop_relative_cost,
 //                   stop_max_step, max_failed_solves, landmark_damping, threads
 //   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
-//                   scalar type)
+//                   scalar type), strategy ("discard"|"dense"|"nfr", keyframe marginalization of
+//                   VIO; see MargStrategy)
 //   [failure]       max_position_error_m (−1: dataset default)
 //   [diagnostics]   enabled, store_prior_every (0: never; k: every k-th event, default 25), seed
 
@@ -23,6 +24,22 @@
 #include "core/linalg/flat_qr.h"
 
 namespace marglab {
+
+// What a keyframe marginalization does with the keyframe's visual measurements (Hsiung et al.,
+// IROS 2018, §IV-A; docs/sparsification.md). Mid-frame marginalization keeps only the IMU
+// constraints in all three.
+//   discard — OKVIS / VINS-Mono: the landmarks the keyframe hosts go with it (all their
+//             observations), its observations of other landmarks are dropped; the prior stays over
+//             frame states only.
+//   dense   — the keyframe and the landmarks only it observes go; every landmark it shares with
+//             the window stays as a variable (a world point) and the prior over the Markov blanket
+//             — states and landmarks — stays dense.
+//   nfr     — the dense prior, sparsified by nonlinear factor recovery (eq. 16): unary pose,
+//             velocity and bias factors and one pose–landmark factor per landmark replace it.
+enum class MargStrategy { kDiscard, kDense, kNfr };
+const char* toString(MargStrategy strategy);
+// False for an unknown name.
+bool parseMargStrategy(const std::string& text, MargStrategy* strategy);
 
 struct EstimatorConfig {
   // window
@@ -59,6 +76,7 @@ struct EstimatorConfig {
   // marginalization
   RankThresholdMode qr_threshold_mode = RankThresholdMode::kAbsolute;
   double qr_threshold = -1;
+  MargStrategy marg_strategy = MargStrategy::kDiscard;
   // failure
   double max_position_error_m = -1;
   // diagnostics

@@ -17,6 +17,7 @@
 //   status          str     "ok" | "failed"
 //   failure_frame   int64   row of /frames where the run failed, −1 when ok
 //   failure_reason  str     "" when ok
+//   marg_strategy   str     "discard" | "dense" | "nfr" (absent in older files: "discard")
 //   + RunMetadata::extra (str)
 // /frames  one row per processed frame (extendible, chunked along time):
 //   t_ns int64 (n) · is_keyframe uint8 (n) · n_landmarks, n_observations, lm_iterations int32 (n)
@@ -42,6 +43,19 @@
 //   layout_kind int32 (0 pose, 1 velocity, 2 bias_gyro, 3 bias_accel; attribute "kind_names"),
 //   layout_frame_id int64, layout_offset int32, layout_dim int32 — one row per variable block;
 //   attribute storage "sqrt"|"sq".
+// /sparsify  one row per keyframe marginalization of a run with marg_strategy dense or nfr (the
+//            group exists, with zero rows, for every run; Hsiung et al. 2018, Fig. 6b):
+//   frame_index, t_ns int64       as in /marg
+//   blanket_cols int32            columns of the dense prior Λ_t over the Markov blanket
+//   n_blanket_poses, n_blanket_landmarks int32
+//   nnz_dense int64               structural non-zeros of Λ_t (both triangles)
+//   nnz_sparse int64              of Λ_s = H_sᵀ Λ_r H_s (nfr) — equal to nnz_dense when kept dense
+//   kld f64                       D_KL(Λ_t ‖ Λ_s) [nats] (eq. 10); NaN when kept dense
+//   recovered uint8               1: the recovered factors replaced the prior; 0: kept dense
+//                                 (strategy dense, or nfr fell back — reason in the run log)
+//   t_schur_s, t_recovery_s, t_insert_s f64   wall time of the marginalization (Schur / flat QR)
+//                                 of the event, of the information recovery (eq. 16), and of
+//                                 inserting the factors into the window
 // /summary  attributes
 //   ate_rmse f64 [m] (NaN without GT), n_ate_pairs, n_frames, n_marg int64,
 //   duration_s f64 (last − first t_ns of /frames), t_opt_total_s, t_marg_total_s f64,
@@ -83,6 +97,7 @@ struct RunMetadata {
   std::string config_toml;
   std::string qr_threshold_mode;  // "absolute" | "relative" | "" (no flat QR)
   double qr_threshold = std::numeric_limits<double>::quiet_NaN();
+  std::string marg_strategy = "discard";
   std::vector<std::pair<std::string, std::string>> extra;  // more root string attributes
 };
 
@@ -113,6 +128,22 @@ struct MargRecord {
   double eig_tolerance = 0.0;
   Vec7d dEm = Vec7d::Zero();
   VecXd eigenvalues;  // ascending, size prior_cols
+};
+
+// One keyframe marginalization of a dense / nfr run (/sparsify).
+struct SparsifyRecord {
+  std::int64_t frame_index = 0;
+  std::int64_t t_ns = 0;
+  int blanket_cols = 0;
+  int n_blanket_poses = 0;
+  int n_blanket_landmarks = 0;
+  std::int64_t nnz_dense = 0;
+  std::int64_t nnz_sparse = 0;
+  double kld = std::numeric_limits<double>::quiet_NaN();
+  bool recovered = false;
+  double t_schur_s = 0.0;
+  double t_recovery_s = 0.0;
+  double t_insert_s = 0.0;
 };
 
 // Fills a MargRecord from the diagnostics of one event (prior_cols = eigenvalues.size()).
@@ -160,6 +191,7 @@ class ResultsWriter {
 
   void appendFrame(const FrameRecord& frame);
   void appendMarg(const MargRecord& marg);  // marg.eigenvalues becomes the next ragged row
+  void appendSparsify(const SparsifyRecord& record);
   // The full double prior of marginalization event k (the /marg row of the same event); at most
   // once per k. J_m and r_m (both or neither) for square-root storage.
   void appendPriorMatrices(std::int64_t k, const PriorLayout& layout, const MatXd& H_m,
@@ -213,6 +245,8 @@ class ResultsReader {
   std::vector<MargRecord> margs(bool with_eigenvalues = true) const;
   MargRecord marg(std::size_t k) const;  // with eigenvalues; InputError when k ≥ margCount()
   VecXd eigenvalues(std::size_t k) const;
+  // /sparsify rows (empty for files without the group).
+  std::vector<SparsifyRecord> sparsifyRecords() const;
   std::vector<std::int64_t> storedPriors() const;  // ascending event indices
   std::optional<StoredPrior> prior(std::int64_t k) const;
   SummaryValues summary() const;
