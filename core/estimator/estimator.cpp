@@ -88,6 +88,24 @@ VecX<Scalar> gatherBlocks(const std::vector<std::pair<VarKey, int>>& vars, int s
   return out;
 }
 
+// Adds JᵀJ, Jᵀr of a RowBlock (estimator.h) to a system with columns column_of.
+template <typename Scalar, typename Rows>
+void addRowBlock(const Rows& rows, const std::map<VarKey, int>& column_of,
+                 MatX<Scalar>& H, VecX<Scalar>& b) {
+  const MatX<Scalar> H_rows = rows.J.transpose() * rows.J;
+  const VecX<Scalar> b_rows = rows.J.transpose() * rows.r;
+  scatterBlocks(rows.vars, H_rows, b_rows, column_of, H, b);
+}
+
+// Change of ½‖r + J δ‖² along a step of the whole system.
+template <typename Scalar, typename Rows>
+Scalar rowBlockModelChange(const Rows& rows, const VecX<Scalar>& step,
+                           const std::map<VarKey, int>& column_of) {
+  const VecX<Scalar> J_step =
+      rows.J * gatherBlocks<Scalar>(rows.vars, static_cast<int>(rows.J.cols()), step, column_of);
+  return rows.r.dot(J_step) + Scalar(0.5) * J_step.squaredNorm();
+}
+
 // Huber cost of a reprojection error e (pixels), divided by σ²: ½e² inside, k·e − ½k² outside.
 template <typename Scalar>
 Scalar huberCost(Scalar e, Scalar k, Scalar sigma) {
@@ -123,7 +141,10 @@ SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorConfig& co
   } else {
     T_i_c_ = {SE3S(), rig.T_c0_c1().template cast<Scalar>()};
   }
-  for (int cam = 0; cam < 2; ++cam) T_c_h_host_[cam] = T_i_c_[cam].inverse() * T_i_c_[0];
+  for (int cam = 0; cam < 2; ++cam) {
+    T_c_i_[cam] = T_i_c_[cam].inverse();
+    T_c_h_host_[cam] = T_c_i_[cam] * T_i_c_[0];
+  }
   prior_.storage = variant.storage;
   shadow_prior_.storage = variant.storage;
   if (config_.min_frames_after_kf < 1) config_.min_frames_after_kf = 1;
@@ -213,14 +234,71 @@ Scalar SlidingWindowEstimator<Scalar>::landmarkCost(const Landmark& lm,
   Scalar cost = 0;
   for (const auto& [frame_id, obs] : lm.obs) {
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
-      const Vec3S q =
-          transformLandmark<Scalar>(rel.T_ct_h[rel.index(lm.host, frame_id, cam)], lm.param);
+      const Vec3S q = lm.world() ? T_c_i_[cam] * (poseOf(frame_id).inverse() * lm.param)
+                                 : transformLandmark<Scalar>(
+                                       rel.T_ct_h[rel.index(lm.host, frame_id, cam)], lm.param);
       Vec2S uv;
       if (!(cam == 0 ? rig_.cam0 : rig_.cam1).project(q, &uv)) continue;
       cost += huberCost<Scalar>((uv - (cam == 0 ? obs.uv0 : obs.uv1)).norm(), k, sigma);
     }
   }
+  for (const NfrFactor& f : lm.nfr) cost += nfrCost(f, &lm);
   return cost;
+}
+
+template <typename Scalar>
+Scalar SlidingWindowEstimator<Scalar>::nfrCost(const NfrFactor& f, const Landmark* lm) const {
+  Blanket<Scalar> x(1);
+  x[0].kind = f.kind;
+  if (f.kind == BlanketKind::kPose) {
+    x[0].T_w_i = poseOf(f.frame);
+  } else {
+    const Vec9S sb = speedBiasOf(f.frame);
+    x[0].value = f.kind == BlanketKind::kVelocity ? VecX<Scalar>(sb.template head<3>())
+                                                  : VecX<Scalar>(sb.template tail<6>());
+  }
+  if (lm != nullptr) x.push_back({BlanketKind::kLandmark, kPoseDim, SE3S(), lm->param});
+  return Scalar(0.5) * f.factor.whitenedResidual(x).squaredNorm();
+}
+
+template <typename Scalar>
+void SlidingWindowEstimator<Scalar>::linearizeNfr(const NfrFactor& f, int64_t track_id,
+                                                  const Landmark* lm,
+                                                  std::vector<std::pair<VarKey, int>>* vars,
+                                                  MatX<Scalar>* J, VecX<Scalar>* r) const {
+  // The blanket of the factor at the current state (residual) and at the first estimates
+  // (Jacobian), as every other residual of the window.
+  auto blanket = [&](bool jac) {
+    Blanket<Scalar> x(1);
+    x[0].kind = f.kind;
+    if (f.kind == BlanketKind::kPose) {
+      x[0].T_w_i = jac ? jacobianPoseOf(f.frame) : poseOf(f.frame);
+    } else {
+      const Frame& frame = frames_.at(f.frame);
+      const Vec9S sb = jac && frame.speed_bias_linearized ? frame.speed_bias_lin : frame.speed_bias;
+      x[0].value = f.kind == BlanketKind::kVelocity ? VecX<Scalar>(sb.template head<3>())
+                                                    : VecX<Scalar>(sb.template tail<6>());
+    }
+    if (lm != nullptr) {
+      x.push_back({BlanketKind::kLandmark, kPoseDim, SE3S(),
+                   jac ? jacobianPointOf(*lm) : lm->param});
+    }
+    return x;
+  };
+  MatX<Scalar> J_f;
+  f.factor.whitenedResidual(blanket(true), &J_f);
+  *r = f.factor.whitenedResidual(blanket(false));
+  vars->clear();
+  if (f.kind == BlanketKind::kPose) {
+    vars->push_back({{f.frame, StateBlock::kPose}, 0});
+    if (lm != nullptr) vars->push_back({{track_id, StateBlock::kLandmark}, kPoseDim});
+    *J = J_f;
+    return;
+  }
+  // A velocity or bias factor: its columns within the speed-bias block [v; b_g; b_a].
+  vars->push_back({{f.frame, StateBlock::kSpeedBias}, 0});
+  J->setZero(J_f.rows(), kSpeedBiasDim);
+  J->middleCols(f.kind == BlanketKind::kVelocity ? 0 : 3, J_f.cols()) = J_f;
 }
 
 template <typename Scalar>
@@ -235,7 +313,17 @@ Scalar SlidingWindowEstimator<Scalar>::linkCost(int64_t from, const ImuLink& lin
 template <typename Scalar>
 VecX<Scalar> SlidingWindowEstimator<Scalar>::priorDelta(const MargPrior<Scalar>& prior) const {
   return prior.delta([this](int64_t f) { return poseOf(f); },
-                     [this](int64_t f) { return speedBiasOf(f); });
+                     [this](int64_t f) { return speedBiasOf(f); },
+                     [this](int64_t track) { return landmarks_.at(track).param; });
+}
+
+template <typename Scalar>
+std::set<int64_t> SlidingWindowEstimator<Scalar>::priorLandmarks() const {
+  std::set<int64_t> tracks;
+  for (const auto& block : prior_.blocks) {
+    if (block.var.block == StateBlock::kLandmark) tracks.insert(block.var.frame_id);
+  }
+  return tracks;
 }
 
 template <typename Scalar>
@@ -253,6 +341,7 @@ Scalar SlidingWindowEstimator<Scalar>::totalCost() const {
   Scalar cost = 0;
   for (const Scalar c : chunk_cost) cost += c;
   for (const auto& [from, link] : imu_links_) cost += linkCost(from, link);
+  for (const NfrFactor& f : nfr_unary_) cost += nfrCost(f, nullptr);
   if (!prior_.empty()) cost += prior_.cost(priorDelta(prior_));
   return cost;
 }
@@ -260,8 +349,8 @@ Scalar SlidingWindowEstimator<Scalar>::totalCost() const {
 template <typename Scalar>
 bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm,
                                                        const std::set<int64_t>& system_frames,
-                                                       const RelativePoses& rel,
-                                                       Linearized* out) const {
+                                                       const RelativePoses& rel, Linearized* out,
+                                                       bool with_nfr, int min_rows) const {
   const Scalar k = static_cast<Scalar>(config_.huber_px);
   const Scalar sigma = static_cast<Scalar>(config_.obs_std_px);
   struct Row2 {
@@ -274,21 +363,35 @@ bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const L
   thread_local std::vector<Row2> rows;
   rows.clear();
   out->cost = 0;
+  const Vec3S p_w_jac = lm.world() ? jacobianPointOf(lm) : Vec3S::Zero();
   for (const auto& [frame_id, obs] : lm.obs) {
     if (system_frames.count(frame_id) == 0) continue;
     const bool in_host = frame_id == lm.host;
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
       const PinholeCamera<Scalar>& camera = cam == 0 ? rig_.cam0 : rig_.cam1;
-      const size_t k_rel = rel.index(lm.host, frame_id, cam);
-      const SE3S& T_ct_h = rel.T_ct_h[k_rel];
-      const SE3S& T_ct_h_jac = rel.T_ct_h_jac[k_rel];
       Mat<Scalar, 3, 3> D_q_l;
       Mat<Scalar, 3, 6> D_q_T;
-      const Vec3S q_jac = transformLandmark<Scalar>(T_ct_h_jac, lm.param, &D_q_l, &D_q_T);
+      Vec3S q_jac, q;
+      size_t k_rel = 0;
+      if (lm.world()) {
+        // q = R_c_i Rᵀ(p_w − t) + t_c_i: the pose–landmark map of core/sparsify, then the camera.
+        const Mat3<Scalar> R_c_i = T_c_i_[cam].rotationMatrix();
+        Mat<Scalar, 3, 6> D_p_T;
+        Mat3<Scalar> D_p_l;
+        q_jac = T_c_i_[cam] * poseLandmarkResidual<Scalar>(jacobianPoseOf(frame_id), p_w_jac,
+                                                           Vec3S::Zero(), &D_p_T, &D_p_l);
+        D_q_T = R_c_i * D_p_T;
+        D_q_l = R_c_i * D_p_l;
+        q = T_c_i_[cam] * (poseOf(frame_id).inverse() * lm.param);
+      } else {
+        k_rel = rel.index(lm.host, frame_id, cam);
+        q_jac = transformLandmark<Scalar>(rel.T_ct_h_jac[k_rel], lm.param, &D_q_l, &D_q_T);
+        q = transformLandmark<Scalar>(rel.T_ct_h[k_rel], lm.param);
+      }
       Vec2S uv_jac, uv;
       Mat<Scalar, 2, 3> D_uv_q;
       if (!camera.project(q_jac, &uv_jac, &D_uv_q)) continue;
-      if (!camera.project(transformLandmark<Scalar>(T_ct_h, lm.param), &uv)) continue;
+      if (!camera.project(q, &uv)) continue;
       Row2 row;
       row.r = uv - (cam == 0 ? obs.uv0 : obs.uv1);
       const Scalar e = row.r.norm();
@@ -298,7 +401,9 @@ bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const L
       row.r *= scale;
       row.J_l = scale * D_uv_q * D_q_l;
       row.target = in_host ? -1 : frame_id;
-      if (!in_host) {
+      if (lm.world()) {
+        row.J_t = scale * D_uv_q * D_q_T;
+      } else if (!in_host) {
         const Mat<Scalar, 2, 6> D_r_T = scale * D_uv_q * D_q_T;
         row.J_h = D_r_T * rel.D_rel_h[k_rel];
         row.J_t = D_r_T * rel.D_rel_t[k_rel];
@@ -306,19 +411,35 @@ bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const L
       rows.push_back(row);
     }
   }
-  const int m = 2 * static_cast<int>(rows.size());
-  if (m < 3) return false;
-  // The pose blocks: the host and every target with a pose Jacobian, in id order (a small sorted
-  // vector; the observations come in id order already).
+  // Pose–landmark factors: rows over [anchor pose | landmark].
+  thread_local std::vector<RowBlock> nfr_rows;
+  nfr_rows.clear();
+  int m_nfr = 0;
+  for (const NfrFactor& f : lm.nfr) {
+    if (!with_nfr || system_frames.count(f.frame) == 0) continue;
+    RowBlock rows;
+    linearizeNfr(f, track_id, &lm, &rows.vars, &rows.J, &rows.r);
+    out->cost += Scalar(0.5) * rows.r.squaredNorm();
+    m_nfr += static_cast<int>(rows.r.size());
+    nfr_rows.push_back(std::move(rows));
+  }
+  const int m_obs = 2 * static_cast<int>(rows.size());
+  const int m = m_obs + m_nfr;
+  if (m < min_rows) return false;
+  // The pose blocks: the host and every target with a pose Jacobian (and the anchor of the
+  // pose–landmark factor), in id order (a small sorted vector).
   std::vector<int64_t>& frames = out->frames;
   frames.clear();
+  auto insert = [&frames](int64_t f) {
+    const auto it = std::lower_bound(frames.begin(), frames.end(), f);
+    if (it == frames.end() || *it != f) frames.insert(it, f);
+  };
   for (const Row2& row : rows) {
     if (row.target < 0) continue;
-    for (const int64_t f : {lm.host, row.target}) {
-      const auto it = std::lower_bound(frames.begin(), frames.end(), f);
-      if (it == frames.end() || *it != f) frames.insert(it, f);
-    }
+    if (!lm.world()) insert(lm.host);
+    insert(row.target);
   }
+  for (const RowBlock& rows : nfr_rows) insert(rows.vars.front().first.frame_id);
   auto local = [&frames](int64_t f) {
     return kPoseDim *
            static_cast<int>(std::lower_bound(frames.begin(), frames.end(), f) - frames.begin());
@@ -327,16 +448,63 @@ bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const L
   out->J_p.setZero(m, kPoseDim * static_cast<Eigen::Index>(frames.size()));
   out->J_l.resize(m, 3);
   out->r.resize(m);
-  const int host_col = frames.empty() ? 0 : local(lm.host);
+  const int host_col = frames.empty() || lm.world() ? 0 : local(lm.host);
   for (size_t i = 0; i < rows.size(); ++i) {
     out->J_l.template middleRows<2>(2 * i) = rows[i].J_l;
     out->r.template segment<2>(2 * i) = rows[i].r;
-    if (rows[i].target >= 0) {
-      out->J_p.template block<2, kPoseDim>(2 * i, host_col) += rows[i].J_h;
-      out->J_p.template block<2, kPoseDim>(2 * i, local(rows[i].target)) += rows[i].J_t;
-    }
+    if (rows[i].target < 0) continue;
+    if (!lm.world()) out->J_p.template block<2, kPoseDim>(2 * i, host_col) += rows[i].J_h;
+    out->J_p.template block<2, kPoseDim>(2 * i, local(rows[i].target)) += rows[i].J_t;
+  }
+  Eigen::Index row = m_obs;
+  for (const RowBlock& rows : nfr_rows) {
+    const Eigen::Index n_r = rows.r.size();
+    out->J_p.block(row, local(rows.vars.front().first.frame_id), n_r, kPoseDim) =
+        rows.J.leftCols(kPoseDim);
+    out->J_l.middleRows(row, n_r) = rows.J.rightCols(kPointDim);
+    out->r.segment(row, n_r) = rows.r;
+    row += n_r;
   }
   return true;
+}
+
+template <typename Scalar>
+bool SlidingWindowEstimator<Scalar>::landmarkRows(int64_t track_id,
+                                                  const std::set<int64_t>& system_frames,
+                                                  const RelativePoses& rel, bool with_nfr,
+                                                  RowBlock* out) const {
+  Linearized lin;
+  if (!linearizeLandmark(track_id, landmarks_.at(track_id), system_frames, rel, &lin, with_nfr,
+                         1)) {
+    return false;
+  }
+  out->vars.clear();
+  for (size_t i = 0; i < lin.frames.size(); ++i) {
+    out->vars.push_back({{lin.frames[i], StateBlock::kPose}, kPoseDim * static_cast<int>(i)});
+  }
+  const Eigen::Index n_p = lin.J_p.cols();
+  out->vars.push_back({{track_id, StateBlock::kLandmark}, static_cast<int>(n_p)});
+  out->J.resize(lin.r.size(), n_p + kPointDim);
+  out->J << lin.J_p, lin.J_l;
+  out->r = std::move(lin.r);
+  return true;
+}
+
+template <typename Scalar>
+std::vector<typename SlidingWindowEstimator<Scalar>::RowBlock>
+SlidingWindowEstimator<Scalar>::directRows(const std::set<int64_t>& system_frames,
+                                           const RelativePoses& rel) const {
+  std::vector<RowBlock> out;
+  for (int64_t track : priorLandmarks()) {
+    RowBlock rows;
+    if (landmarkRows(track, system_frames, rel, true, &rows)) out.push_back(std::move(rows));
+  }
+  for (const NfrFactor& f : nfr_unary_) {
+    RowBlock rows;
+    linearizeNfr(f, -1, nullptr, &rows.vars, &rows.J, &rows.r);
+    out.push_back(std::move(rows));
+  }
+  return out;
 }
 
 template <typename Scalar>
@@ -376,6 +544,10 @@ int SlidingWindowEstimator<Scalar>::windowColumns(ColumnMap* column_of) const {
       col += kSpeedBiasDim;
     }
   }
+  for (int64_t track : priorLandmarks()) {
+    (*column_of)[{track, StateBlock::kLandmark}] = col;
+    col += kPointDim;
+  }
   return col;
 }
 
@@ -408,9 +580,11 @@ Status SlidingWindowEstimator<Scalar>::computeStep(OptElimination elimination, S
   VecX<Scalar> b = VecX<Scalar>::Zero(n);
   const Scalar lambda_min = static_cast<Scalar>(config_.lambda_min);
   const RelativePoses rel = relativePoses(true);
+  const std::set<int64_t> reduced = priorLandmarks();
+  for (const RowBlock& rows : directRows(system, rel)) addRowBlock<Scalar>(rows, column_of, H, b);
   for (const auto& [id, lm] : landmarks_) {
     Linearized lin;
-    if (!linearizeLandmark(id, lm, system, rel, &lin)) continue;
+    if (reduced.count(id) != 0 || !linearizeLandmark(id, lm, system, rel, &lin)) continue;
     Vec3<Scalar> d;
     if (elimination == OptElimination::kNullspace) {
       LandmarkBlockNs<Scalar> block;
@@ -480,10 +654,13 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
     }
     return Status::Ok();
   };
+  const std::set<int64_t> reduced = priorLandmarks();
   for (int it = 0; it < config_.lm_max_iterations; ++it) {
     const RelativePoses rel = relativePoses(true);
     lms.clear();
-    for (const auto& [id, lm] : landmarks_) lms.emplace_back(id, &lm);
+    for (const auto& [id, lm] : landmarks_) {
+      if (reduced.count(id) == 0) lms.emplace_back(id, &lm);
+    }
     lins.resize(lms.size());
     linearized.assign(lms.size(), 0);
     pool_->forChunks(lms.size(), [&](size_t begin, size_t end, int) {
@@ -509,6 +686,8 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
       const VecX<Scalar> b_link = lin.J.transpose() * lin.r;
       scatterBlocks(linkVars(from, link.to), H_link, b_link, column_of, rs.H_fixed, rs.b_fixed);
     }
+    const std::vector<RowBlock> direct = directRows(system, rel);
+    for (const RowBlock& rows : direct) addRowBlock<Scalar>(rows, column_of, rs.H_fixed, rs.b_fixed);
     VecX<Scalar> prior_delta;
     if (!prior_.empty()) {
       prior_delta = priorDelta(prior_);
@@ -631,6 +810,9 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
             lin.J * gatherBlocks<Scalar>(linkVars(lin.from, lin.to), 30, solve.delta, column_of);
         model_change += lin.r.dot(J_step) + Scalar(0.5) * J_step.squaredNorm();
       }
+      for (const RowBlock& rows : direct) {
+        model_change += rowBlockModelChange<Scalar>(rows, solve.delta, column_of);
+      }
       if (!prior_.empty()) {
         model_change += prior_.costChange(
             prior_delta,
@@ -653,8 +835,14 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
         Landmark& lm = landmarks_.at(lins[l].track_id);
         param_backup[l] = lm.param;
         lm.param += delta_l[l];
-        lm.param.z() = std::max(lm.param.z(), Scalar(0));
+        if (!lm.world()) lm.param.z() = std::max(lm.param.z(), Scalar(0));
         max_step = std::max(max_step, delta_l[l].cwiseAbs().maxCoeff());
+      }
+      std::map<int64_t, Vec3S> reduced_backup;
+      for (int64_t track : reduced) {
+        Vec3S& p_w = landmarks_.at(track).param;
+        reduced_backup[track] = p_w;
+        p_w += solve.delta.template segment<kPointDim>(column_of.at({track, StateBlock::kLandmark}));
       }
       const Scalar new_cost = totalCost();
       if (std::isfinite(new_cost) && new_cost < cost) {
@@ -672,6 +860,7 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
       frames_ = std::move(frame_backup);
       for (size_t l = 0; l < lins.size(); ++l)
         landmarks_.at(lins[l].track_id).param = param_backup[l];
+      for (const auto& [track, p_w] : reduced_backup) landmarks_.at(track).param = p_w;
       if (lambda_ >= lambda_max) {
         stop = true;  // no decrease even with maximal damping: converged as far as LM can tell
         break;
@@ -771,10 +960,44 @@ Status SlidingWindowEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior,
     for (int64_t f : lin.frames) keep.insert({f, StateBlock::kPose});
     lins.push_back(std::move(lin));
   }
-  std::vector<LinkLinearized> links(plan.imu_links.size());
-  for (size_t k = 0; k < plan.imu_links.size(); ++k) {
-    linearizeLink(plan.imu_links[k], imu_links_.at(plan.imu_links[k]), &links[k]);
-    for (const auto& [var, offset] : linkVars(links[k].from, links[k].to)) keep.insert(var);
+  // Rows stacked as they are: IMU factors, observations whose landmark stays, landmarks of the
+  // prior that go, recovered factors on marginalized variables.
+  std::vector<RowBlock> direct;
+  for (int64_t from : plan.imu_links) {
+    LinkLinearized lin;
+    linearizeLink(from, imu_links_.at(from), &lin);
+    direct.push_back({linkVars(lin.from, lin.to), lin.J, lin.r});
+  }
+  for (const auto& [track, frame] : plan.kept_landmark_obs) {
+    RowBlock rows;
+    if (landmarkRows(track, {frame}, rel, false, &rows)) direct.push_back(std::move(rows));
+  }
+  for (const VarKey& var : plan.vars) {
+    RowBlock rows;
+    if (var.block == StateBlock::kLandmark &&
+        landmarkRows(var.frame_id, system_frames, rel, true, &rows)) {
+      direct.push_back(std::move(rows));
+    }
+  }
+  for (const NfrFactor& f : nfr_unary_) {
+    const StateBlock block = f.kind == BlanketKind::kPose ? StateBlock::kPose : StateBlock::kSpeedBias;
+    if (plan.vars.count({f.frame, block}) == 0) continue;
+    RowBlock rows;
+    linearizeNfr(f, -1, nullptr, &rows.vars, &rows.J, &rows.r);
+    direct.push_back(std::move(rows));
+  }
+  const std::set<int64_t> eliminated(plan.landmarks.begin(), plan.landmarks.end());
+  for (const auto& [id, lm] : landmarks_) {
+    if (eliminated.count(id) != 0 || plan.vars.count({id, StateBlock::kLandmark}) != 0) continue;
+    for (const NfrFactor& f : lm.nfr) {
+      if (plan.vars.count({f.frame, StateBlock::kPose}) == 0) continue;
+      RowBlock rows;
+      linearizeNfr(f, id, &lm, &rows.vars, &rows.J, &rows.r);
+      direct.push_back(std::move(rows));
+    }
+  }
+  for (const RowBlock& rows : direct) {
+    for (const auto& [var, offset] : rows.vars) keep.insert(var);
   }
   for (const auto& block : prior.blocks) keep.insert(block.var);
   for (const VarKey& var : plan.vars) keep.erase(var);
@@ -791,6 +1014,10 @@ Status SlidingWindowEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior,
   for (const VarKey& var : keep) {
     column_of[var] = col;
     col += stateBlockDim(var.block);
+    if (var.block == StateBlock::kLandmark) {
+      next.addBlock(var, SE3S(), Vec9S::Zero(), jacobianPointOf(landmarks_.at(var.frame_id)));
+      continue;
+    }
     const Frame& frame = frames_.at(var.frame_id);
     next.addBlock(var, jacobianPoseOf(var.frame_id),
                   frame.speed_bias_linearized ? frame.speed_bias_lin : frame.speed_bias);
@@ -808,20 +1035,21 @@ Status SlidingWindowEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior,
       if (!s.ok()) return s;
       rows += blocks[l].numReducedRows();
     }
-    rows += 15 * static_cast<int>(links.size());
+    for (const RowBlock& d : direct) rows += static_cast<int>(d.r.size());
     MatX<Scalar> A = MatX<Scalar>::Zero(rows, n + 1);
     int row = 0;
     for (const auto& block : blocks) {
       block.copyReducedRows(A, row);
       row += block.numReducedRows();
     }
-    for (const LinkLinearized& lin : links) {
-      for (const auto& [var, offset] : linkVars(lin.from, lin.to)) {
+    for (const RowBlock& d : direct) {
+      const int m = static_cast<int>(d.r.size());
+      for (const auto& [var, offset] : d.vars) {
         const int dim = stateBlockDim(var.block);
-        A.block(row, column_of.at(var), 15, dim) = lin.J.middleCols(offset, dim);
+        A.block(row, column_of.at(var), m, dim) = d.J.middleCols(offset, dim);
       }
-      A.col(n).segment(row, 15) = lin.r;
-      row += 15;
+      A.col(n).segment(row, m) = d.r;
+      row += m;
     }
     if (!prior.empty()) {
       MatX<Scalar> J;
@@ -851,11 +1079,7 @@ Status SlidingWindowEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior,
       // A landmark whose H_ll is singular carries no usable pose information: skip it.
       block.addToReducedSystem(H, b).ok();
     }
-    for (const LinkLinearized& lin : links) {
-      const MatX<Scalar> H_link = lin.J.transpose() * lin.J;
-      const VecX<Scalar> b_link = lin.J.transpose() * lin.r;
-      scatterBlocks(linkVars(lin.from, lin.to), H_link, b_link, column_of, H, b);
-    }
+    for (const RowBlock& d : direct) addRowBlock<Scalar>(d, column_of, H, b);
     if (!prior.empty()) addPrior(prior, old_delta, column_of, H, b);
     SchurMarginalization<Scalar> sc = schurMarginalize<Scalar>(H, b, n_marg);
     if (!sc.status.ok()) return sc.status;
@@ -982,15 +1206,25 @@ Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult*
     for (auto& [id, lm] : landmarks_) lm.obs.erase(f);
   }
   int n_marg_frames = 0;
-  if (const auto kf = selectKeyframeToMarginalize(current, plan.vars)) {
+  const bool keep_landmarks = keepsLandmarks();
+  const std::optional<int64_t> kf = selectKeyframeToMarginalize(current, plan.vars);
+  if (kf) {
     plan.vars.insert({*kf, StateBlock::kPose});
-    for (auto& [id, lm] : landmarks_) {
-      if (lm.host == *kf) {
-        marg_landmarks.insert(id);
-      } else if (marg_landmarks.count(id) == 0) {
-        lm.obs.erase(*kf);  // keeps the prior sparse (paper §3.2.2)
+    if (keep_landmarks) {
+      planKeptLandmarks(*kf, &marg_landmarks, &plan);
+    } else {
+      for (auto& [id, lm] : landmarks_) {
+        if (lm.host == *kf) {
+          marg_landmarks.insert(id);
+        } else if (marg_landmarks.count(id) == 0) {
+          lm.obs.erase(*kf);  // keeps the prior sparse (paper §3.2.2)
+        }
       }
     }
+  }
+  // Landmarks of a dense prior are variables of the prior: they go as such.
+  for (int64_t track : priorLandmarks()) {
+    if (marg_landmarks.erase(track) != 0) plan.vars.insert({track, StateBlock::kLandmark});
   }
   for (const VarKey& var : plan.vars) n_marg_frames += var.block == StateBlock::kPose ? 1 : 0;
   plan.landmarks.assign(marg_landmarks.begin(), marg_landmarks.end());
@@ -1000,7 +1234,32 @@ Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult*
     Status status = marginalizeInto(prior_, variant_.marg, variant_.storage, plan, &qr_rank);
     result->t_marg_s = secondsSince(t0);
     if (!status.ok()) return status;
+    for (const auto& [track, frame] : plan.kept_landmark_obs) landmarks_.at(track).obs.erase(frame);
+    // Recovered factors on marginalized variables are in the prior now.
+    nfr_unary_.erase(
+        std::remove_if(nfr_unary_.begin(), nfr_unary_.end(),
+                       [&plan](const NfrFactor& f) {
+                         return plan.vars.count({f.frame, f.kind == BlanketKind::kPose
+                                                              ? StateBlock::kPose
+                                                              : StateBlock::kSpeedBias}) != 0;
+                       }),
+        nfr_unary_.end());
+    for (auto& [id, lm] : landmarks_) {
+      lm.nfr.erase(std::remove_if(lm.nfr.begin(), lm.nfr.end(),
+                                  [&plan](const NfrFactor& f) {
+                                    return plan.vars.count({f.frame, StateBlock::kPose}) != 0;
+                                  }),
+                   lm.nfr.end());
+    }
     for (const auto& block : prior_.blocks) {
+      if (block.var.block == StateBlock::kLandmark) {
+        Landmark& lm = landmarks_.at(block.var.frame_id);
+        if (!lm.linearized) {
+          lm.linearized = true;
+          lm.param_lin = lm.param;
+        }
+        continue;
+      }
       Frame& frame = frames_.at(block.var.frame_id);
       if (block.var.block == StateBlock::kPose && !frame.linearized) {
         frame.linearized = true;
@@ -1010,7 +1269,19 @@ Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult*
         frame.speed_bias_lin = frame.speed_bias;
       }
     }
-    if (config_.diagnostics) {
+    if (kf && keep_landmarks) {
+      SparsifyEvent event;
+      event.t_schur_s = result->t_marg_s;
+      if (config_.marg_strategy == MargStrategy::kNfr) {
+        sparsifyPrior(&event);
+        result->t_marg_s += event.t_recovery_s + event.t_insert_s;
+      } else {
+        describeBlanket(&event);
+      }
+      result->sparsify_event = std::move(event);
+    }
+    // The gauge diagnostics analyse a prior over frame states (the shadow prior of discard).
+    if (config_.diagnostics && !keep_landmarks) {
       const auto t1 = Clock::now();
       int shadow_rank = -1;
       status = marginalizeInto(shadow_prior_, variant_.marg, variant_.storage, plan, &shadow_rank);
@@ -1025,7 +1296,9 @@ Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult*
     for (int64_t id : plan.landmarks) landmarks_.erase(id);
     for (int64_t from : plan.imu_links) imu_links_.erase(from);
     for (const VarKey& var : plan.vars) {
-      if (var.block == StateBlock::kPose) {
+      if (var.block == StateBlock::kLandmark) {
+        landmarks_.erase(var.frame_id);
+      } else if (var.block == StateBlock::kPose) {
         frames_.erase(var.frame_id);
       } else if (auto it = frames_.find(var.frame_id); it != frames_.end()) {
         it->second.has_speed_bias = false;
@@ -1035,6 +1308,150 @@ Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult*
   }
   if (!imu_ && !current_is_kf) frames_.erase(current);
   return Status::Ok();
+}
+
+template <typename Scalar>
+void SlidingWindowEstimator<Scalar>::planKeptLandmarks(int64_t kf, std::set<int64_t>* marg_landmarks,
+                                                       MargPlan* plan) {
+  // Below this inverse distance (1 km) a landmark is as good as at infinity: no world point.
+  const Scalar min_rho = Scalar(1e-3);
+  for (auto& [id, lm] : landmarks_) {
+    if (marg_landmarks->count(id) != 0) continue;
+    const bool seen_in_kf = lm.obs.count(kf) != 0;
+    if (!seen_in_kf && lm.host != kf) continue;
+    const bool seen_elsewhere = std::any_of(
+        lm.obs.begin(), lm.obs.end(), [kf](const auto& entry) { return entry.first != kf; });
+    if (!seen_elsewhere || (!lm.world() && lm.param.z() < min_rho)) {
+      marg_landmarks->insert(id);
+      continue;
+    }
+    // Re-parametrized as a world point before it joins the prior: a free variable, so no change
+    // of variables of any prior is needed, and its host may leave the window later.
+    if (!lm.world()) {
+      lm.param = poseOf(lm.host) * (T_i_c_[0] * landmarkToPoint<Scalar>(lm.param));
+      lm.host = -1;
+    }
+    if (!seen_in_kf) continue;
+    // nfr needs a positive definite Λ_t: a monocular observation alone gives the landmark a
+    // rank-2 prior (no depth), so it is dropped unless a factor anchored at kf fixes the depth.
+    const bool anchored_at_kf = std::any_of(lm.nfr.begin(), lm.nfr.end(),
+                                            [kf](const NfrFactor& f) { return f.frame == kf; });
+    if (config_.marg_strategy == MargStrategy::kNfr && !lm.obs.at(kf).has_right &&
+        !anchored_at_kf) {
+      lm.obs.erase(kf);
+      continue;
+    }
+    plan->kept_landmark_obs.emplace_back(id, kf);
+  }
+}
+
+template <typename Scalar>
+MatX<Scalar> SlidingWindowEstimator<Scalar>::describeBlanket(SparsifyEvent* event) const {
+  MatX<Scalar> Lambda_t = prior_.storage == PriorStorage::kSqrt
+                              ? MatX<Scalar>(prior_.sqrt.J.transpose() * prior_.sqrt.J)
+                              : prior_.hessian.H;
+  event->blanket_cols = prior_.cols();
+  event->n_blanket_poses = 0;
+  event->n_blanket_landmarks = 0;
+  for (const auto& block : prior_.blocks) {
+    event->n_blanket_poses += block.var.block == StateBlock::kPose ? 1 : 0;
+    event->n_blanket_landmarks += block.var.block == StateBlock::kLandmark ? 1 : 0;
+  }
+  event->nnz_dense = (Lambda_t.array() != Scalar(0)).count();
+  event->nnz_sparse = event->nnz_dense;
+  return Lambda_t;
+}
+
+template <typename Scalar>
+void SlidingWindowEstimator<Scalar>::sparsifyPrior(SparsifyEvent* event) {
+  // Our blanket is only positive semi-definite in general — a keyframe pose that enters it
+  // through landmark eliminations alone carries relative information — while the closed form
+  // needs Σ_t. It is recovered for Λ_t + εI, ε = 10 n ε_mach tr Λ_t: above the rank threshold
+  // of core/sparsify, and in f64 a standard deviation of tens of metres / radians along the
+  // directions the prior does not constrain (no information the window would notice).
+  MatX<Scalar> Lambda_t = describeBlanket(event);
+  const Scalar regularization = Scalar(10) * NumericTraits<Scalar>::pinvRelativeTolerance(
+                                                 static_cast<int>(Lambda_t.rows())) *
+                                Lambda_t.trace();
+  Lambda_t.diagonal().array() += regularization;
+  auto fallback = [event](const std::string& reason) { event->fallback_reason = reason; };
+  const auto t0 = Clock::now();
+  // The dense prior is N(x⁰ ⊞ δ*, Λ_t⁻¹) with Λ_t δ* = −b(x⁰): its mean, where the recovered
+  // factors take their measurements (eq. 10's mean term then vanishes).
+  const VecX<Scalar> b0 = prior_.storage == PriorStorage::kSqrt
+                              ? VecX<Scalar>(prior_.sqrt.J.transpose() * prior_.sqrt.r)
+                              : prior_.hessian.b;
+  const VecX<Scalar> mean_delta = Lambda_t.ldlt().solve(-b0);
+  if (!mean_delta.allFinite()) {
+    event->t_recovery_s = secondsSince(t0);
+    return fallback("the mean of the dense prior is not finite");
+  }
+  Blanket<Scalar> x;
+  std::vector<VarKey> var_of;  // blanket index → window variable
+  int anchor = -1;
+  int64_t anchor_frame = -1;
+  bool anchor_is_kf = false;
+  for (const auto& block : prior_.blocks) {
+    const int off = block.offset;
+    if (block.var.block == StateBlock::kPose) {
+      const bool is_kf = frames_.at(block.var.frame_id).is_keyframe;
+      // The newest keyframe pose anchors the landmarks (keyframes leave the window last).
+      if (is_kf >= anchor_is_kf && (is_kf > anchor_is_kf || block.var.frame_id > anchor_frame)) {
+        anchor = static_cast<int>(x.size());
+        anchor_frame = block.var.frame_id;
+        anchor_is_kf = is_kf;
+      }
+      x.push_back({BlanketKind::kPose, off,
+                   boxPlus<Scalar>(block.T0, mean_delta.template segment<kPoseDim>(off)), {}});
+      var_of.push_back(block.var);
+    } else if (block.var.block == StateBlock::kSpeedBias) {
+      const Vec9S sb = block.sb0 + mean_delta.template segment<kSpeedBiasDim>(off);
+      x.push_back({BlanketKind::kVelocity, off, SE3S(), sb.template head<3>()});
+      x.push_back({BlanketKind::kBias, off + 3, SE3S(), sb.template tail<6>()});
+      var_of.insert(var_of.end(), 2, block.var);
+    } else {
+      x.push_back({BlanketKind::kLandmark, off, SE3S(),
+                   block.p0 + mean_delta.template segment<kPointDim>(off)});
+      var_of.push_back(block.var);
+    }
+  }
+  if (anchor < 0) {
+    event->t_recovery_s = secondsSince(t0);
+    return fallback("no pose in the blanket");
+  }
+  const Sparsification<Scalar> sp = sparsify<Scalar>(Lambda_t, x, paperTopology(x, anchor));
+  event->t_recovery_s = secondsSince(t0);
+  if (!sp.status.ok()) return fallback(sp.status.toString());
+
+  const auto t1 = Clock::now();
+  for (const RecoveredFactor<Scalar>& recovered : sp.factors) {
+    NfrFactor f;
+    f.factor = recovered;
+    f.factor.spec.var = 0;
+    f.kind = x[static_cast<size_t>(recovered.spec.var)].kind;
+    f.frame = var_of[static_cast<size_t>(recovered.spec.var)].frame_id;
+    if (recovered.spec.kind == NfrFactorKind::kUnary) {
+      nfr_unary_.push_back(std::move(f));
+    } else {
+      f.factor.spec.landmark = 1;
+      landmarks_.at(var_of[static_cast<size_t>(recovered.spec.landmark)].frame_id)
+          .nfr.push_back(std::move(f));
+    }
+  }
+  // The factors replace the prior; no variable is in a linear prior any more, so first-estimate
+  // Jacobians end with it (the factors are relinearized like every other residual).
+  prior_.blocks.clear();
+  prior_.sqrt = {};
+  prior_.hessian = {};
+  for (auto& [id, frame] : frames_) {
+    frame.linearized = false;
+    frame.speed_bias_linearized = false;
+  }
+  for (auto& [id, lm] : landmarks_) lm.linearized = false;
+  event->t_insert_s = secondsSince(t1);
+  event->recovered = true;
+  event->kld = static_cast<double>(sp.kld);
+  event->nnz_sparse = (sp.Lambda_s.array() != Scalar(0)).count();
 }
 
 template <typename Scalar>

@@ -75,6 +75,7 @@
 #include "core/imu/imu_state.h"
 #include "core/linalg/landmark_block.h"
 #include "core/sim/tracks.h"
+#include "core/sparsify/nfr.h"
 
 namespace marglab {
 
@@ -104,6 +105,19 @@ struct MargEvent {
   int numPoses() const;
 };
 
+// One keyframe marginalization of a dense / nfr run (results file /sparsify).
+struct SparsifyEvent {
+  int blanket_cols = 0;
+  int n_blanket_poses = 0;
+  int n_blanket_landmarks = 0;
+  int64_t nnz_dense = 0;   // non-zeros of Λ_t
+  int64_t nnz_sparse = 0;  // of Λ_s (nfr), = nnz_dense when kept dense
+  double kld = std::numeric_limits<double>::quiet_NaN();
+  bool recovered = false;
+  std::string fallback_reason;  // nfr kept the dense prior: why
+  double t_schur_s = 0, t_recovery_s = 0, t_insert_s = 0;
+};
+
 struct FrameResult {
   int64_t t_ns = 0;
   bool is_keyframe = false;
@@ -117,6 +131,7 @@ struct FrameResult {
   SE3<double> T_w_i;  // body (VIO) or cam0 (VO) pose of the frame after optimization
   Eigen::Vector3d v_w = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   std::optional<MargEvent> marg_event;
+  std::optional<SparsifyEvent> sparsify_event;
   Status status;  // not ok: the run failed at this frame
 };
 
@@ -187,14 +202,20 @@ struct WindowSnapshot {
   int numObservations() const;
 };
 
-// What one marginalization removes: variables, landmarks (with all their observations), the IMU
-// factors starting at the listed frames, and the observations in drop_obs_frames.
+// What one marginalization removes: variables (frame blocks, and landmarks of a dense prior),
+// landmarks eliminated with all their observations, the IMU factors starting at the listed
+// frames, the observations in drop_obs_frames, and — strategies dense / nfr — the observations
+// (track, frame) whose landmark stays as a variable of the new prior. Recovered (nfr) factors on
+// marginalized variables are always included.
 struct MargPlan {
   std::set<VarKey> vars;
   std::vector<int64_t> landmarks;
   std::vector<int64_t> imu_links;
   std::set<int64_t> drop_obs_frames;
-  bool empty() const { return vars.empty() && landmarks.empty() && imu_links.empty(); }
+  std::vector<std::pair<int64_t, int64_t>> kept_landmark_obs;
+  bool empty() const {
+    return vars.empty() && landmarks.empty() && imu_links.empty() && kept_landmark_obs.empty();
+  }
 };
 
 template <typename Scalar>
@@ -266,10 +287,22 @@ class SlidingWindowEstimator {
     bool has_right = false;
     Vec2S uv1;
   };
+  // A factor recovered by nfr (core/sparsify/nfr.h), kept as the nonlinear residual
+  // W (h(x) ⊟ z) of its variables: `frame`'s pose, velocity or bias (unary), or the pose of
+  // `frame` and a landmark (pose–landmark). factor.spec indexes a blanket {variable, landmark}.
+  struct NfrFactor {
+    RecoveredFactor<Scalar> factor;
+    BlanketKind kind = BlanketKind::kPose;  // of the unary variable (kPose for pose–landmark)
+    int64_t frame = -1;
+  };
   struct Landmark {
-    int64_t host = -1;
-    Vec3S param;  // (u, v, ρ)
+    int64_t host = -1;  // < 0: a world point (strategies dense / nfr)
+    Vec3S param;        // (u, v, ρ) in the host's cam0, or p_w
     std::map<int64_t, Observation> obs;
+    bool linearized = false;  // in a dense prior: Jacobians at param_lin
+    Vec3S param_lin = Vec3S::Zero();
+    std::vector<NfrFactor> nfr;  // pose–landmark factors (one per nfr event that kept it)
+    bool world() const { return host < 0; }
   };
   // One landmark linearized over the pose blocks of a system (frames mapped to columns).
   struct Linearized {
@@ -292,6 +325,14 @@ class SlidingWindowEstimator {
     Mat<Scalar, 15, 30> J;
     Vec<Scalar, 15> r;
   };
+  // Residual rows over a few variables of the window: J's columns are the variables' blocks at
+  // the given offsets. The rows that enter the reduced system as they are (landmarks of a dense
+  // prior, recovered unary factors) and the rows a marginalization stacks.
+  struct RowBlock {
+    std::vector<std::pair<VarKey, int>> vars;
+    MatX<Scalar> J;
+    VecX<Scalar> r;
+  };
   using ColumnMap = std::map<VarKey, int>;
   // T_ct_h = (T_w_t T_i_ct)⁻¹ T_w_h T_i_c0 for every (host, target, camera) of the window, at the
   // current poses and (with Jacobians) at the first estimates: computed once per linearization
@@ -307,10 +348,38 @@ class SlidingWindowEstimator {
   Scalar landmarkCost(const Landmark& lm, const RelativePoses& rel) const;
   Scalar linkCost(int64_t from, const ImuLink& link) const;
   Scalar totalCost() const;
-  // Returns false when the landmark has fewer than 3 valid rows.
+  // Returns false when the landmark has fewer than min_rows valid rows. The rows of its
+  // pose–landmark factors (nfr) follow the observations' when with_nfr.
   bool linearizeLandmark(int64_t track_id, const Landmark& lm,
                          const std::set<int64_t>& system_frames, const RelativePoses& rel,
-                         Linearized* out) const;
+                         Linearized* out, bool with_nfr = true, int min_rows = 3) const;
+  Scalar nfrCost(const NfrFactor& f, const Landmark* lm) const;
+  // W (h(x) ⊟ z) at the current state and its Jacobian at the first estimates, over the factor's
+  // variables (a velocity or bias factor spans its whole speed-bias block).
+  void linearizeNfr(const NfrFactor& f, int64_t track_id, const Landmark* lm,
+                    std::vector<std::pair<VarKey, int>>* vars, MatX<Scalar>* J,
+                    VecX<Scalar>* r) const;
+  // Landmarks of the prior (dense): reduced-system variables, not eliminated per landmark.
+  std::set<int64_t> priorLandmarks() const;
+  // A landmark's rows (observations in system_frames, its pose–landmark factor) with the landmark
+  // as a variable; false when it has none.
+  bool landmarkRows(int64_t track_id, const std::set<int64_t>& system_frames,
+                    const RelativePoses& rel, bool with_nfr, RowBlock* out) const;
+  // The rows the reduced system takes as they are: prior landmarks and recovered unary factors.
+  std::vector<RowBlock> directRows(const std::set<int64_t>& system_frames,
+                                   const RelativePoses& rel) const;
+  // Keyframe marginalization with strategy dense / nfr: which landmarks stay (as world points),
+  // which observations of kf join the prior.
+  void planKeptLandmarks(int64_t kf, std::set<int64_t>* marg_landmarks, MargPlan* plan);
+  // nfr: replaces prior_ by recovered factors (event gets the recovery's diagnostics); keeps it
+  // dense when the recovery fails (event->fallback_reason).
+  void sparsifyPrior(SparsifyEvent* event);
+  // Size and non-zeros of prior_ as the blanket of a keyframe event; returns Λ_t.
+  MatX<Scalar> describeBlanket(SparsifyEvent* event) const;
+  // Strategy dense / nfr in effect (VIO only).
+  bool keepsLandmarks() const {
+    return imu_.has_value() && config_.marg_strategy != MargStrategy::kDiscard;
+  }
   void linearizeLink(int64_t from, const ImuLink& link, LinkLinearized* out) const;
   PoseBlockMap blockMap(const Linearized& lin, const ColumnMap& column_of) const;
   // All variables of the window, frames in id order, pose then speed-bias; returns the size.
@@ -323,6 +392,7 @@ class SlidingWindowEstimator {
   std::optional<int64_t> selectKeyframeToMarginalize(int64_t current,
                                                      const std::set<VarKey>& marg_vars) const;
   Status marginalize(int64_t current, FrameResult* result);
+  Vec3S jacobianPointOf(const Landmark& lm) const { return lm.linearized ? lm.param_lin : lm.param; }
   // Marginalizes the plan into `prior` with `method`.
   Status marginalizeInto(MargPrior<Scalar>& prior, MargMethod method, PriorStorage storage,
                          const MargPlan& plan, int* qr_rank) const;
@@ -342,11 +412,13 @@ class SlidingWindowEstimator {
   StereoRig<Scalar> rig_;
   std::array<SE3S, 2> T_i_c_;       // body to cam0 / cam1 (VO: I, T_c0_c1)
   std::array<SE3S, 2> T_c_h_host_;  // host cam0 to cam0 / cam1 of the same frame
+  std::array<SE3S, 2> T_c_i_;       // T_i_c_ inverted (world-point landmarks)
   std::optional<ImuSetup> imu_;
   Vec3S g_w_ = Vec3S::Zero();
   std::map<int64_t, Frame> frames_;        // by frame index
   std::map<int64_t, Landmark> landmarks_;  // by track id
   std::map<int64_t, ImuLink> imu_links_;   // by start frame
+  std::vector<NfrFactor> nfr_unary_;       // recovered unary factors (nfr)
   MargPrior<Scalar> prior_;
   MargPrior<Scalar> shadow_prior_;
   int64_t next_frame_index_ = 0;

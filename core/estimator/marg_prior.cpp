@@ -18,8 +18,15 @@ int MargPrior<Scalar>::cols() const {
 }
 
 template <typename Scalar>
-void MargPrior<Scalar>::addBlock(const VarKey& var, const SE3<Scalar>& T0, const Vec9S& sb0) {
-  blocks.push_back(Block{var, cols(), T0, sb0});
+void MargPrior<Scalar>::addBlock(const VarKey& var, const SE3<Scalar>& T0, const Vec9S& sb0,
+                                 const Vec3<Scalar>& p0) {
+  blocks.push_back(Block{var, cols(), T0, sb0, p0});
+}
+
+template <typename Scalar>
+bool MargPrior<Scalar>::hasLandmarks() const {
+  return std::any_of(blocks.begin(), blocks.end(),
+                     [](const Block& block) { return block.var.block == StateBlock::kLandmark; });
 }
 
 template <typename Scalar>
@@ -31,11 +38,14 @@ int MargPrior<Scalar>::indexOf(const VarKey& var) const {
 
 template <typename Scalar>
 VecX<Scalar> MargPrior<Scalar>::delta(const std::function<SE3<Scalar>(int64_t)>& pose_of,
-                                      const std::function<Vec9S(int64_t)>& speed_bias_of) const {
+                                      const std::function<Vec9S(int64_t)>& speed_bias_of,
+                                      const std::function<Vec3<Scalar>(int64_t)>& point_of) const {
   VecX<Scalar> d(cols());
   for (const Block& block : blocks) {
     if (block.var.block == StateBlock::kPose) {
       d.template segment<kPoseDim>(block.offset) = boxMinus(pose_of(block.var.frame_id), block.T0);
+    } else if (block.var.block == StateBlock::kLandmark) {
+      d.template segment<kPointDim>(block.offset) = point_of(block.var.frame_id) - block.p0;
     } else {
       d.template segment<kSpeedBiasDim>(block.offset) =
           speed_bias_of(block.var.frame_id) - block.sb0;

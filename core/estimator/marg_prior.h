@@ -1,7 +1,8 @@
 #pragma once
 // The marginalization prior of the sliding window (paper §3.1.3), over a list of state blocks —
-// poses (6 dof, increment δ = [δt; δφ] of core/geometry/se3.h) and, for VIO, speed-bias blocks
-// (9 dof, δ = [δv; δb_g; δb_a] of core/imu/imu_state.h) — in one of two storages:
+// poses (6 dof, increment δ = [δt; δφ] of core/geometry/se3.h), for VIO speed-bias blocks
+// (9 dof, δ = [δv; δb_g; δb_a] of core/imu/imu_state.h), and with the `dense` marginalization
+// strategy landmarks as world points (3 dof, additive) — in one of two storages:
 //   square root (eq. 4):  E_m(x) = ½ ‖r_m + J_m δ‖²,
 //   Hessian     (eq. 3):  E_m(x) = ½ δᵀ H_m δ + b_mᵀ δ,          δ = x ⊟ x⁰,
 // where x⁰ are the first-estimate linearization points of the prior's variables. The shift of
@@ -20,15 +21,18 @@
 namespace marglab {
 
 // The two kinds of state block of a frame: its pose, and (VIO, latest states only) velocity and
-// biases together.
-enum class StateBlock : int { kPose = 0, kSpeedBias = 1 };
+// biases together; and a landmark kept as a world point in a dense prior (its id is the track id).
+enum class StateBlock : int { kPose = 0, kSpeedBias = 1, kLandmark = 2 };
 constexpr int kPoseDim = 6;
 constexpr int kSpeedBiasDim = 9;
+constexpr int kPointDim = 3;
 constexpr int stateBlockDim(StateBlock block) {
-  return block == StateBlock::kPose ? kPoseDim : kSpeedBiasDim;
+  return block == StateBlock::kPose ? kPoseDim
+                                    : (block == StateBlock::kSpeedBias ? kSpeedBiasDim : kPointDim);
 }
 
-// One variable of the window: a block of one frame. Ordered by frame, pose before speed-bias.
+// One variable of the window: a block of one frame (frame_id), or a landmark (frame_id holds its
+// track id). Ordered by id, pose before speed-bias before landmark.
 struct VarKey {
   int64_t frame_id = 0;
   StateBlock block = StateBlock::kPose;
@@ -46,6 +50,7 @@ struct MargPrior {
     int offset = 0;
     SE3<Scalar> T0;             // linearization point of a pose block
     Vec9S sb0 = Vec9S::Zero();  // linearization point of a speed-bias block
+    Vec3<Scalar> p0 = Vec3<Scalar>::Zero();  // linearization point p_w of a landmark block
   };
 
   PriorStorage storage = PriorStorage::kSqrt;
@@ -57,13 +62,17 @@ struct MargPrior {
   int cols() const;
   int rows() const;
   // Appends a block at the end of the layout.
-  void addBlock(const VarKey& var, const SE3<Scalar>& T0, const Vec9S& sb0);
+  void addBlock(const VarKey& var, const SE3<Scalar>& T0, const Vec9S& sb0,
+                const Vec3<Scalar>& p0 = Vec3<Scalar>::Zero());
+  bool hasLandmarks() const;
   // Index of a variable in the layout, or −1.
   int indexOf(const VarKey& var) const;
 
-  // δ = x ⊟ x⁰ stacked over the layout, current values looked up by frame id.
+  // δ = x ⊟ x⁰ stacked over the layout, current values looked up by frame / track id (point_of
+  // is needed only with landmark blocks).
   VecX<Scalar> delta(const std::function<SE3<Scalar>(int64_t)>& pose_of,
-                     const std::function<Vec9S(int64_t)>& speed_bias_of) const;
+                     const std::function<Vec9S(int64_t)>& speed_bias_of,
+                     const std::function<Vec3<Scalar>(int64_t)>& point_of = {}) const;
   // E_m at δ.
   Scalar cost(const VecX<Scalar>& delta) const;
   // Gradient and Hessian at δ: b = Jᵀ(r + Jδ), H = JᵀJ  |  b = b_m + H_m δ, H = H_m.

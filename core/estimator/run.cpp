@@ -134,6 +134,7 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
   metadata.mode = vio ? "vio" : "vo";
   metadata.seed = options.seed;
   metadata.config_toml = config.toToml();
+  metadata.marg_strategy = toString(config.marg_strategy);
   if (options.variant.marg == MargMethod::kQr) {
     metadata.qr_threshold_mode = toString(config.qr_threshold_mode);
     metadata.qr_threshold = config.qr_threshold >= 0
@@ -209,6 +210,26 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
                                    sqrt_storage ? &event.r_m : nullptr);
       }
       ++marg_index;
+    }
+    if (result.sparsify_event && result.status.ok()) {
+      const SparsifyEvent& event = *result.sparsify_event;
+      SparsifyRecord sparsify;
+      sparsify.frame_index = k;
+      sparsify.t_ns = frame.t_ns;
+      sparsify.blanket_cols = event.blanket_cols;
+      sparsify.n_blanket_poses = event.n_blanket_poses;
+      sparsify.n_blanket_landmarks = event.n_blanket_landmarks;
+      sparsify.nnz_dense = event.nnz_dense;
+      sparsify.nnz_sparse = event.nnz_sparse;
+      sparsify.kld = event.kld;
+      sparsify.recovered = event.recovered;
+      sparsify.t_schur_s = event.t_schur_s;
+      sparsify.t_recovery_s = event.t_recovery_s;
+      sparsify.t_insert_s = event.t_insert_s;
+      writer.appendSparsify(sparsify);
+      if (!event.fallback_reason.empty()) {
+        fmt::print(stderr, "frame {}: nfr kept the dense prior: {}\n", k, event.fallback_reason);
+      }
     }
     if (options.progress) options.progress(k + 1, total);
 
@@ -287,6 +308,16 @@ RunOutcome runSequence(const RunOptions& options) {
   }
   if (resolved.mode == RunMode::kVo && resolved.imu == ImuSource::kReal) {
     throw UsageError("--imu real needs VIO (--mode vio)");
+  }
+  if (config.marg_strategy != MargStrategy::kDiscard) {
+    if (resolved.mode == RunMode::kVo) {
+      throw UsageError(fmt::format("marginalization strategy {} needs VIO (EuRoC or TUM-VI)",
+                                   toString(config.marg_strategy)));
+    }
+    // A captured window holds hosted landmarks and a prior over frame states only.
+    if (!options.dump_windows.empty()) {
+      throw UsageError("window capture (--dump-windows) needs marginalization strategy discard");
+    }
   }
   if (options.variant.precision == Precision::kF32) {
     return runWith<float>(resolved, sequence, stream, spline, config);
