@@ -65,6 +65,11 @@ struct ResultsWriter::Impl {
   h5::Appendable<std::int32_t> m_prior_cols, m_prior_rows, m_rank, m_n_negative;
   h5::Appendable<double> m_sigma_min, m_sigma_max, m_eig_tolerance, m_dEm;
   h5::RaggedWriter<double> m_eigenvalues;
+  // /sparsify
+  h5::Appendable<std::int64_t> s_frame_index, s_t_ns, s_nnz_dense, s_nnz_sparse;
+  h5::Appendable<std::int32_t> s_blanket_cols, s_n_blanket_poses, s_n_blanket_landmarks;
+  h5::Appendable<double> s_kld, s_t_schur_s, s_t_recovery_s, s_t_insert_s;
+  h5::Appendable<std::uint8_t> s_recovered;
   // kept for finish()
   std::vector<std::int64_t> frame_t_ns;
   std::vector<Eigen::Vector3d> frame_p_est, frame_p_gt;
@@ -98,6 +103,7 @@ ResultsWriter ResultsWriter::create(const std::string& path, const RunMetadata& 
   f.setAttr("config_toml", metadata.config_toml);
   f.setAttr("qr_threshold_mode", metadata.qr_threshold_mode);
   f.setAttr("qr_threshold", metadata.qr_threshold);
+  f.setAttr("marg_strategy", metadata.marg_strategy);
   for (const auto& [key, value] : metadata.extra) f.setAttr(key, value);
   // Provisional status: replaced by finish(); only visible if someone inspects the temporary.
   f.setAttr("status", "running");
@@ -158,6 +164,38 @@ ResultsWriter ResultsWriter::create(const std::string& path, const RunMetadata& 
                                                                  kGaugeDirectionNames.end()));
   d->m_eigenvalues = h5::RaggedWriter<double>(marg, "eigenvalues");
   d->m_eigenvalues.group().setAttr("description", "ascending eigenvalues of H_m per event");
+
+  // Created for every run, so that a reader of a discard run sees zero rows, not a missing group.
+  const h5::Group sparsify = f.group("sparsify");
+  sparsify.setAttr(
+      "description",
+      "one row per keyframe marginalization of a dense / nfr run (Hsiung et al. 2018)");
+  d->s_frame_index = h5::appendable<std::int64_t>(sparsify, "frame_index");
+  describe(d->s_frame_index.dataset(), "1", "row of /frames that marginalized the keyframe");
+  d->s_t_ns = h5::appendable<std::int64_t>(sparsify, "t_ns");
+  describe(d->s_t_ns.dataset(), "ns", "timestamp of that frame");
+  d->s_blanket_cols = h5::appendable<std::int32_t>(sparsify, "blanket_cols");
+  describe(d->s_blanket_cols.dataset(), "1", "columns of the dense prior over the Markov blanket");
+  d->s_n_blanket_poses = h5::appendable<std::int32_t>(sparsify, "n_blanket_poses");
+  describe(d->s_n_blanket_poses.dataset(), "1", "poses in the Markov blanket");
+  d->s_n_blanket_landmarks = h5::appendable<std::int32_t>(sparsify, "n_blanket_landmarks");
+  describe(d->s_n_blanket_landmarks.dataset(), "1", "landmarks in the Markov blanket");
+  d->s_nnz_dense = h5::appendable<std::int64_t>(sparsify, "nnz_dense");
+  describe(d->s_nnz_dense.dataset(), "1",
+           "structural non-zeros of the dense prior (both triangles)");
+  d->s_nnz_sparse = h5::appendable<std::int64_t>(sparsify, "nnz_sparse");
+  describe(d->s_nnz_sparse.dataset(), "1",
+           "structural non-zeros of the sparsified prior (= nnz_dense when kept dense)");
+  d->s_kld = h5::appendable<double>(sparsify, "kld");
+  describe(d->s_kld.dataset(), "nats", "KL divergence dense -> sparsified (eq. 10), NaN if dense");
+  d->s_recovered = h5::appendable<std::uint8_t>(sparsify, "recovered");
+  describe(d->s_recovered.dataset(), "1", "1 if the recovered factors replaced the dense prior");
+  d->s_t_schur_s = h5::appendable<double>(sparsify, "t_schur_s");
+  describe(d->s_t_schur_s.dataset(), "s", "wall time of the marginalization (Schur / flat QR)");
+  d->s_t_recovery_s = h5::appendable<double>(sparsify, "t_recovery_s");
+  describe(d->s_t_recovery_s.dataset(), "s", "wall time of the information recovery (eq. 16)");
+  d->s_t_insert_s = h5::appendable<double>(sparsify, "t_insert_s");
+  describe(d->s_t_insert_s.dataset(), "s", "wall time of inserting the factors into the window");
   return ResultsWriter(std::move(d));
 }
 
@@ -198,6 +236,23 @@ void ResultsWriter::appendMarg(const MargRecord& m) {
   d.m_dEm.append(m.dEm);
   d.m_eigenvalues.append(m.eigenvalues);
   ++d.marg_rows;
+}
+
+void ResultsWriter::appendSparsify(const SparsifyRecord& r) {
+  Impl& d = *impl_;
+  d.requireOpen();
+  d.s_frame_index.append(r.frame_index);
+  d.s_t_ns.append(r.t_ns);
+  d.s_blanket_cols.append(r.blanket_cols);
+  d.s_n_blanket_poses.append(r.n_blanket_poses);
+  d.s_n_blanket_landmarks.append(r.n_blanket_landmarks);
+  d.s_nnz_dense.append(r.nnz_dense);
+  d.s_nnz_sparse.append(r.nnz_sparse);
+  d.s_kld.append(r.kld);
+  d.s_recovered.append(static_cast<std::uint8_t>(r.recovered ? 1 : 0));
+  d.s_t_schur_s.append(r.t_schur_s);
+  d.s_t_recovery_s.append(r.t_recovery_s);
+  d.s_t_insert_s.append(r.t_insert_s);
 }
 
 void ResultsWriter::appendPriorMatrices(std::int64_t k, const PriorLayout& layout, const MatXd& H_m,
@@ -323,11 +378,14 @@ ResultsReader::ResultsReader(const std::string& path) : path_(path) {
   m.config_toml = file_.attr<std::string>("config_toml");
   m.qr_threshold_mode = file_.attr<std::string>("qr_threshold_mode");
   m.qr_threshold = file_.attr<double>("qr_threshold");
+  // Files written before the strategies existed marginalized as discard does.
+  m.marg_strategy =
+      file_.hasAttr("marg_strategy") ? file_.attr<std::string>("marg_strategy") : "discard";
   static const char* const kKnown[] = {
       "schema_version", "marglab_version",   "git_sha",      "created_utc", "dataset",
       "sequence",       "variant",           "precision",    "mode",        "seed",
       "config_toml",    "qr_threshold_mode", "qr_threshold", "status",      "failure_frame",
-      "failure_reason"};
+      "failure_reason", "marg_strategy"};
   for (const std::string& name : file_.attrNames()) {
     if (std::find(std::begin(kKnown), std::end(kKnown), name) != std::end(kKnown)) continue;
     try {
@@ -439,6 +497,48 @@ MargRecord ResultsReader::marg(std::size_t k) const {
   m.dEm = Eigen::Map<const Vec7d>(dEm.data());
   m.eigenvalues = eigenvalues(k);
   return m;
+}
+
+std::vector<SparsifyRecord> ResultsReader::sparsifyRecords() const {
+  std::vector<SparsifyRecord> out;
+  if (!file_.exists("sparsify")) return out;
+  const h5::Group g = file_.openGroup("sparsify");
+  const auto frame_index = g.readVector<std::int64_t>("frame_index");
+  const auto t_ns = g.readVector<std::int64_t>("t_ns");
+  const auto blanket_cols = g.readVector<std::int32_t>("blanket_cols");
+  const auto n_poses = g.readVector<std::int32_t>("n_blanket_poses");
+  const auto n_landmarks = g.readVector<std::int32_t>("n_blanket_landmarks");
+  const auto nnz_dense = g.readVector<std::int64_t>("nnz_dense");
+  const auto nnz_sparse = g.readVector<std::int64_t>("nnz_sparse");
+  const auto kld = g.readVector<double>("kld");
+  const auto recovered = g.readVector<std::uint8_t>("recovered");
+  const auto t_schur = g.readVector<double>("t_schur_s");
+  const auto t_recovery = g.readVector<double>("t_recovery_s");
+  const auto t_insert = g.readVector<double>("t_insert_s");
+  const std::size_t n = frame_index.size();
+  for (const std::size_t size :
+       {t_ns.size(), blanket_cols.size(), n_poses.size(), n_landmarks.size(), nnz_dense.size(),
+        nnz_sparse.size(), kld.size(), recovered.size(), t_schur.size(), t_recovery.size(),
+        t_insert.size()}) {
+    if (size != n) throw InputError(path_, 0, "/sparsify: columns differ in length");
+  }
+  out.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    SparsifyRecord& r = out[k];
+    r.frame_index = frame_index[k];
+    r.t_ns = t_ns[k];
+    r.blanket_cols = blanket_cols[k];
+    r.n_blanket_poses = n_poses[k];
+    r.n_blanket_landmarks = n_landmarks[k];
+    r.nnz_dense = nnz_dense[k];
+    r.nnz_sparse = nnz_sparse[k];
+    r.kld = kld[k];
+    r.recovered = recovered[k] != 0;
+    r.t_schur_s = t_schur[k];
+    r.t_recovery_s = t_recovery[k];
+    r.t_insert_s = t_insert[k];
+  }
+  return out;
 }
 
 std::vector<std::int64_t> ResultsReader::storedPriors() const {

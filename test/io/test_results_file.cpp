@@ -32,6 +32,7 @@ struct SmallRun {
   RunMetadata metadata;
   std::vector<FrameRecord> frames;
   std::vector<MargRecord> margs;
+  std::vector<SparsifyRecord> sparsify;
   StoredPrior prior1;  // stored for event 1
   SummaryValues summary;
 };
@@ -75,6 +76,7 @@ SmallRun writeSmallRun(const std::string& path, RunStatus status = RunStatus::kO
   m.config_toml = "[window]\nmax_kfs = 7\nmax_states = 3\n";
   m.qr_threshold_mode = "absolute";
   m.qr_threshold = 3.4526698e-4;
+  m.marg_strategy = "nfr";
   m.extra = {{"host", "test"}};
   ResultsWriter w = ResultsWriter::create(path, m);
 
@@ -111,6 +113,24 @@ SmallRun writeSmallRun(const std::string& path, RunStatus status = RunStatus::kO
       w.appendPriorMatrices(1, p.layout, p.H_m, p.b_m, &p.J_m, &p.r_m);
       run.prior1 = p;
     }
+  }
+  // Keyframe marginalizations at frames 3 and 6: recovered, and kept dense (an nfr fallback).
+  for (const int frame : {3, 6}) {
+    SparsifyRecord s;
+    s.frame_index = frame;
+    s.t_ns = run.frames[frame].t_ns;
+    s.blanket_cols = 15 + 3 * frame;
+    s.n_blanket_poses = 1;
+    s.n_blanket_landmarks = frame;
+    s.nnz_dense = s.blanket_cols * s.blanket_cols;
+    s.recovered = frame == 3;
+    s.nnz_sparse = s.recovered ? 225 + 2 * 27 * frame + 9 * frame : s.nnz_dense;
+    s.kld = s.recovered ? 0.125 * frame : kNaN;
+    s.t_schur_s = 1e-3 * frame;
+    s.t_recovery_s = 2e-3 * frame;
+    s.t_insert_s = s.recovered ? 1e-4 * frame : 0.0;
+    w.appendSparsify(s);
+    run.sparsify.push_back(s);
   }
   EXPECT_EQ(w.frameCount(), 8u);
   EXPECT_EQ(w.margCount(), 3u);
@@ -177,7 +197,8 @@ TEST_F(ResultsFileTest, EveryDatasetAndAttributeRoundTrips) {
   EXPECT_EQ(m.config_toml, run.metadata.config_toml);
   EXPECT_EQ(m.qr_threshold_mode, run.metadata.qr_threshold_mode);
   EXPECT_EQ(m.qr_threshold, run.metadata.qr_threshold);
-  EXPECT_EQ(m.extra, run.metadata.extra);
+  EXPECT_EQ(m.marg_strategy, "nfr");
+  EXPECT_EQ(m.extra, run.metadata.extra);  // marg_strategy is not an extra attribute
 
   const FrameColumns f = r.frames();
   ASSERT_EQ(f.size(), run.frames.size());
@@ -260,6 +281,28 @@ TEST_F(ResultsFileTest, EveryDatasetAndAttributeRoundTrips) {
   EXPECT_THROW(r.marg(3), InputError);
   EXPECT_THROW(r.eigenvalues(3), InputError);
 
+  const std::vector<SparsifyRecord> sparsify = r.sparsifyRecords();
+  ASSERT_EQ(sparsify.size(), run.sparsify.size());
+  for (std::size_t k = 0; k < sparsify.size(); ++k) {
+    const SparsifyRecord &g = sparsify[k], &e = run.sparsify[k];
+    EXPECT_EQ(g.frame_index, e.frame_index);
+    EXPECT_EQ(g.t_ns, e.t_ns);
+    EXPECT_EQ(g.blanket_cols, e.blanket_cols);
+    EXPECT_EQ(g.n_blanket_poses, e.n_blanket_poses);
+    EXPECT_EQ(g.n_blanket_landmarks, e.n_blanket_landmarks);
+    EXPECT_EQ(g.nnz_dense, e.nnz_dense);
+    EXPECT_EQ(g.nnz_sparse, e.nnz_sparse);
+    EXPECT_EQ(std::isnan(g.kld), std::isnan(e.kld));
+    if (!std::isnan(e.kld)) {
+      EXPECT_EQ(g.kld, e.kld);
+    }
+    EXPECT_EQ(g.recovered, e.recovered);
+    EXPECT_EQ(g.t_schur_s, e.t_schur_s);
+    EXPECT_EQ(g.t_recovery_s, e.t_recovery_s);
+    EXPECT_EQ(g.t_insert_s, e.t_insert_s);
+  }
+  EXPECT_EQ(r.file().openDataset("sparsify/kld").attr<std::string>("units"), "nats");
+
   EXPECT_EQ(r.storedPriors(), std::vector<std::int64_t>{1});
   EXPECT_FALSE(r.prior(0));
   const std::optional<StoredPrior> p = r.prior(1);
@@ -305,6 +348,30 @@ TEST_F(ResultsFileTest, SquaredStoragePriorAndVioLayoutRoundTrip) {
   EXPECT_EQ(p->layout[3].kind, PriorVariableKind::kAccelBias);
   EXPECT_EQ(p->layout[3].offset, 12);
   EXPECT_EQ(r.file().openGroup("marg/priors/0").attr<std::string>("storage"), "sq");
+}
+
+TEST_F(ResultsFileTest, SparsifyGroupHasZeroRowsForDiscardAndIsOptionalForOlderFiles) {
+  const std::string path = file("discard.h5");
+  ResultsWriter::create(path, RunMetadata{}).finish(RunSummary{});
+  {
+    const ResultsReader r(path);
+    EXPECT_EQ(r.info().metadata.marg_strategy, "discard");
+    EXPECT_EQ(r.file().attr<std::string>("marg_strategy"), "discard");
+    ASSERT_TRUE(r.file().exists("sparsify/kld"));
+    EXPECT_EQ(r.file().openDataset("sparsify/kld").shape(), std::vector<hsize_t>{0});
+    EXPECT_TRUE(r.sparsifyRecords().empty());
+  }
+  // A file written before the strategies existed: neither the group nor the attribute.
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  EXPECT_GE(H5Ldelete(f, "sparsify", H5P_DEFAULT), 0);
+  EXPECT_GE(H5Adelete(f, "marg_strategy"), 0);
+  H5Fclose(f);
+  const ResultsReader r(path);
+  EXPECT_FALSE(r.file().exists("sparsify"));
+  EXPECT_FALSE(r.file().hasAttr("marg_strategy"));
+  EXPECT_EQ(r.info().metadata.marg_strategy, "discard");
+  EXPECT_TRUE(r.sparsifyRecords().empty());
 }
 
 TEST_F(ResultsFileTest, WriterDestroyedWithoutFinishLeavesNoFile) {
@@ -366,14 +433,23 @@ TEST_F(ResultsFileTest, PythonCheckerAgreesAndDetectsTampering) {
   writeSmallRun(failed, RunStatus::kFailed);
   EXPECT_EQ(std::system((python + " '" + script + "' '" + failed + "' > /dev/null").c_str()), 0);
 
-  const std::string tampered = file("tampered.h5");
-  fs::copy_file(path, tampered);
-  const std::string edit = python + " -c \"import h5py; f = h5py.File('" + tampered +
-                           "', 'r+'); f['summary'].attrs['ate_rmse'] *= 1.001; f.close()\"";
-  ASSERT_EQ(std::system(edit.c_str()), 0);
-  EXPECT_NE(std::system(
-                (python + " '" + script + "' '" + tampered + "' 2> /dev/null > /dev/null").c_str()),
-            0);
+  // Each edit alone makes the file inconsistent.
+  for (const std::string& change :
+       {std::string("f['summary'].attrs['ate_rmse'] *= 1.001"),
+        std::string("f['sparsify/nnz_sparse'][0] = f['sparsify/nnz_dense'][0] + 1"),
+        std::string("f['sparsify/kld'][0] = -0.5"), std::string("f['sparsify/frame_index'][1] = 8"),
+        std::string("f.attrs['marg_strategy'] = 'discard'")}) {
+    SCOPED_TRACE(change);
+    const std::string tampered = file("tampered.h5");
+    fs::copy_file(path, tampered, fs::copy_options::overwrite_existing);
+    const std::string edit = python + " -c \"import h5py; f = h5py.File('" + tampered +
+                             "', 'r+'); " + change + "; f.close()\"";
+    ASSERT_EQ(std::system(edit.c_str()), 0);
+    EXPECT_NE(
+        std::system(
+            (python + " '" + script + "' '" + tampered + "' 2> /dev/null > /dev/null").c_str()),
+        0);
+  }
 }
 
 // ---- marglab eigdump ------------------------------------------------------------------------

@@ -4,8 +4,10 @@
 Usage: check_results.py RUN.h5
 
 Checks that every attribute and dataset of the schema exists with consistent shapes, that the
-ragged /marg/eigenvalues agree with /marg (one ascending row of prior_cols values per event), and
-recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
+ragged /marg/eigenvalues agree with /marg (one ascending row of prior_cols values per event), that
+/sparsify agrees with the marg_strategy attribute (equal column lengths, rows only for dense / nfr,
+frame_index within /frames, nnz_sparse <= nnz_dense and KLD >= 0 where the prior was recovered,
+KLD NaN where it was kept dense), and recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
 Umeyama/Kabsch alignment without scale (reflection fix diag(1, 1, det(U V^T))), comparing it with
 /summary ate_rmse and /frames/ate_error. Prints "OK ..." and exits 0, or lists every problem and
 exits 1 (2 for usage errors). Needs only numpy and h5py.
@@ -23,6 +25,10 @@ FRAME_1D = ["t_ns", "is_keyframe", "n_landmarks", "n_observations", "lm_iteratio
 FRAME_2D = {"p_est": 3, "q_est": 4, "p_gt": 3}
 MARG_1D = ["frame_index", "t_ns", "prior_cols", "prior_rows", "rank", "sigma_min", "sigma_max",
            "n_negative"]
+SPARSIFY_1D = ["frame_index", "t_ns", "blanket_cols", "n_blanket_poses", "n_blanket_landmarks",
+               "nnz_dense", "nnz_sparse", "kld", "recovered", "t_schur_s", "t_recovery_s",
+               "t_insert_s"]
+MARG_STRATEGIES = ("discard", "dense", "nfr")
 SUMMARY_ATTRS = ["ate_rmse", "n_frames", "duration_s", "t_opt_total_s", "t_marg_total_s",
                  "realtime_factor"]
 
@@ -40,6 +46,46 @@ def umeyama_rmse(src, dst):
 
 def close(a, b, scale):
     return abs(a - b) <= 1e-9 * max(scale, 1e-3)
+
+
+def check_sparsify(f, n_frames):
+    """/sparsify against the marg_strategy attribute; both are absent in files written before the
+    strategies existed (which marginalized as discard does)."""
+    problems = []
+    strategy = f.attrs.get("marg_strategy")
+    if strategy is None:
+        return problems if "sparsify" not in f else ["/sparsify without a marg_strategy attribute"]
+    strategy = strategy.decode() if isinstance(strategy, bytes) else str(strategy)
+    if strategy not in MARG_STRATEGIES:
+        return [f"marg_strategy {strategy!r} is not one of {', '.join(MARG_STRATEGIES)}"]
+    if "sparsify" not in f:
+        return ["missing group /sparsify"]
+    sp = f["sparsify"]
+    missing = [name for name in SPARSIFY_1D if name not in sp]
+    if missing:
+        return [f"missing /sparsify/{name}" for name in missing]
+    lengths = {name: sp[name].shape for name in SPARSIFY_1D}
+    if len(set(lengths.values())) != 1 or len(next(iter(lengths.values()))) != 1:
+        return [f"/sparsify columns differ in shape: {lengths}"]
+    col = {name: sp[name][:] for name in SPARSIFY_1D}
+    rows = col["frame_index"].shape[0]
+    if strategy == "discard" and rows:
+        problems.append(f"{rows} /sparsify rows in a discard run")
+    if np.any((col["frame_index"] < 0) | (col["frame_index"] >= n_frames)):
+        problems.append(f"/sparsify/frame_index outside /frames (0..{n_frames - 1})")
+    recovered = col["recovered"].astype(bool)
+    if strategy == "dense" and recovered.any():
+        problems.append("/sparsify/recovered set in a dense run")
+    if np.any(col["nnz_sparse"][recovered] > col["nnz_dense"][recovered]):
+        problems.append("/sparsify: nnz_sparse > nnz_dense where the prior was recovered")
+    if np.any(col["nnz_sparse"][~recovered] != col["nnz_dense"][~recovered]):
+        problems.append("/sparsify: nnz_sparse != nnz_dense where the prior was kept dense")
+    kld = col["kld"]
+    if np.any(kld[recovered] < 0):  # NaN compares False: allowed
+        problems.append("/sparsify/kld negative where the prior was recovered")
+    if not np.all(np.isnan(kld[~recovered])):
+        problems.append("/sparsify/kld not NaN where the prior was kept dense")
+    return problems
 
 
 def check(path):
@@ -100,6 +146,8 @@ def check(path):
                     if finite.size and "sigma_min" in mg and finite.size == row.size:
                         if finite[0] != mg["sigma_min"][k] or finite[-1] != mg["sigma_max"][k]:
                             problems.append(f"sigma_min/max of event {k} differ from its eigenvalues")
+
+        problems += check_sparsify(f, n)
 
         summary = f["summary"].attrs
         for name in SUMMARY_ATTRS:
