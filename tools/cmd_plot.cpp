@@ -20,7 +20,8 @@ const bool kRegistered = cli::registerCommand(
            ->check(CLI::ExistingDirectory);
        sub.add_option("--figure", request->figures,
                       "Figures, comma-separated: fig1 (trajectories + sigma_min, VIO), fig4 (dEm, "
-                      "VIO), fig5 (dEm, VO), fig6 (sigma_min, VO), fig7 (trajectories, VO)")
+                      "VIO), fig5 (dEm, VO), fig6 (sigma_min, VO), fig7 (trajectories, VO), "
+                      "sparsify (Hsiung et al. Fig. 6a/6b and KLD of nfr runs)")
            ->capture_default_str();
        sub.add_option("-o,--out", request->out,
                       "Output folder (default: notebooks-out/<name of the first folder>)");

@@ -27,7 +27,8 @@ experiment::ParseOptions sweepParseOptions() {
                                  [](const CommandSpec& c) { return c.name == "run"; });
     if (it == commands.end()) return {};
     CLI::App app{"run"};
-    it->setup(app);
+    // The returned run owns the variables the options write to: keep it alive while parsing.
+    const CommandRun run = it->setup(app);
     std::vector<std::string> args = {"--dataset",      "kitti/10", "--variant",
                                      "ns-qr-sqrt-f32", "-o",       "/dev/null"};
     args.insert(args.end(), extra.begin(), extra.end());

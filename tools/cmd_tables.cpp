@@ -1,5 +1,6 @@
 // `marglab tables results/NAME...`: Tables 1–6 of the paper from sweep results (HDF5 files), with
-// the paper's published values beside ours, as Markdown, LaTeX (booktabs) and CSV.
+// the paper's published values beside ours, as Markdown, LaTeX (booktabs) and CSV; with runs of the
+// dense / nfr marginalization strategies also Hsiung et al.'s Tables I and II (sparsify_table1/2).
 
 #include <fmt/core.h>
 #include <fmt/format.h>
@@ -13,8 +14,10 @@ namespace marglab {
 namespace {
 
 const bool kRegistered = cli::registerCommand(
-    {"tables", "Regenerate Tables 1-6 of the paper from sweep results, with the paper's values", 30,
-     [](CLI::App& sub) -> cli::CommandRun {
+    {"tables",
+     "Regenerate Tables 1-6 of the paper (and, for dense / nfr runs, Hsiung et al.'s Tables I and "
+     "II) from sweep results, with the papers' values",
+     30, [](CLI::App& sub) -> cli::CommandRun {
        auto request = std::make_shared<experiment::TablesRequest>();
        sub.add_option("dirs", request->dirs, "Sweep folders (results/NAME), one or more")
            ->required()

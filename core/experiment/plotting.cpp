@@ -38,9 +38,11 @@ int runPlot(const PlotRequest& request) {
   }
   std::stringstream list(request.figures);
   for (std::string f; std::getline(list, f, ',');) {
-    if (f != "fig1" && f != "fig4" && f != "fig5" && f != "fig6" && f != "fig7") {
-      throw UsageError("--figure takes fig1, fig4, fig5, fig6, fig7 (comma-separated), not '" + f +
-                       "'");
+    if (f != "fig1" && f != "fig4" && f != "fig5" && f != "fig6" && f != "fig7" &&
+        f != "sparsify") {
+      throw UsageError(
+          "--figure takes fig1, fig4, fig5, fig6, fig7, sparsify (comma-separated), not '" + f +
+          "'");
     }
   }
   const std::string script = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts/plot_paper.py";

@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <limits>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -32,6 +34,10 @@ bool isVioDataset(const std::string& d) {
   return startsWith(d, "euroc/") || startsWith(d, "tumvi/");
 }
 bool isVoDataset(const std::string& d) { return startsWith(d, "kitti/"); }
+bool isEurocDataset(const std::string& d) { return startsWith(d, "euroc/"); }
+
+// Hsiung et al.'s order of columns: theirs (nfr), the dense prior it sparsifies, OKVIS's (discard).
+const std::vector<std::string> kStrategies = {"nfr", "dense", "discard"};
 
 std::vector<TableColumn> headlineColumns(const std::string& family) {
   std::vector<TableColumn> columns;
@@ -40,7 +46,8 @@ std::vector<TableColumn> headlineColumns(const std::string& family) {
     const std::string bits = v.substr(v.size() - 2);
     columns.push_back({v, fmt::format("{}{}-{}", sqrt ? "√" : "", family, bits),
                        sqrt ? fmt::format("$\\sqrt{{\\text{{{}}}}}$-{}", family, bits)
-                            : fmt::format("\\textit{{{}-{}}}", family, bits)});
+                            : fmt::format("\\textit{{{}-{}}}", family, bits),
+                       -1, ""});
   }
   return columns;
 }
@@ -52,7 +59,7 @@ std::vector<TableColumn> ablationColumns() {
     std::string opt = v.substr(0, 2), marg = v.substr(3, 2);
     for (auto* s : {&opt, &marg}) std::transform(s->begin(), s->end(), s->begin(), ::toupper);
     const std::string label = fmt::format("{}/{}-{}", opt, marg, v.substr(v.size() - 2));
-    columns.push_back({v, label, label});
+    columns.push_back({v, label, label, -1, ""});
   }
   return columns;
 }
@@ -97,20 +104,25 @@ std::string texNote(const std::string& note) {
 }
 
 // Marks the best value(s) of a row per quantity, compared as printed.
-void markBest(std::vector<TableCell>& cells, std::size_t quantities, int decimals, bool higher) {
+// Only the first `ranked` cells compete (the others are columns of another quantity).
+void markBest(std::vector<TableCell>& cells, std::size_t quantities, int decimals, bool higher,
+              std::size_t ranked = std::numeric_limits<std::size_t>::max()) {
   for (auto& cell : cells) cell.best.assign(quantities, false);
+  const auto end = cells.begin() + static_cast<std::ptrdiff_t>(std::min(ranked, cells.size()));
   for (std::size_t q = 0; q < quantities; ++q) {
     double best =
         higher ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
     bool any = false;
-    for (const auto& cell : cells) {
+    for (auto it = cells.begin(); it != end; ++it) {
+      const TableCell& cell = *it;
       if (cell.state != TableCell::State::kValue || !std::isfinite(cell.numbers[q])) continue;
       const double r = roundTo(cell.numbers[q], decimals);
       best = higher ? std::max(best, r) : std::min(best, r);
       any = true;
     }
     if (!any) continue;
-    for (auto& cell : cells) {
+    for (auto it = cells.begin(); it != end; ++it) {
+      TableCell& cell = *it;
       if (cell.state == TableCell::State::kValue && std::isfinite(cell.numbers[q]) &&
           roundTo(cell.numbers[q], decimals) == best) {
         cell.best[q] = true;
@@ -157,25 +169,134 @@ struct Selection {
   }
 };
 
+// A cell of ours: the mean over the selection's runs (seeds) of each quantity.
+using RunValue = std::function<double(const RunRecord&)>;
+TableCell meanCell(const Selection& sel, const std::vector<RunValue>& quantities) {
+  TableCell cell;
+  cell.state = sel.state();
+  cell.n_runs = static_cast<int>(sel.runs.size());
+  if (cell.state != TableCell::State::kValue) return cell;
+  for (const RunValue& value : quantities) {
+    std::vector<double> v;
+    for (const RunRecord* r : sel.runs) v.push_back(value(*r));
+    cell.numbers.push_back(mean(v));
+  }
+  return cell;
+}
+
+struct Moments {
+  double mean = std::numeric_limits<double>::quiet_NaN();
+  double rmse = std::numeric_limits<double>::quiet_NaN();
+  double std = std::numeric_limits<double>::quiet_NaN();  // population, as RMSE² = mean² + std²
+};
+
+Moments moments(const std::vector<double>& v) {
+  Moments m;
+  if (v.empty()) return m;
+  m.mean = mean(v);
+  double squares = 0, deviations = 0;
+  for (double x : v) {
+    squares += x * x;
+    deviations += (x - m.mean) * (x - m.mean);
+  }
+  m.rmse = std::sqrt(squares / static_cast<double>(v.size()));
+  m.std = std::sqrt(deviations / static_cast<double>(v.size()));
+  return m;
+}
+
+// What the strategy tables read from one results file beyond /summary.
+struct StrategyStats {
+  double kld_mean = std::numeric_limits<double>::quiet_NaN();   // over recovered /sparsify rows
+  double nnz_ratio = std::numeric_limits<double>::quiet_NaN();  // mean over all /sparsify rows
+  int events = 0, recovered = 0;
+  Moments opt;   // /frames t_opt_s, every frame
+  Moments marg;  // /frames t_marg_s of the frames that marginalized a keyframe
+};
+
+int maxKeyframes(const RunInfo& info, const std::string& path) {
+  try {
+    const toml::table config = toml::parse(info.metadata.config_toml);
+    if (const auto n = config["window"]["max_kfs"].value<std::int64_t>()) {
+      return static_cast<int>(*n);
+    }
+  } catch (const toml::parse_error& e) {
+    throw InputError(path, 0, "config_toml: " + std::string(e.description()));
+  }
+  throw InputError(path, 0, "config_toml has no [window] max_kfs");
+}
+
+StrategyStats readStrategyStats(const std::string& path) {
+  const ResultsReader reader(path);
+  const FrameColumns frames = reader.frames();
+  const std::vector<SparsifyRecord> events = reader.sparsifyRecords();
+  StrategyStats s;
+  s.events = static_cast<int>(events.size());
+  std::vector<double> kld, ratio;
+  std::set<std::int64_t> keyframe_marg;
+  for (const SparsifyRecord& e : events) {
+    keyframe_marg.insert(e.frame_index);
+    ratio.push_back(e.nnz_dense > 0
+                        ? static_cast<double>(e.nnz_sparse) / static_cast<double>(e.nnz_dense)
+                        : std::numeric_limits<double>::quiet_NaN());
+    if (!e.recovered) continue;
+    ++s.recovered;
+    if (std::isfinite(e.kld)) kld.push_back(e.kld);
+  }
+  s.kld_mean = mean(kld);
+  s.nnz_ratio = mean(ratio);
+  if (events.empty()) {
+    // No /sparsify rows (discard): once the window holds max_kfs keyframes, every new keyframe
+    // pushes one keyframe out in its own marginalization event (on an nfr run of MH_02_easy these
+    // frames are exactly its /sparsify frames).
+    const int max_kfs = maxKeyframes(reader.info(), path);
+    int keyframes = 0;
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      if (frames.is_keyframe[i] && ++keyframes > max_kfs) {
+        keyframe_marg.insert(static_cast<std::int64_t>(i));
+      }
+    }
+  }
+  std::vector<double> marg;
+  for (const std::int64_t i : keyframe_marg) {
+    if (i >= 0 && static_cast<std::size_t>(i) < frames.size()) {
+      marg.push_back(frames.t_marg_s[static_cast<std::size_t>(i)]);
+    }
+  }
+  s.opt = moments(frames.t_opt_s);
+  s.marg = moments(marg);
+  return s;
+}
+
+// The column a run belongs to in a table set (its variant, or its marginalization strategy);
+// nullopt: not part of the set.
+using ColumnOf = std::function<std::optional<std::string>(const RunRecord&)>;
+
+std::string oursNote(const std::string& paper_machine) {
+  return "Ours: simulated stereo tracks along the real trajectories, `frames` = frames per run "
+         "(`all`: the whole sequence); the paper: real images, whole sequences" +
+         (paper_machine.empty() ? std::string(".") : ", on " + paper_machine + ".");
+}
+
 class Builder {
  public:
-  Builder(const ResultSet& results, const PaperValues& paper, const std::string& override_name)
+  Builder(const ResultSet& results, const PaperValues& paper, const ColumnOf& column_of)
       : paper_(paper) {
-    // Deduplicate dataset × variant × seed: the run with more requested frames wins.
-    std::map<std::string, const RunRecord*> chosen;
+    // Deduplicate dataset × column × seed: the run with more requested frames wins.
+    std::map<std::string, std::pair<std::string, const RunRecord*>> chosen;
     for (const RunRecord& r : results.runs) {
-      if (r.row.get("override") != override_name) continue;
-      const std::string key =
-          r.row.get("dataset") + "|" + r.row.get("variant") + "|" + r.row.get("seed");
+      const std::optional<std::string> column = column_of(r);
+      if (!column) continue;
+      const std::string key = r.row.get("dataset") + "|" + *column + "|" + r.row.get("seed");
       auto frames = [](const RunRecord* x) {
         const double f = x->row.number("frames");
         return !std::isfinite(f) || f <= 0 ? std::numeric_limits<double>::infinity() : f;
       };
       auto it = chosen.find(key);
-      if (it == chosen.end() || frames(&r) > frames(it->second)) chosen[key] = &r;
+      if (it == chosen.end() || frames(&r) > frames(it->second.second)) chosen[key] = {*column, &r};
     }
-    for (const auto& [key, run] : chosen) {
-      by_cell_[run->row.get("dataset") + "|" + run->row.get("variant")].runs.push_back(run);
+    for (const auto& [key, choice] : chosen) {
+      const auto& [column, run] = choice;
+      by_cell_[run->row.get("dataset") + "|" + column].runs.push_back(run);
       datasets_.insert(run->row.get("dataset"));
       modes_[run->row.get("dataset")].insert(run->mode.empty() ? "?" : run->mode);
     }
@@ -264,6 +385,9 @@ class Builder {
     t.row_header = "sequence";
     t.quantities = ate ? std::vector<std::string>{"ate"} : std::vector<std::string>{"opt", "marg"};
     t.columns = headlineColumns(vio ? "VIO" : "VO");
+    const RunValue ate_m = [](const RunRecord& r) { return r.ate_rmse; };
+    const std::vector<RunValue> runtime = {[](const RunRecord& r) { return r.t_opt_s; },
+                                           [](const RunRecord& r) { return r.t_marg_s; }};
     bool any_estimate = false;
     for (const std::string& dataset : rowsFor(vio ? isVioDataset : isVoDataset, paper, kHeadline)) {
       TableRow row;
@@ -273,20 +397,8 @@ class Builder {
       row.ours_decimals = ate ? 4 : 2;
       row.paper_decimals = ate ? (vio ? 3 : 2) : 1;
       for (const TableColumn& column : t.columns) {
-        const Selection& sel = select(dataset, column.variant);
-        TableCell cell;
-        cell.state = sel.state();
-        cell.n_runs = static_cast<int>(sel.runs.size());
-        if (cell.state == TableCell::State::kValue) {
-          std::vector<double> a, o, m;
-          for (const RunRecord* r : sel.runs) {
-            a.push_back(r->ate_rmse);
-            o.push_back(r->t_opt_s);
-            m.push_back(r->t_marg_s);
-          }
-          cell.numbers = ate ? std::vector<double>{mean(a)} : std::vector<double>{mean(o), mean(m)};
-        }
-        row.ours.push_back(cell);
+        row.ours.push_back(meanCell(select(dataset, column.variant),
+                                    ate ? std::vector<RunValue>{ate_m} : runtime));
         row.paper.push_back(paperCell(paper, dataset, column.variant, t.quantities));
       }
       markBest(row.ours, t.quantities.size(), row.ours_decimals, false);
@@ -302,10 +414,7 @@ class Builder {
     std::vector<std::string> keys;
     for (const TableRow& r : t.rows) keys.push_back(r.key);
     t.notes.push_back(modeNote(keys));
-    t.notes.push_back(
-        "Ours: simulated stereo tracks along the real trajectories, `frames` = frames per run "
-        "(`all`: the whole sequence); the paper: real images, whole sequences" +
-        std::string(ate ? "." : ", on a 12-thread Xeon W-2133."));
+    t.notes.push_back(oursNote(ate ? "" : "a 12-thread Xeon W-2133"));
     if (any_estimate) {
       t.notes.push_back(
           "*: the shipped reference trajectory is a VIO estimate, not ground truth; our ATE is "
@@ -420,17 +529,156 @@ class Builder {
     return t;
   }
 
+  // Hsiung et al. Table I analog; the builder's columns are marginalization strategies.
+  std::optional<Table> strategyAccuracy(const std::string& id, const std::string& variant) const {
+    const PaperTable* paper = paperTable("sparsify_table1");
+    Table t;
+    t.id = id;
+    t.title = fmt::format(
+        "Table I (Hsiung et al.): absolute trajectory error [m] by marginalization strategy, {}",
+        variant);
+    t.row_header = "sequence";
+    t.quantities = {"ate"};
+    for (const std::string& s : kStrategies) t.columns.push_back({s, s, s, -1, ""});
+    t.columns.push_back({"nfr", "KLD nfr [nats]", "KLD nfr [nats]", 3, "kld"});
+    t.columns.push_back({"nfr", "nnz nfr / dense", "nnz nfr / dense", 3, "nnz_ratio"});
+    const RunValue ate_m = [](const RunRecord& r) { return r.ate_rmse; };
+    const RunValue kld = [this](const RunRecord& r) { return stats(r).kld_mean; };
+    const RunValue nnz_ratio = [this](const RunRecord& r) { return stats(r).nnz_ratio; };
+    int events = 0, recovered = 0;
+    bool any_estimate = false;
+    const std::vector<std::string> datasets = rowsFor(isEurocDataset, paper, kStrategies);
+    for (const std::string& dataset : datasets) {
+      TableRow row;
+      row.key = dataset;
+      row.label = rowLabel(paper, dataset, &any_estimate);
+      row.frames = framesLabel(dataset, kStrategies);
+      row.ours_decimals = 4;
+      row.paper_decimals = 3;
+      for (const std::string& s : kStrategies) {
+        row.ours.push_back(meanCell(select(dataset, s), {ate_m}));
+        row.paper.push_back(paperCell(paper, dataset, s, t.quantities));
+      }
+      const Selection& nfr = select(dataset, "nfr");
+      for (const RunValue& value : {kld, nnz_ratio}) {
+        row.ours.push_back(meanCell(nfr, {value}));
+        row.paper.emplace_back();
+      }
+      if (nfr.state() == TableCell::State::kValue) {
+        for (const RunRecord* r : nfr.runs) {
+          events += stats(*r).events;
+          recovered += stats(*r).recovered;
+        }
+      }
+      markBest(row.ours, 1, row.ours_decimals, false, kStrategies.size());
+      markBest(row.paper, 1, row.paper_decimals, false);
+      t.rows.push_back(std::move(row));
+    }
+    if (t.rows.empty()) return std::nullopt;
+    t.notes.push_back(fmt::format(
+        "ATE: RMSE of the positions after SE(3) alignment (results /summary ate_rmse) of the {} "
+        "runs, by their results attribute marg_strategy.",
+        variant));
+    t.notes.push_back(fmt::format(
+        "KLD nfr: mean D_KL(Λ_t ‖ Λ_s) [nats] (eq. 10, /sparsify kld) over the keyframe "
+        "marginalizations of the nfr runs whose recovered factors replaced the dense prior; "
+        "nnz nfr / dense: mean of nnz_sparse / nnz_dense over all of them (1 where nfr kept the "
+        "dense prior); here {} of {} events recovered.",
+        recovered, events));
+    t.notes.push_back(
+        "Paper: Proposed beside nfr, OKVIS (ours) — OKVIS's marginalization in the authors' "
+        "pipeline — beside discard; the paper has no dense column (its OKVIS, VINS-MONO* and "
+        "ROVIO are in paper_values.toml).");
+    t.notes.push_back(modeNote(datasets));
+    t.notes.push_back(oursNote(""));
+    addCommonNotes(&t, paper, isEurocDataset);
+    return t;
+  }
+
+  // Hsiung et al. Table II analog: one row per sequence × strategy, the statistics as columns.
+  std::optional<Table> strategyTiming(const std::string& id, const std::string& variant) const {
+    const PaperTable* paper = paperTable("sparsify_table2");
+    Table t;
+    t.id = id;
+    t.title = fmt::format(
+        "Table II (Hsiung et al.): run time [s] per optimization and per keyframe "
+        "marginalization by marginalization strategy, {}",
+        variant);
+    t.row_header = "sequence strategy";
+    t.quantities = {"time_s"};
+    const std::vector<std::pair<const char*, RunValue>> statistics = {
+        {"opt mean", [this](const RunRecord& r) { return stats(r).opt.mean; }},
+        {"opt RMSE", [this](const RunRecord& r) { return stats(r).opt.rmse; }},
+        {"opt std", [this](const RunRecord& r) { return stats(r).opt.std; }},
+        {"marg mean", [this](const RunRecord& r) { return stats(r).marg.mean; }},
+        {"marg RMSE", [this](const RunRecord& r) { return stats(r).marg.rmse; }},
+        {"marg std", [this](const RunRecord& r) { return stats(r).marg.std; }}};
+    for (const auto& [label, value] : statistics) {
+      // The paper's column ids: "opt mean" → "opt_mean".
+      std::string key = label;
+      std::replace(key.begin(), key.end(), ' ', '_');
+      std::transform(key.begin(), key.end(), key.begin(), ::tolower);
+      t.columns.push_back({key, label, label, -1, ""});
+    }
+    bool any_estimate = false;
+    const std::vector<std::string> datasets = rowsFor(isEurocDataset, paper, kStrategies);
+    for (const std::string& dataset : datasets) {
+      for (const std::string& s : kStrategies) {
+        const Selection& sel = select(dataset, s);
+        if (sel.runs.empty()) continue;
+        TableRow row;
+        row.key = dataset + ":" + s;
+        row.label = rowLabel(paper, dataset, &any_estimate) + " " + s;
+        row.frames = framesLabel(dataset, {s});
+        row.ours_decimals = 4;
+        row.paper_decimals = 3;
+        for (std::size_t c = 0; c < statistics.size(); ++c) {
+          row.ours.push_back(meanCell(sel, {statistics[c].second}));
+          row.paper.push_back(s == "nfr"
+                                  ? paperCell(paper, dataset, t.columns[c].variant, t.quantities)
+                                  : TableCell{});
+        }
+        t.rows.push_back(std::move(row));
+      }
+    }
+    if (t.rows.empty()) return std::nullopt;
+    t.notes.push_back(
+        "opt: wall time of the optimization of every frame (/frames t_opt_s). marg: /frames "
+        "t_marg_s of the frames that marginalized a keyframe — for dense and nfr the frames with "
+        "a /sparsify row, for discard (no /sparsify rows) every keyframe from the (max_kfs + 1)-th "
+        "on (config [window] max_kfs), since each pushes one keyframe out of the full window; it "
+        "is the frame's whole marginalization event (with the oldest state's speed-bias or "
+        "non-keyframe state, ended landmark tracks and, for nfr, recovery and insertion). Mean, "
+        "RMSE = √mean(t²) and population std per run, averaged over seeds.");
+    t.notes.push_back(
+        "Paper: the proposed method only (beside our nfr rows), marginalization including "
+        "sparsification.");
+    t.notes.push_back(modeNote(datasets));
+    t.notes.push_back(oursNote("an Intel i7-6700"));
+    addCommonNotes(&t, paper, nullptr, /*ranked=*/false);
+    return t;
+  }
+
  private:
+  const StrategyStats& stats(const RunRecord& run) const {
+    auto it = stats_.find(&run);
+    if (it == stats_.end()) it = stats_.emplace(&run, readStrategyStats(run.results_path)).first;
+    return it->second;
+  }
+
   const PaperTable* paperTable(const std::string& id) const {
     const auto it = paper_.tables.find(id);
     return it == paper_.tables.end() ? nullptr : &it->second;
   }
 
-  void addCommonNotes(Table* t, const PaperTable* paper, bool (*family)(const std::string&)) const {
+  // ranked: the table marks the best of each row in bold.
+  void addCommonNotes(Table* t, const PaperTable* paper, bool (*family)(const std::string&),
+                      bool ranked = true) const {
     if (paper != nullptr) {
       t->notes.push_back(fmt::format("Paper: {} of {} ({}).",
                                      paper->source.substr(0, paper->source.find(':')),
-                                     paper_.source, fs::path(paper_.file).filename().string()));
+                                     paper->paper.empty() ? paper_.source : paper->paper,
+                                     fs::path(paper_.file).filename().string()));
       if (family != nullptr) {
         std::vector<std::string> absent;
         for (const auto& row : paper->rows) {
@@ -444,19 +692,26 @@ class Builder {
         }
       }
     }
-    t->notes.push_back(
-        "Bold: best of the row among ours and among the paper's values (as printed); x: failed; "
-        "–: no run.");
+    t->notes.push_back(ranked ? "Bold: best of the row among ours and among the paper's values (as "
+                                "printed); x: failed; –: no run."
+                              : "x: failed; –: no run.");
   }
 
   const PaperValues& paper_;
   std::map<std::string, Selection> by_cell_;
   std::set<std::string> datasets_;
-  std::map<std::string, std::set<std::string>> modes_;  // dataset → modes
+  std::map<std::string, std::set<std::string>> modes_;       // dataset → modes
+  mutable std::map<const RunRecord*, StrategyStats> stats_;  // read on first use
 };
 
-std::string cellMarkdown(const TableCell& cell, const TableRow& row, bool ours) {
-  const int decimals = ours ? row.ours_decimals : row.paper_decimals;
+int decimalsOf(const TableRow& row, const TableColumn& column, bool ours) {
+  if (column.decimals >= 0) return column.decimals;
+  return ours ? row.ours_decimals : row.paper_decimals;
+}
+
+std::string cellMarkdown(const TableCell& cell, const TableRow& row, const TableColumn& column,
+                         bool ours) {
+  const int decimals = decimalsOf(row, column, ours);
   if (cell.state != TableCell::State::kValue) return formatCell(cell, 0, decimals, row.suffix);
   std::vector<std::string> parts;
   for (std::size_t q = 0; q < cell.numbers.size(); ++q) {
@@ -466,8 +721,9 @@ std::string cellMarkdown(const TableCell& cell, const TableRow& row, bool ours) 
   return fmt::format("{}", fmt::join(parts, " / "));
 }
 
-std::string cellLatex(const TableCell& cell, const TableRow& row, bool ours) {
-  const int decimals = ours ? row.ours_decimals : row.paper_decimals;
+std::string cellLatex(const TableCell& cell, const TableRow& row, const TableColumn& column,
+                      bool ours) {
+  const int decimals = decimalsOf(row, column, ours);
   if (cell.state == TableCell::State::kMissing) return "--";
   if (cell.state == TableCell::State::kFailed) return "x";
   std::vector<std::string> parts;
@@ -515,12 +771,14 @@ PaperValues loadPaperValues(const std::string& path) {
     const std::string id(key.str());
     if (id == "source") continue;
     const toml::table* table = node.as_table();
-    if (table == nullptr || !startsWith(id, "table")) {
-      throw InputError(path, lineOf(node), "expected source = \"...\" or [tableN] tables");
+    if (table == nullptr || !(startsWith(id, "table") || startsWith(id, "sparsify_table"))) {
+      throw InputError(path, lineOf(node),
+                       "expected source = \"...\" or [tableN] / [sparsify_tableN] tables");
     }
     PaperTable t;
     t.id = id;
     t.source = (*table)["source"].value_or(std::string());
+    t.paper = (*table)["paper"].value_or(std::string());
     for (const char* list : {"columns", "quantities"}) {
       const toml::array* array = (*table)[list].as_array();
       if (array == nullptr || array->empty()) {
@@ -599,6 +857,7 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
           const SummaryValues s = reader.summary();
           r.state = info.status == "ok" ? "ok" : "failed";
           r.mode = info.metadata.mode;
+          r.marg_strategy = info.metadata.marg_strategy;
           for (const auto& [name, value] : info.metadata.extra) {
             if (name == "gt_source") r.gt_source = value;
           }
@@ -634,7 +893,10 @@ std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& p
   for (const RunRecord& r : results.runs) overrides.insert(r.row.get("override"));
   std::vector<TableSet> sets;
   for (const std::string& o : overrides) {
-    Builder builder(results, paper, o);
+    const Builder builder(results, paper, [&o](const RunRecord& r) -> std::optional<std::string> {
+      if (r.row.get("override") != o) return std::nullopt;
+      return r.row.get("variant");
+    });
     TableSet set;
     set.override_name = o;
     auto add = [&](std::optional<Table> t, const std::string& why) {
@@ -648,13 +910,37 @@ std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& p
     add(builder.perSequence(2, false), "Table 2: no KITTI runs");
     add(builder.perSequence(3, true), "Table 3: no EuRoC / TUM-VI runs");
     std::string why;
-    add(builder.ablation(
-            4, [](const std::string& d) { return startsWith(d, "euroc/"); }, "EuRoC", &why),
-        why);
+    add(builder.ablation(4, isEurocDataset, "EuRoC", &why), why);
     add(builder.perSequence(5, false), "Table 5: no KITTI runs");
     why.clear();
     add(builder.ablation(6, isVoDataset, "KITTI", &why), why);
     sets.push_back(std::move(set));
+  }
+
+  // The strategy tables compare runs across overrides (a strategy sweep has one per strategy), so
+  // they join the set without override; one pair per variant with dense or nfr runs.
+  std::set<std::string> strategy_variants;
+  for (const RunRecord& r : results.runs) {
+    if (r.marg_strategy == "dense" || r.marg_strategy == "nfr") {
+      strategy_variants.insert(r.row.get("variant"));
+    }
+  }
+  if (strategy_variants.empty()) return sets;
+  if (sets.empty() || !sets.front().override_name.empty()) sets.insert(sets.begin(), TableSet{});
+  TableSet& set = sets.front();
+  for (const std::string& variant : strategy_variants) {
+    const Builder builder(results, paper,
+                          [&variant](const RunRecord& r) -> std::optional<std::string> {
+                            if (r.row.get("variant") != variant || r.marg_strategy.empty()) {
+                              return std::nullopt;
+                            }
+                            return r.marg_strategy;
+                          });
+    const std::string suffix = strategy_variants.size() > 1 ? "_" + variant : "";
+    for (std::optional<Table> t : {builder.strategyAccuracy("sparsify_table1" + suffix, variant),
+                                   builder.strategyTiming("sparsify_table2" + suffix, variant)}) {
+      if (t) set.tables.push_back(std::move(*t));
+    }
   }
   return sets;
 }
@@ -682,8 +968,8 @@ std::string renderMarkdown(const Table& table) {
     out += "| " + row.label + " |";
     if (frames) out += " " + row.frames + " |";
     for (std::size_t c = 0; c < table.columns.size(); ++c) {
-      out += fmt::format(" {} | {} |", cellMarkdown(row.ours[c], row, true),
-                         cellMarkdown(row.paper[c], row, false));
+      out += fmt::format(" {} | {} |", cellMarkdown(row.ours[c], row, table.columns[c], true),
+                         cellMarkdown(row.paper[c], row, table.columns[c], false));
     }
     out += "\n";
   }
@@ -716,8 +1002,8 @@ std::string renderLatex(const Table& table) {
     out += texEscape(row.label);
     if (frames) out += " & " + row.frames;
     for (std::size_t c = 0; c < table.columns.size(); ++c) {
-      out +=
-          " & " + cellLatex(row.ours[c], row, true) + " & " + cellLatex(row.paper[c], row, false);
+      out += " & " + cellLatex(row.ours[c], row, table.columns[c], true) + " & " +
+             cellLatex(row.paper[c], row, table.columns[c], false);
     }
     out += " \\\\\n";
   }
@@ -735,7 +1021,9 @@ std::string renderCsv(const std::vector<Table>& tables, const std::string& overr
     for (const TableRow& row : t.rows) {
       for (std::size_t c = 0; c < t.columns.size(); ++c) {
         for (std::size_t q = 0; q < t.quantities.size(); ++q) {
-          const std::string quantity = t.quantities[q] == "value" ? row.key : t.quantities[q];
+          const std::string quantity = !t.columns[c].quantity.empty() ? t.columns[c].quantity
+                                       : t.quantities[q] == "value"   ? row.key
+                                                                      : t.quantities[q];
           const TableCell& ours = row.ours[c];
           const TableCell& paper = row.paper[c];
           const auto number = [&](const TableCell& cell) {

@@ -23,6 +23,20 @@
 //   - when the same dataset × variant × seed × override was run more than once (several groups or
 //     folders), the run with more requested frames is used.
 // One table set per override name of the sweep ("" = runs without override).
+//
+// Marginalization strategies (issue #9; Hsiung et al., Information Sparsification in
+// Visual-Inertial Odometry, IROS 2018), produced when some run's results attribute marg_strategy
+// is dense or nfr, across overrides and folders, in the set without override:
+//   sparsify_table1  (Table I)  ATE [m] of nfr, dense, discard per EuRoC sequence, the paper's
+//                    Proposed (= nfr) and OKVIS (ours) (= discard) beside; the mean KLD [nats] of
+//                    the nfr runs' recovered events (/sparsify kld) and their mean nnz_sparse /
+//                    nnz_dense over all /sparsify rows (a fallback to the dense prior counts 1)
+//   sparsify_table2  (Table II) per sequence × strategy: optimization time per frame (/frames
+//                    t_opt_s) and marginalization time per keyframe marginalization, mean / RMSE /
+//                    std [s], the paper's (Proposed) beside the nfr rows
+// Runs are grouped by (dataset, marg_strategy) within one variant: one table pair per variant
+// that has dense or nfr runs (ids get `_<variant>` when there are several). Deduplication and
+// seeds as above.
 
 #include <map>
 #include <string>
@@ -42,6 +56,7 @@ struct PaperCell {
 struct PaperTable {
   std::string id;                       // "table1"
   std::string source;                   // "Table 1: ..."
+  std::string paper;                    // citation when not the file's `source` ("" otherwise)
   std::vector<std::string> columns;     // variants
   std::vector<std::string> quantities;  // "ate" | "opt", "marg" | "value"
   struct Row {
@@ -66,12 +81,13 @@ std::string defaultPaperValuesPath();  // <source dir>/experiments/paper_values.
 // ---- our results --------------------------------------------------------------------------------
 
 struct RunRecord {
-  IndexRow row;              // the index row
-  std::string dir;           // the sweep folder it came from
-  std::string results_path;  // absolute or relative to the working directory
-  std::string state;         // "ok" | "failed" | "missing" (no complete file, not failed)
-  std::string mode;          // results file attribute "mode" ("vo" | "vio")
-  std::string gt_source;     // results file attribute "gt_source" (may be "")
+  IndexRow row;               // the index row
+  std::string dir;            // the sweep folder it came from
+  std::string results_path;   // absolute or relative to the working directory
+  std::string state;          // "ok" | "failed" | "missing" (no complete file, not failed)
+  std::string mode;           // results file attribute "mode" ("vo" | "vio")
+  std::string gt_source;      // results file attribute "gt_source" (may be "")
+  std::string marg_strategy;  // results file attribute "marg_strategy" ("" without a file)
   double ate_rmse = 0, t_opt_s = 0, t_marg_s = 0, wall_s = 0, duration_s = 0;
   long long n_frames = 0;
   long long failure_frame = -1;
@@ -110,6 +126,8 @@ struct TableColumn {
   std::string variant;
   std::string label_md;   // "√VIO-64"
   std::string label_tex;  // "$\sqrt{\text{VIO}}$-64"
+  int decimals = -1;      // ≥ 0: overrides the row's decimals (a column of another unit)
+  std::string quantity;   // CSV quantity of this column when not the table's (e.g. "kld")
 };
 
 struct Table {

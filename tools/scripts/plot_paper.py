@@ -2,7 +2,7 @@
 """Figures of Demmel et al. (ICCV 2021) from marglab sweep results (HDF5 files listed in index.csv).
 
 Usage: plot_paper.py --out DIR [--vio-dataset euroc/MH_01_easy] [--vo-dataset kitti/10]
-                     [--figures fig1,fig4,fig5,fig6,fig7] SWEEP_DIR [SWEEP_DIR ...]
+                     [--figures fig1,fig4,fig5,fig6,fig7,sparsify] SWEEP_DIR [SWEEP_DIR ...]
 
 Writes PNG and PDF into DIR (slug = dataset with '/' -> '-'):
   fig1_<slug>            Fig. 1 analog on the VIO dataset: top-down trajectories of the four headline
@@ -14,6 +14,17 @@ Writes PNG and PDF into DIR (slug = dataset with '/' -> '-'):
   fig5_dEm_<slug>        Fig. 5 analog: the same on the VO dataset
   fig6_sigma_min_<slug>  Fig. 6 analog: sigma_min over time on the VO dataset
   fig7_trajectory_<slug> Fig. 7 analog: top-down trajectories on the VO dataset
+and, from runs whose results attribute marg_strategy is nfr (Hsiung et al., IROS 2018), figure
+`sparsify`:
+  sparsify_fig6a         Fig. 6a analog: optimization and marginalization time of every keyframe
+                         (/frames t_opt_s, t_marg_s of the frames with is_keyframe) over the
+                         keyframe index, MH_02_easy left, V1_02_medium right (those present)
+  sparsify_fig6b         Fig. 6b analog: box plots per sequence of the optimization time per frame
+                         and the marginalization time per keyframe marginalization (frames with a
+                         /sparsify row), and of the steps of those events: t_schur_s, and
+                         t_recovery_s, t_insert_s of the events whose factors were recovered
+  sparsify_kld           D_KL (eq. 10, /sparsify kld) of every recovered event over time, every nfr
+                         run (lowest seed, most frames per sequence)
 The family label (VIO / VO) comes from each results file's `mode` attribute, so the figures say what
 the estimator actually ran. A run that failed is drawn up to its failure and marked with an x.
 Needs matplotlib, h5py and numpy (Debian: python3-matplotlib python3-h5py python3-numpy).
@@ -136,6 +147,91 @@ def select(rows, dataset):
     return runs
 
 
+def attribute(f, name, default):
+    value = f.attrs.get(name, default)
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def nfr_runs(rows):
+    """{dataset: h5 path} of the nfr runs, one per dataset: lowest seed, most frames."""
+    best = {}
+    for r in rows:
+        if r.get("status") != "ok" or not os.path.isfile(r["_path"]):
+            continue
+        try:
+            with h5py.File(r["_path"], "r") as f:
+                if attribute(f, "marg_strategy", "discard") != "nfr" or "sparsify" not in f:
+                    continue
+        except OSError as e:
+            print("warning: cannot read %s: %s" % (r["_path"], e), file=sys.stderr)
+            continue
+        rank = (-int(r["seed"]), int(r["frames"] or 0) or 10 ** 12)
+        if r["dataset"] not in best or rank > best[r["dataset"]][0]:
+            best[r["dataset"]] = (rank, r["_path"])
+    return {d: path for d, (_, path) in sorted(best.items())}
+
+
+def read_timing(path):
+    with h5py.File(path, "r") as f:
+        fr, sp = f["frames"], f["sparsify"]
+        t_ns = fr["t_ns"][:]
+        keyframe = fr["is_keyframe"][:].astype(bool)
+        event_frames = sp["frame_index"][:]
+        recovered = sp["recovered"][:].astype(bool)
+        return dict(
+            t_opt=fr["t_opt_s"][:], t_marg=fr["t_marg_s"][:], keyframe=keyframe,
+            marg_kf=fr["t_marg_s"][:][event_frames],
+            schur=sp["t_schur_s"][:], recovery=sp["t_recovery_s"][:][recovered],
+            insert=sp["t_insert_s"][:][recovered],
+            kld_t=(sp["t_ns"][:][recovered] - (t_ns[0] if len(t_ns) else 0)) * 1e-9,
+            kld=sp["kld"][:][recovered])
+
+
+def plot_sparsify(runs, out, written):
+    """Hsiung et al. Fig. 6a / 6b analogs on MH_02_easy and V1_02_medium, and the KLD series."""
+    timing = {d: read_timing(p) for d, p in runs.items()}
+    fig6 = [d for d in ("euroc/MH_02_easy", "euroc/V1_02_medium") if d in timing]
+    if not fig6:
+        print("skipped sparsify_fig6a, sparsify_fig6b: no nfr run of MH_02_easy or V1_02_medium")
+    else:
+        fig, axes = plt.subplots(1, len(fig6), figsize=(6 * len(fig6), 3.5), squeeze=False)
+        for ax, d in zip(axes[0], fig6):
+            t = timing[d]
+            ax.plot(t["t_opt"][t["keyframe"]], color="tab:blue", lw=0.8, label="optimization")
+            ax.plot(t["t_marg"][t["keyframe"]], color="tab:red", lw=0.8, label="marginalization")
+            ax.set_xlabel("keyframe")
+            ax.set_ylabel("time [s]")
+            ax.set_title("%s (nfr)" % d)
+            ax.legend(fontsize=8)
+        fig.tight_layout()
+        save(fig, out, "sparsify_fig6a", written)
+
+        fig, axes = plt.subplots(1, 2 * len(fig6), figsize=(5.5 * len(fig6), 3.5), squeeze=False)
+        for i, d in enumerate(fig6):
+            t = timing[d]
+            left, right = axes[0][2 * i], axes[0][2 * i + 1]
+            left.boxplot([t["t_opt"], t["marg_kf"]], showfliers=False)
+            left.set_xticks([1, 2], ["opt\nper frame", "marg\nper keyframe"], fontsize=8)
+            left.set_ylabel("time [s]")
+            left.set_title(d, fontsize=9)
+            right.boxplot([t["schur"], t["recovery"], t["insert"]], showfliers=False)
+            right.set_xticks([1, 2, 3], ["Schur /\nflat QR", "recovery\n(eq. 16)", "insert"], fontsize=8)
+            right.set_title("steps of marginalization", fontsize=9)
+        fig.tight_layout()
+        save(fig, out, "sparsify_fig6b", written)
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for d, t in timing.items():
+        ax.plot(t["kld_t"], t["kld"], lw=0.8, label=d)
+    ax.set_yscale("log")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(r"$D_{KL}(\Lambda_t \Vert \Lambda_s)$ [nats]")
+    ax.set_title("information lost by sparsification (nfr, recovered events)")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    save(fig, out, "sparsify_kld", written)
+
+
 def pick_dataset(rows, wanted, family_prefixes):
     present = sorted({r["dataset"] for r in rows if r["variant"] in HEADLINE})
     if wanted in present:
@@ -242,7 +338,7 @@ def main():
     parser.add_argument("--out", required=True)
     parser.add_argument("--vio-dataset", default="euroc/MH_01_easy")
     parser.add_argument("--vo-dataset", default="kitti/10")
-    parser.add_argument("--figures", default="fig1,fig4,fig5,fig6,fig7")
+    parser.add_argument("--figures", default="fig1,fig4,fig5,fig6,fig7,sparsify")
     args = parser.parse_args()
     figures = set(args.figures.split(","))
     os.makedirs(args.out, exist_ok=True)
@@ -289,6 +385,13 @@ def main():
             plot_trajectories(ax, vo_runs, "%s: trajectories (top-down)" % vo)
             fig.tight_layout()
             save(fig, args.out, "fig7_trajectory_" + s, written)
+
+    if "sparsify" in figures:
+        runs = nfr_runs(rows)
+        if runs:
+            plot_sparsify(runs, args.out, written)
+        else:
+            print("skipped sparsify: no nfr runs (results attribute marg_strategy)")
 
     for path in written:
         print("wrote", path)
