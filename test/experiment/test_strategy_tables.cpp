@@ -1,7 +1,8 @@
 // The marginalization-strategy tables (sparsify_table1 / sparsify_table2, Hsiung et al. Tables I
 // and II) from synthetic results files of two strategies: every value of ours equals the one
 // computed here from what was written, the paper's values sit beside the nfr and discard columns,
-// a failed run is `x`, and folders without dense / nfr runs produce no strategy table.
+// a failed run is `x`, and folders without dense / nfr runs produce no strategy table; the Fig. 6
+// analogs are drawn from the same files.
 
 #include <gtest/gtest.h>
 
@@ -14,6 +15,7 @@
 #include <map>
 #include <sstream>
 
+#include "common/cli_runner.h"
 #include "core/experiment/sweep_index.h"
 #include "core/experiment/tables.h"
 #include "core/io/results_file.h"
@@ -143,8 +145,13 @@ class StrategyTables : public ::testing::Test {
     rows_.push_back(row);
   }
 
-  fs::path writeTablesOf() {
+  fs::path writeIndexFile() {
     writeIndex((dir_ / "sweep" / "index.csv").string(), rows_);
+    return dir_ / "sweep";
+  }
+
+  fs::path writeTablesOf() {
+    writeIndexFile();
     TablesRequest request;
     request.dirs = {(dir_ / "sweep").string()};
     request.out = (dir_ / "tables").string();
@@ -255,6 +262,26 @@ TEST_F(StrategyTables, ValuesEqualTheResultsFiles) {
                 "–", "–", bold(!nfr_best, fmt::format("{:.4f}", discard.ate)), "0.144",
                 fmt::format("{:.3f}", nfr.kld), "–", fmt::format("{:.3f}", nfr.nnz_ratio), "–"}))
       << md;
+}
+
+TEST_F(StrategyTables, PlotDrawsTheFig6AnalogsOfNfrRuns) {
+  addRun("euroc/MH_02_easy", "nfr", 0);
+  addRun("euroc/V1_02_medium", "nfr", 2);
+  addRun("euroc/V1_02_medium", "discard", 3);
+  const fs::path sweep = writeIndexFile();
+  const auto result = test::runCli("plot '" + sweep.string() + "' --figure sparsify --out '" +
+                                   (dir_ / "figures").string() + "'");
+  if (result.output.find("no Python with matplotlib") != std::string::npos) {
+    GTEST_SKIP() << "no Python with matplotlib, h5py and numpy: " << result.output;
+  }
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  for (const char* name : {"sparsify_fig6a", "sparsify_fig6b", "sparsify_kld"}) {
+    for (const char* ext : {".png", ".pdf"}) {
+      const fs::path file = dir_ / "figures" / (std::string(name) + ext);
+      ASSERT_TRUE(fs::is_regular_file(file)) << file << "\n" << result.output;
+      EXPECT_GT(fs::file_size(file), 5000u) << file;
+    }
+  }
 }
 
 TEST_F(StrategyTables, NoStrategyTablesWithoutDenseOrNfrRuns) {
