@@ -1192,6 +1192,7 @@ Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult*
   const bool current_is_kf = frames_.at(current).is_keyframe;
   MargPlan plan;
   std::set<int64_t> marg_landmarks;
+  const bool keep_landmarks = keepsLandmarks();
   for (const auto& [id, lm] : landmarks_) {
     if (lm.obs.count(current) == 0) marg_landmarks.insert(id);  // track lost
   }
@@ -1206,7 +1207,6 @@ Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult*
     for (auto& [id, lm] : landmarks_) lm.obs.erase(f);
   }
   int n_marg_frames = 0;
-  const bool keep_landmarks = keepsLandmarks();
   const std::optional<int64_t> kf = selectKeyframeToMarginalize(current, plan.vars);
   if (kf) {
     plan.vars.insert({*kf, StateBlock::kPose});
@@ -1366,9 +1366,9 @@ template <typename Scalar>
 void SlidingWindowEstimator<Scalar>::sparsifyPrior(SparsifyEvent* event) {
   // Our blanket is only positive semi-definite in general — a keyframe pose that enters it
   // through landmark eliminations alone carries relative information — while the closed form
-  // needs Σ_t. It is recovered for Λ_t + εI, ε = 10 n ε_mach tr Λ_t: above the rank threshold
-  // of core/sparsify, and in f64 a standard deviation of tens of metres / radians along the
-  // directions the prior does not constrain (no information the window would notice).
+  // needs Σ_t. It is recovered for Λ_t + εI, ε = 10 n ε_mach tr Λ_t (tr Λ_t ≥ λ_max): just above
+  // the rank threshold of core/sparsify (n ε_mach λ_max), so that Σ_t exists; the recovered
+  // factors carry information of order ε along the directions Λ_t leaves free.
   MatX<Scalar> Lambda_t = describeBlanket(event);
   const Scalar regularization = Scalar(10) * NumericTraits<Scalar>::pinvRelativeTolerance(
                                                  static_cast<int>(Lambda_t.rows())) *
@@ -1376,16 +1376,11 @@ void SlidingWindowEstimator<Scalar>::sparsifyPrior(SparsifyEvent* event) {
   Lambda_t.diagonal().array() += regularization;
   auto fallback = [event](const std::string& reason) { event->fallback_reason = reason; };
   const auto t0 = Clock::now();
-  // The dense prior is N(x⁰ ⊞ δ*, Λ_t⁻¹) with Λ_t δ* = −b(x⁰): its mean, where the recovered
-  // factors take their measurements (eq. 10's mean term then vanishes).
-  const VecX<Scalar> b0 = prior_.storage == PriorStorage::kSqrt
-                              ? VecX<Scalar>(prior_.sqrt.J.transpose() * prior_.sqrt.r)
-                              : prior_.hessian.b;
-  const VecX<Scalar> mean_delta = Lambda_t.ldlt().solve(-b0);
-  if (!mean_delta.allFinite()) {
-    event->t_recovery_s = secondsSince(t0);
-    return fallback("the mean of the dense prior is not finite");
-  }
+  // The factors measure h at the prior's linearization point x⁰ (the paper's choice: z = h(μ_t)
+  // with μ_t the linearization point); the dense prior's gradient there is not carried over.
+  // Taking them at the dense prior's minimizer x⁰ ⊞ δ*, (Λ_t + εI) δ* = −b, instead was far
+  // worse (MH_02, 600 frames: ATE 0.023 m against 0.004 m) — presumably because δ* is ill
+  // determined along the directions Λ_t leaves (nearly) free.
   Blanket<Scalar> x;
   std::vector<VarKey> var_of;  // blanket index → window variable
   int anchor = -1;
@@ -1401,17 +1396,14 @@ void SlidingWindowEstimator<Scalar>::sparsifyPrior(SparsifyEvent* event) {
         anchor_frame = block.var.frame_id;
         anchor_is_kf = is_kf;
       }
-      x.push_back({BlanketKind::kPose, off,
-                   boxPlus<Scalar>(block.T0, mean_delta.template segment<kPoseDim>(off)), {}});
+      x.push_back({BlanketKind::kPose, off, block.T0, {}});
       var_of.push_back(block.var);
     } else if (block.var.block == StateBlock::kSpeedBias) {
-      const Vec9S sb = block.sb0 + mean_delta.template segment<kSpeedBiasDim>(off);
-      x.push_back({BlanketKind::kVelocity, off, SE3S(), sb.template head<3>()});
-      x.push_back({BlanketKind::kBias, off + 3, SE3S(), sb.template tail<6>()});
+      x.push_back({BlanketKind::kVelocity, off, SE3S(), block.sb0.template head<3>()});
+      x.push_back({BlanketKind::kBias, off + 3, SE3S(), block.sb0.template tail<6>()});
       var_of.insert(var_of.end(), 2, block.var);
     } else {
-      x.push_back({BlanketKind::kLandmark, off, SE3S(),
-                   block.p0 + mean_delta.template segment<kPointDim>(off)});
+      x.push_back({BlanketKind::kLandmark, off, SE3S(), block.p0});
       var_of.push_back(block.var);
     }
   }
