@@ -4,6 +4,7 @@
 
 #include <toml++/toml.h>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <sstream>
 
@@ -20,10 +21,22 @@ struct Binding {
   int* i = nullptr;
   bool* b = nullptr;
   std::uint64_t* u = nullptr;
-  RankThresholdMode* mode = nullptr;
-  MargStrategy* strategy = nullptr;
   int min_i = std::numeric_limits<int>::min();  // smallest accepted value of an int key
+  // A key with a fixed set of names (an enum field): parse (false for an unknown name), print.
+  std::function<bool(const std::string&)> parse_choice = nullptr;
+  std::function<std::string()> print_choice = nullptr;
+  const char* choices = nullptr;  // for messages: "\"a\" or \"b\""
 };
+
+// Binds an enum field with toString(E) / a parser bool(const std::string&, E*).
+template <typename E, typename Parse>
+Binding choice(const char* section, const char* key, E* field, Parse parse, const char* choices) {
+  Binding binding{section, key};
+  binding.parse_choice = [field, parse](const std::string& text) { return parse(text, field); };
+  binding.print_choice = [field] { return std::string(toString(*field)); };
+  binding.choices = choices;
+  return binding;
+}
 
 std::vector<Binding> bindings(EstimatorConfig& c) {
   std::vector<Binding> list;
@@ -53,14 +66,13 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
   I("lm", "max_failed_solves", &c.max_failed_solves);
   list.push_back({"lm", "landmark_damping", nullptr, nullptr, &c.lm_landmark_damping});
   I("lm", "threads", &c.lm_threads, 1);
-  list.push_back({"marginalization", "qr_threshold_mode", nullptr, nullptr, nullptr, nullptr,
-                  &c.qr_threshold_mode});
+  list.push_back(choice("marginalization", "qr_threshold_mode", &c.qr_threshold_mode,
+                        parseRankThresholdMode, "\"absolute\" or \"relative\""));
   D("marginalization", "qr_threshold", &c.qr_threshold);
-  {
-    Binding binding{"marginalization", "strategy"};
-    binding.strategy = &c.marg_strategy;
-    list.push_back(binding);
-  }
+  list.push_back(choice("marginalization", "strategy", &c.marg_strategy, parseMargStrategy,
+                        "\"discard\", \"dense\" or \"nfr\""));
+  list.push_back(choice("marginalization", "nfr_topology", &c.nfr_topology, parseSparsifyTopology,
+                        "\"paper\" or \"joint-states\""));
   D("failure", "max_position_error_m", &c.max_position_error_m);
   list.push_back({"diagnostics", "enabled", nullptr, nullptr, &c.diagnostics});
   I("diagnostics", "store_prior_every", &c.store_prior_every);
@@ -104,17 +116,10 @@ void apply(EstimatorConfig& config, const toml::table& root, const std::string& 
           throw error(node, fmt::format("expected a non-negative integer for {}.{}", section, key));
         }
         *it->u = static_cast<std::uint64_t>(*v);
-      } else if (it->strategy != nullptr) {
-        auto v = node.value<std::string>();
-        if (!v || !parseMargStrategy(*v, it->strategy)) {
-          throw error(node, fmt::format("expected \"discard\", \"dense\" or \"nfr\" for {}.{}",
-                                        section, key));
-        }
       } else {
         auto v = node.value<std::string>();
-        if (!v || !parseRankThresholdMode(*v, it->mode)) {
-          throw error(node,
-                      fmt::format("expected \"absolute\" or \"relative\" for {}.{}", section, key));
+        if (!v || !it->parse_choice(*v)) {
+          throw error(node, fmt::format("expected {} for {}.{}", it->choices, section, key));
         }
       }
     }
@@ -133,6 +138,20 @@ const char* toString(MargStrategy strategy) {
       break;
   }
   return "discard";
+}
+
+const char* toString(SparsifyTopology topology) {
+  return topology == SparsifyTopology::kJointStates ? "joint-states" : "paper";
+}
+
+bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology) {
+  for (SparsifyTopology t : {SparsifyTopology::kPaper, SparsifyTopology::kJointStates}) {
+    if (text == toString(t)) {
+      *topology = t;
+      return true;
+    }
+  }
+  return false;
 }
 
 bool parseMargStrategy(const std::string& text, MargStrategy* strategy) {
@@ -175,10 +194,8 @@ std::string EstimatorConfig::toToml() const {
       section.insert(b.key, *b.b);
     } else if (b.u != nullptr) {
       section.insert(b.key, static_cast<int64_t>(*b.u));
-    } else if (b.strategy != nullptr) {
-      section.insert(b.key, std::string(toString(*b.strategy)));
     } else {
-      section.insert(b.key, std::string(toString(*b.mode)));
+      section.insert(b.key, b.print_choice());
     }
   }
   std::ostringstream out;

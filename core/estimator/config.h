@@ -14,7 +14,8 @@
 //                   stop_max_step, max_failed_solves, landmark_damping, threads
 //   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
 //                   scalar type), strategy ("discard"|"dense"|"nfr", keyframe marginalization of
-//                   VIO; see MargStrategy)
+//                   VIO; see MargStrategy), nfr_topology ("paper"|"joint-states", see
+//                   SparsifyTopology)
 //   [failure]       max_position_error_m (−1: dataset default)
 //   [diagnostics]   enabled, store_prior_every (0: never; k: every k-th event, default 25), seed
 
@@ -40,6 +41,16 @@ enum class MargStrategy { kDiscard, kDense, kNfr };
 const char* toString(MargStrategy strategy);
 // False for an unknown name.
 bool parseMargStrategy(const std::string& text, MargStrategy* strategy);
+
+// The factors nfr recovers (docs/sparsification.md):
+//   paper        — eqs. 11–12: a unary factor on every pose, velocity and bias of the blanket and a
+//                  pose–landmark factor from the anchor pose to every landmark;
+//   joint-states — the same pose–landmark factors, and one joint factor over all state blocks
+//                  instead of the unary ones (information: the dense prior marginalized onto the
+//                  states), so the correlations between the blanket's states are kept.
+enum class SparsifyTopology { kPaper, kJointStates };
+const char* toString(SparsifyTopology topology);
+bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology);
 
 struct EstimatorConfig {
   // window
@@ -77,6 +88,7 @@ struct EstimatorConfig {
   RankThresholdMode qr_threshold_mode = RankThresholdMode::kAbsolute;
   double qr_threshold = -1;
   MargStrategy marg_strategy = MargStrategy::kDiscard;
+  SparsifyTopology nfr_topology = SparsifyTopology::kPaper;
   // failure
   double max_position_error_m = -1;
   // diagnostics

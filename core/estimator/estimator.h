@@ -73,6 +73,7 @@
 #include "core/geometry/se3.h"
 #include "core/imu/imu_factor.h"
 #include "core/imu/imu_state.h"
+#include "core/io/results_file.h"
 #include "core/linalg/landmark_block.h"
 #include "core/sim/tracks.h"
 #include "core/sparsify/nfr.h"
@@ -105,17 +106,10 @@ struct MargEvent {
   int numPoses() const;
 };
 
-// One keyframe marginalization of a dense / nfr run (results file /sparsify).
-struct SparsifyEvent {
-  int blanket_cols = 0;
-  int n_blanket_poses = 0;
-  int n_blanket_landmarks = 0;
-  int64_t nnz_dense = 0;   // non-zeros of Λ_t
-  int64_t nnz_sparse = 0;  // of Λ_s (nfr), = nnz_dense when kept dense
-  double kld = std::numeric_limits<double>::quiet_NaN();
-  bool recovered = false;
-  std::string fallback_reason;  // nfr kept the dense prior: why
-  double t_schur_s = 0, t_recovery_s = 0, t_insert_s = 0;
+// One keyframe marginalization of a dense / nfr run: the /sparsify row of the results file (its
+// frame_index and t_ns are the run's to fill) and, when nfr kept the dense prior, why.
+struct SparsifyEvent : SparsifyRecord {
+  std::string fallback_reason;
 };
 
 struct FrameResult {

@@ -213,19 +213,9 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
     }
     if (result.sparsify_event && result.status.ok()) {
       const SparsifyEvent& event = *result.sparsify_event;
-      SparsifyRecord sparsify;
+      SparsifyRecord sparsify = event;
       sparsify.frame_index = k;
       sparsify.t_ns = frame.t_ns;
-      sparsify.blanket_cols = event.blanket_cols;
-      sparsify.n_blanket_poses = event.n_blanket_poses;
-      sparsify.n_blanket_landmarks = event.n_blanket_landmarks;
-      sparsify.nnz_dense = event.nnz_dense;
-      sparsify.nnz_sparse = event.nnz_sparse;
-      sparsify.kld = event.kld;
-      sparsify.recovered = event.recovered;
-      sparsify.t_schur_s = event.t_schur_s;
-      sparsify.t_recovery_s = event.t_recovery_s;
-      sparsify.t_insert_s = event.t_insert_s;
       writer.appendSparsify(sparsify);
       if (!event.fallback_reason.empty()) {
         fmt::print(stderr, "frame {}: nfr kept the dense prior: {}\n", k, event.fallback_reason);
