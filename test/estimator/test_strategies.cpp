@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 
 #include "core/common/error.h"
@@ -117,11 +118,13 @@ INSTANTIATE_TEST_SUITE_P(F64, DenseStrategyTest,
                          });
 
 template <typename Scalar>
-void expectRecoveredEvents(const Variant& variant, double max_position_error_m) {
+void expectRecoveredEvents(const Variant& variant, double max_position_error_m,
+                           SparsifyTopology topology = SparsifyTopology::kPaper) {
   const VioScenario& scenario = fifteenSeconds();
   EstimatorConfig config;
   config.diagnostics = false;
   config.marg_strategy = MargStrategy::kNfr;
+  config.nfr_topology = topology;
   SlidingWindowEstimator<Scalar> estimator = scenario.estimator<Scalar>(variant, config);
   int events = 0;
   double max_error = 0;
@@ -137,8 +140,13 @@ void expectRecoveredEvents(const Variant& variant, double max_position_error_m) 
     EXPECT_TRUE(std::isfinite(event.kld));
     EXPECT_GE(event.kld, 0.0);
     EXPECT_LT(event.nnz_sparse, event.nnz_dense);
-    // The factors replace the prior.
-    EXPECT_TRUE(estimator.prior().empty());
+    // The factors replace the prior (joint-states: all but the joint state factor).
+    if (topology == SparsifyTopology::kPaper) {
+      EXPECT_TRUE(estimator.prior().empty());
+    } else {
+      EXPECT_FALSE(estimator.prior().empty());
+      EXPECT_FALSE(estimator.prior().hasLandmarks());
+    }
   }
   EXPECT_GT(events, 5);
   EXPECT_LT(max_error, max_position_error_m);
@@ -154,6 +162,40 @@ TEST(NfrStrategy, EveryKeyframeEventIsSparsifiedQrF32) {
   expectRecoveredEvents<float>(Variant::parse("ns-qr-sqrt-f32"), 0.05);
 }
 
+TEST(NfrStrategy, JointStatesTopologyQrF64) {
+  expectRecoveredEvents<double>(Variant::parse("ns-qr-sqrt-f64"), 0.01,
+                                SparsifyTopology::kJointStates);
+}
+TEST(NfrStrategy, JointStatesTopologySchurF64) {
+  expectRecoveredEvents<double>(Variant::parse("sc-sc-sq-f64"), 0.01,
+                                SparsifyTopology::kJointStates);
+}
+
+// On the same dense prior (the first keyframe event: both runs are identical until then) the joint
+// state factor can represent everything the unary factors can, so its KLD is lower.
+TEST(NfrStrategy, JointStatesLoseLessInformationThanThePaperTopology) {
+  const VioScenario& scenario = fifteenSeconds();
+  auto firstKld = [&scenario](SparsifyTopology topology) {
+    EstimatorConfig config;
+    config.diagnostics = false;
+    config.marg_strategy = MargStrategy::kNfr;
+    config.nfr_topology = topology;
+    SlidingWindowEstimator<double> estimator =
+        scenario.estimator<double>(Variant::parse("ns-qr-sqrt-f64"), config);
+    for (const TrackFrame& frame : scenario.stream.frames) {
+      const FrameResult result = estimator.processFrame(frame);
+      EXPECT_TRUE(result.status.ok()) << result.status.toString();
+      if (result.sparsify_event) return result.sparsify_event->kld;
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+  };
+  const double paper = firstKld(SparsifyTopology::kPaper);
+  const double joint = firstKld(SparsifyTopology::kJointStates);
+  ASSERT_TRUE(std::isfinite(paper) && std::isfinite(joint)) << paper << " " << joint;
+  EXPECT_GE(joint, 0.0);
+  EXPECT_LT(joint, paper);
+}
+
 TEST(MargStrategyConfig, IsAValidatedConfigKey) {
   EstimatorConfig config;
   EXPECT_EQ(config.marg_strategy, MargStrategy::kDiscard);
@@ -162,6 +204,8 @@ TEST(MargStrategyConfig, IsAValidatedConfigKey) {
   EstimatorConfig round_trip;
   round_trip.loadTomlString(config.toToml(), "round_trip.toml");
   EXPECT_EQ(round_trip.marg_strategy, MargStrategy::kNfr);
+  config.loadTomlString("[marginalization]\nnfr_topology = \"joint-states\"\n", "test.toml");
+  EXPECT_EQ(config.nfr_topology, SparsifyTopology::kJointStates);
   try {
     config.loadTomlString("[marginalization]\n\nstrategy = \"sparse\"\n", "bad.toml");
     FAIL() << "an unknown strategy was accepted";
