@@ -105,7 +105,13 @@ int runRun(const RunArgs& args) {
   fmt::print("  ATE RMSE          {:.4f} m ({} pairs, SE(3)-aligned)\n", s.ate_rmse, s.n_ate_pairs);
   fmt::print("  time opt / marg   {:.3f} s / {:.3f} s\n", s.t_opt_total_s, s.t_marg_total_s);
   fmt::print("  real-time factor  {:.1f}x\n", s.realtime_factor);
-  fmt::print("  marginalizations  {}\n", s.n_marg);
+  if (options.config.marg_strategy == MargStrategy::kDiscard) {
+    fmt::print("  marginalizations  {}\n", s.n_marg);
+  } else {
+    // The gauge diagnostics (/marg) analyse priors over frame states: discard only.
+    fmt::print("  keyframe events   {} ({}; /sparsify)\n", outcome.n_keyframe_events,
+               toString(options.config.marg_strategy));
+  }
   fmt::print("  results           {}\n  trajectory (TUM)  {}\n", args.output, outcome.tum_path);
   return outcome.status == RunStatus::kOk ? 0 : 1;
 }

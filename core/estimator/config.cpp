@@ -5,6 +5,7 @@
 #include <toml++/toml.h>
 #include <fstream>
 #include <functional>
+#include <initializer_list>
 #include <limits>
 #include <sstream>
 
@@ -126,6 +127,18 @@ void apply(EstimatorConfig& config, const toml::table& root, const std::string& 
   }
 }
 
+// The value among `values` whose toString() is text.
+template <typename E>
+bool parseByName(const std::string& text, std::initializer_list<E> values, E* out) {
+  for (E value : values) {
+    if (text == toString(value)) {
+      *out = value;
+      return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 const char* toString(MargStrategy strategy) {
@@ -145,23 +158,12 @@ const char* toString(SparsifyTopology topology) {
 }
 
 bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology) {
-  for (SparsifyTopology t : {SparsifyTopology::kPaper, SparsifyTopology::kJointStates}) {
-    if (text == toString(t)) {
-      *topology = t;
-      return true;
-    }
-  }
-  return false;
+  return parseByName(text, {SparsifyTopology::kPaper, SparsifyTopology::kJointStates}, topology);
 }
 
 bool parseMargStrategy(const std::string& text, MargStrategy* strategy) {
-  for (MargStrategy s : {MargStrategy::kDiscard, MargStrategy::kDense, MargStrategy::kNfr}) {
-    if (text == toString(s)) {
-      *strategy = s;
-      return true;
-    }
-  }
-  return false;
+  return parseByName(text, {MargStrategy::kDiscard, MargStrategy::kDense, MargStrategy::kNfr},
+                     strategy);
 }
 
 void EstimatorConfig::loadTomlString(const std::string& text, const std::string& name) {

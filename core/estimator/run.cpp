@@ -217,6 +217,7 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
       sparsify.frame_index = k;
       sparsify.t_ns = frame.t_ns;
       writer.appendSparsify(sparsify);
+      ++outcome.n_keyframe_events;
       if (!event.fallback_reason.empty()) {
         fmt::print(stderr, "frame {}: nfr kept the dense prior: {}\n", k, event.fallback_reason);
       }

@@ -59,6 +59,7 @@ struct RunOutcome {
   SummaryValues summary;
   std::string tum_path;
   double mean_features_per_frame = 0;
+  std::int64_t n_keyframe_events = 0;  // /sparsify rows (strategies dense, nfr)
 };
 
 // Throws InputError for bad input (unknown dataset, sequence without trajectory, unwritable
