@@ -90,8 +90,8 @@ VecX<Scalar> gatherBlocks(const std::vector<std::pair<VarKey, int>>& vars, int s
 
 // Adds JᵀJ, Jᵀr of a RowBlock (estimator.h) to a system with columns column_of.
 template <typename Scalar, typename Rows>
-void addRowBlock(const Rows& rows, const std::map<VarKey, int>& column_of,
-                 MatX<Scalar>& H, VecX<Scalar>& b) {
+void addRowBlock(const Rows& rows, const std::map<VarKey, int>& column_of, MatX<Scalar>& H,
+                 VecX<Scalar>& b) {
   const MatX<Scalar> H_rows = rows.J.transpose() * rows.J;
   const VecX<Scalar> b_rows = rows.J.transpose() * rows.r;
   scatterBlocks(rows.vars, H_rows, b_rows, column_of, H, b);
@@ -233,8 +233,9 @@ Scalar SlidingWindowEstimator<Scalar>::landmarkCost(const Landmark& lm,
   const Scalar sigma = static_cast<Scalar>(config_.obs_std_px);
   Scalar cost = 0;
   for (const auto& [frame_id, obs] : lm.obs) {
+    const Vec3S p_i = lm.world() ? poseOf(frame_id).inverse() * lm.param : Vec3S::Zero();
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
-      const Vec3S q = lm.world() ? T_c_i_[cam] * (poseOf(frame_id).inverse() * lm.param)
+      const Vec3S q = lm.world() ? T_c_i_[cam] * p_i
                                  : transformLandmark<Scalar>(
                                        rel.T_ct_h[rel.index(lm.host, frame_id, cam)], lm.param);
       Vec2S uv;
@@ -247,18 +248,29 @@ Scalar SlidingWindowEstimator<Scalar>::landmarkCost(const Landmark& lm,
 }
 
 template <typename Scalar>
-Scalar SlidingWindowEstimator<Scalar>::nfrCost(const NfrFactor& f, const Landmark* lm) const {
+Blanket<Scalar> SlidingWindowEstimator<Scalar>::nfrBlanket(const NfrFactor& f, const Landmark* lm,
+                                                           bool at_first_estimates) const {
   Blanket<Scalar> x(1);
   x[0].kind = f.kind;
   if (f.kind == BlanketKind::kPose) {
-    x[0].T_w_i = poseOf(f.frame);
+    x[0].T_w_i = at_first_estimates ? jacobianPoseOf(f.frame) : poseOf(f.frame);
   } else {
-    const Vec9S sb = speedBiasOf(f.frame);
+    const Frame& frame = frames_.at(f.frame);
+    const Vec9S sb =
+        at_first_estimates && frame.speed_bias_linearized ? frame.speed_bias_lin : frame.speed_bias;
     x[0].value = f.kind == BlanketKind::kVelocity ? VecX<Scalar>(sb.template head<3>())
                                                   : VecX<Scalar>(sb.template tail<6>());
   }
-  if (lm != nullptr) x.push_back({BlanketKind::kLandmark, kPoseDim, SE3S(), lm->param});
-  return Scalar(0.5) * f.factor.whitenedResidual(x).squaredNorm();
+  if (lm != nullptr) {
+    x.push_back({BlanketKind::kLandmark, kPoseDim, SE3S(),
+                 at_first_estimates ? jacobianPointOf(*lm) : lm->param});
+  }
+  return x;
+}
+
+template <typename Scalar>
+Scalar SlidingWindowEstimator<Scalar>::nfrCost(const NfrFactor& f, const Landmark* lm) const {
+  return Scalar(0.5) * f.factor.whitenedResidual(nfrBlanket(f, lm, false)).squaredNorm();
 }
 
 template <typename Scalar>
@@ -266,37 +278,18 @@ void SlidingWindowEstimator<Scalar>::linearizeNfr(const NfrFactor& f, int64_t tr
                                                   const Landmark* lm,
                                                   std::vector<std::pair<VarKey, int>>* vars,
                                                   MatX<Scalar>* J, VecX<Scalar>* r) const {
-  // The blanket of the factor at the current state (residual) and at the first estimates
-  // (Jacobian), as every other residual of the window.
-  auto blanket = [&](bool jac) {
-    Blanket<Scalar> x(1);
-    x[0].kind = f.kind;
-    if (f.kind == BlanketKind::kPose) {
-      x[0].T_w_i = jac ? jacobianPoseOf(f.frame) : poseOf(f.frame);
-    } else {
-      const Frame& frame = frames_.at(f.frame);
-      const Vec9S sb = jac && frame.speed_bias_linearized ? frame.speed_bias_lin : frame.speed_bias;
-      x[0].value = f.kind == BlanketKind::kVelocity ? VecX<Scalar>(sb.template head<3>())
-                                                    : VecX<Scalar>(sb.template tail<6>());
-    }
-    if (lm != nullptr) {
-      x.push_back({BlanketKind::kLandmark, kPoseDim, SE3S(),
-                   jac ? jacobianPointOf(*lm) : lm->param});
-    }
-    return x;
-  };
+  // Residual at the current state, Jacobian at the first estimates, as every other residual.
   MatX<Scalar> J_f;
-  f.factor.whitenedResidual(blanket(true), &J_f);
-  *r = f.factor.whitenedResidual(blanket(false));
+  f.factor.whitenedResidual(nfrBlanket(f, lm, true), &J_f);
+  *r = f.factor.whitenedResidual(nfrBlanket(f, lm, false));
   vars->clear();
+  vars->push_back({f.var(), 0});
   if (f.kind == BlanketKind::kPose) {
-    vars->push_back({{f.frame, StateBlock::kPose}, 0});
     if (lm != nullptr) vars->push_back({{track_id, StateBlock::kLandmark}, kPoseDim});
     *J = J_f;
     return;
   }
   // A velocity or bias factor: its columns within the speed-bias block [v; b_g; b_a].
-  vars->push_back({{f.frame, StateBlock::kSpeedBias}, 0});
   J->setZero(J_f.rows(), kSpeedBiasDim);
   J->middleCols(f.kind == BlanketKind::kVelocity ? 0 : 3, J_f.cols()) = J_f;
 }
@@ -367,6 +360,16 @@ bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const L
   for (const auto& [frame_id, obs] : lm.obs) {
     if (system_frames.count(frame_id) == 0) continue;
     const bool in_host = frame_id == lm.host;
+    // A world point in the body frame, p_i = Rᵀ(p_w − t) — the pose–landmark map of
+    // core/sparsify — at the first estimates with its Jacobians, and at the current state.
+    Mat<Scalar, 3, 6> D_p_T;
+    Mat3<Scalar> D_p_l;
+    Vec3S p_i_jac = Vec3S::Zero(), p_i = Vec3S::Zero();
+    if (lm.world()) {
+      p_i_jac = poseLandmarkResidual<Scalar>(jacobianPoseOf(frame_id), p_w_jac, Vec3S::Zero(),
+                                             &D_p_T, &D_p_l);
+      p_i = poseOf(frame_id).inverse() * lm.param;
+    }
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
       const PinholeCamera<Scalar>& camera = cam == 0 ? rig_.cam0 : rig_.cam1;
       Mat<Scalar, 3, 3> D_q_l;
@@ -374,15 +377,11 @@ bool SlidingWindowEstimator<Scalar>::linearizeLandmark(int64_t track_id, const L
       Vec3S q_jac, q;
       size_t k_rel = 0;
       if (lm.world()) {
-        // q = R_c_i Rᵀ(p_w − t) + t_c_i: the pose–landmark map of core/sparsify, then the camera.
         const Mat3<Scalar> R_c_i = T_c_i_[cam].rotationMatrix();
-        Mat<Scalar, 3, 6> D_p_T;
-        Mat3<Scalar> D_p_l;
-        q_jac = T_c_i_[cam] * poseLandmarkResidual<Scalar>(jacobianPoseOf(frame_id), p_w_jac,
-                                                           Vec3S::Zero(), &D_p_T, &D_p_l);
+        q_jac = T_c_i_[cam] * p_i_jac;
         D_q_T = R_c_i * D_p_T;
         D_q_l = R_c_i * D_p_l;
-        q = T_c_i_[cam] * (poseOf(frame_id).inverse() * lm.param);
+        q = T_c_i_[cam] * p_i;
       } else {
         k_rel = rel.index(lm.host, frame_id, cam);
         q_jac = transformLandmark<Scalar>(rel.T_ct_h_jac[k_rel], lm.param, &D_q_l, &D_q_T);
@@ -687,7 +686,8 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
       scatterBlocks(linkVars(from, link.to), H_link, b_link, column_of, rs.H_fixed, rs.b_fixed);
     }
     const std::vector<RowBlock> direct = directRows(system, rel);
-    for (const RowBlock& rows : direct) addRowBlock<Scalar>(rows, column_of, rs.H_fixed, rs.b_fixed);
+    for (const RowBlock& rows : direct)
+      addRowBlock<Scalar>(rows, column_of, rs.H_fixed, rs.b_fixed);
     VecX<Scalar> prior_delta;
     if (!prior_.empty()) {
       prior_delta = priorDelta(prior_);
@@ -842,7 +842,8 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
       for (int64_t track : reduced) {
         Vec3S& p_w = landmarks_.at(track).param;
         reduced_backup[track] = p_w;
-        p_w += solve.delta.template segment<kPointDim>(column_of.at({track, StateBlock::kLandmark}));
+        p_w +=
+            solve.delta.template segment<kPointDim>(column_of.at({track, StateBlock::kLandmark}));
       }
       const Scalar new_cost = totalCost();
       if (std::isfinite(new_cost) && new_cost < cost) {
@@ -980,8 +981,7 @@ Status SlidingWindowEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior,
     }
   }
   for (const NfrFactor& f : nfr_unary_) {
-    const StateBlock block = f.kind == BlanketKind::kPose ? StateBlock::kPose : StateBlock::kSpeedBias;
-    if (plan.vars.count({f.frame, block}) == 0) continue;
+    if (plan.vars.count(f.var()) == 0) continue;
     RowBlock rows;
     linearizeNfr(f, -1, nullptr, &rows.vars, &rows.J, &rows.r);
     direct.push_back(std::move(rows));
@@ -990,7 +990,7 @@ Status SlidingWindowEstimator<Scalar>::marginalizeInto(MargPrior<Scalar>& prior,
   for (const auto& [id, lm] : landmarks_) {
     if (eliminated.count(id) != 0 || plan.vars.count({id, StateBlock::kLandmark}) != 0) continue;
     for (const NfrFactor& f : lm.nfr) {
-      if (plan.vars.count({f.frame, StateBlock::kPose}) == 0) continue;
+      if (plan.vars.count(f.var()) == 0) continue;
       RowBlock rows;
       linearizeNfr(f, id, &lm, &rows.vars, &rows.J, &rows.r);
       direct.push_back(std::move(rows));
@@ -1238,18 +1238,13 @@ Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult*
     // Recovered factors on marginalized variables are in the prior now.
     nfr_unary_.erase(
         std::remove_if(nfr_unary_.begin(), nfr_unary_.end(),
-                       [&plan](const NfrFactor& f) {
-                         return plan.vars.count({f.frame, f.kind == BlanketKind::kPose
-                                                              ? StateBlock::kPose
-                                                              : StateBlock::kSpeedBias}) != 0;
-                       }),
+                       [&plan](const NfrFactor& f) { return plan.vars.count(f.var()) != 0; }),
         nfr_unary_.end());
     for (auto& [id, lm] : landmarks_) {
-      lm.nfr.erase(std::remove_if(lm.nfr.begin(), lm.nfr.end(),
-                                  [&plan](const NfrFactor& f) {
-                                    return plan.vars.count({f.frame, StateBlock::kPose}) != 0;
-                                  }),
-                   lm.nfr.end());
+      lm.nfr.erase(
+          std::remove_if(lm.nfr.begin(), lm.nfr.end(),
+                         [&plan](const NfrFactor& f) { return plan.vars.count(f.var()) != 0; }),
+          lm.nfr.end());
     }
     for (const auto& block : prior_.blocks) {
       if (block.var.block == StateBlock::kLandmark) {
@@ -1311,7 +1306,8 @@ Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult*
 }
 
 template <typename Scalar>
-void SlidingWindowEstimator<Scalar>::planKeptLandmarks(int64_t kf, std::set<int64_t>* marg_landmarks,
+void SlidingWindowEstimator<Scalar>::planKeptLandmarks(int64_t kf,
+                                                       std::set<int64_t>* marg_landmarks,
                                                        MargPlan* plan) {
   // Below this inverse distance (1 km) a landmark is as good as at infinity: no world point.
   const Scalar min_rho = Scalar(1e-3);
@@ -1319,8 +1315,8 @@ void SlidingWindowEstimator<Scalar>::planKeptLandmarks(int64_t kf, std::set<int6
     if (marg_landmarks->count(id) != 0) continue;
     const bool seen_in_kf = lm.obs.count(kf) != 0;
     if (!seen_in_kf && lm.host != kf) continue;
-    const bool seen_elsewhere = std::any_of(
-        lm.obs.begin(), lm.obs.end(), [kf](const auto& entry) { return entry.first != kf; });
+    const bool seen_elsewhere = std::any_of(lm.obs.begin(), lm.obs.end(),
+                                            [kf](const auto& entry) { return entry.first != kf; });
     if (!seen_elsewhere || (!lm.world() && lm.param.z() < min_rho)) {
       marg_landmarks->insert(id);
       continue;
@@ -1370,12 +1366,15 @@ void SlidingWindowEstimator<Scalar>::sparsifyPrior(SparsifyEvent* event) {
   // the rank threshold of core/sparsify (n ε_mach λ_max), so that Σ_t exists; the recovered
   // factors carry information of order ε along the directions Λ_t leaves free.
   MatX<Scalar> Lambda_t = describeBlanket(event);
-  const Scalar regularization = Scalar(10) * NumericTraits<Scalar>::pinvRelativeTolerance(
-                                                 static_cast<int>(Lambda_t.rows())) *
-                                Lambda_t.trace();
+  const Scalar regularization =
+      Scalar(10) * NumericTraits<Scalar>::pinvRelativeTolerance(static_cast<int>(Lambda_t.rows())) *
+      Lambda_t.trace();
   Lambda_t.diagonal().array() += regularization;
-  auto fallback = [event](const std::string& reason) { event->fallback_reason = reason; };
   const auto t0 = Clock::now();
+  auto fallback = [event, t0](const std::string& reason) {
+    event->t_recovery_s = secondsSince(t0);
+    event->fallback_reason = reason;
+  };
   // The factors measure h at the prior's linearization point x⁰ (the paper's choice: z = h(μ_t)
   // with μ_t the linearization point); the dense prior's gradient there is not carried over.
   // Taking them at the dense prior's minimizer x⁰ ⊞ δ*, (Λ_t + εI) δ* = −b, instead was far
@@ -1407,15 +1406,9 @@ void SlidingWindowEstimator<Scalar>::sparsifyPrior(SparsifyEvent* event) {
       var_of.push_back(block.var);
     }
   }
-  if (anchor < 0) {
-    event->t_recovery_s = secondsSince(t0);
-    return fallback("no pose in the blanket");
-  }
+  if (anchor < 0) return fallback("no pose in the blanket");
   const Sparsification<Scalar> sp = sparsify<Scalar>(Lambda_t, x, paperTopology(x, anchor));
-  if (!sp.status.ok()) {
-    event->t_recovery_s = secondsSince(t0);
-    return fallback(sp.status.toString());
-  }
+  if (!sp.status.ok()) return fallback(sp.status.toString());
   Scalar kld = sp.kld;
   MatX<Scalar> Lambda_s = sp.Lambda_s;
   // joint-states: one factor over all state blocks instead of the unary ones. Its closed form
@@ -1425,8 +1418,7 @@ void SlidingWindowEstimator<Scalar>::sparsifyPrior(SparsifyEvent* event) {
   const bool joint = config_.nfr_topology == SparsifyTopology::kJointStates;
   std::vector<int> state_cols, landmark_cols;
   for (const auto& block : prior_.blocks) {
-    std::vector<int>& cols =
-        block.var.block == StateBlock::kLandmark ? landmark_cols : state_cols;
+    std::vector<int>& cols = block.var.block == StateBlock::kLandmark ? landmark_cols : state_cols;
     for (int c = 0; c < stateBlockDim(block.var.block); ++c) cols.push_back(block.offset + c);
   }
   Eigen::LLT<MatX<Scalar>> joint_llt;
@@ -1449,20 +1441,15 @@ void SlidingWindowEstimator<Scalar>::sparsifyPrior(SparsifyEvent* event) {
     }
     joint_llt.compute(Lambda_states);
     if (joint_llt.info() != Eigen::Success) {
-      event->t_recovery_s = secondsSince(t0);
       return fallback("the joint state factor's information is not positive definite");
     }
-    const Scalar log_det_joint =
-        Scalar(2) * joint_llt.matrixLLT().diagonal().array().log().sum();
+    const Scalar log_det_joint = Scalar(2) * joint_llt.matrixLLT().diagonal().array().log().sum();
     Scalar log_det_unary = 0;
     for (const RecoveredFactor<Scalar>& f : sp.factors) {
       if (f.spec.kind != NfrFactorKind::kUnary) continue;
-      log_det_unary += Scalar(2) * Eigen::LLT<MatX<Scalar>>(f.information)
-                                       .matrixLLT()
-                                       .diagonal()
-                                       .array()
-                                       .log()
-                                       .sum();
+      log_det_unary +=
+          Scalar(2) *
+          Eigen::LLT<MatX<Scalar>>(f.information).matrixLLT().diagonal().array().log().sum();
       const int off = x[static_cast<size_t>(f.spec.var)].offset;
       const Eigen::Index dim = f.information.rows();
       Lambda_s.block(off, off, dim, dim) -= f.information;

@@ -288,6 +288,10 @@ class SlidingWindowEstimator {
     RecoveredFactor<Scalar> factor;
     BlanketKind kind = BlanketKind::kPose;  // of the unary variable (kPose for pose–landmark)
     int64_t frame = -1;
+    // The window variable of frame it constrains (velocity and bias: the speed-bias block).
+    VarKey var() const {
+      return {frame, kind == BlanketKind::kPose ? StateBlock::kPose : StateBlock::kSpeedBias};
+    }
   };
   struct Landmark {
     int64_t host = -1;  // < 0: a world point (strategies dense / nfr)
@@ -347,6 +351,9 @@ class SlidingWindowEstimator {
   bool linearizeLandmark(int64_t track_id, const Landmark& lm,
                          const std::set<int64_t>& system_frames, const RelativePoses& rel,
                          Linearized* out, bool with_nfr = true, int min_rows = 3) const;
+  // The factor's variables (its frame's block, lm's point) at the current state or the first
+  // estimates.
+  Blanket<Scalar> nfrBlanket(const NfrFactor& f, const Landmark* lm, bool at_first_estimates) const;
   Scalar nfrCost(const NfrFactor& f, const Landmark* lm) const;
   // W (h(x) ⊟ z) at the current state and its Jacobian at the first estimates, over the factor's
   // variables (a velocity or bias factor spans its whole speed-bias block).
@@ -386,7 +393,9 @@ class SlidingWindowEstimator {
   std::optional<int64_t> selectKeyframeToMarginalize(int64_t current,
                                                      const std::set<VarKey>& marg_vars) const;
   Status marginalize(int64_t current, FrameResult* result);
-  Vec3S jacobianPointOf(const Landmark& lm) const { return lm.linearized ? lm.param_lin : lm.param; }
+  Vec3S jacobianPointOf(const Landmark& lm) const {
+    return lm.linearized ? lm.param_lin : lm.param;
+  }
   // Marginalizes the plan into `prior` with `method`.
   Status marginalizeInto(MargPrior<Scalar>& prior, MargMethod method, PriorStorage storage,
                          const MargPlan& plan, int* qr_rank) const;
