@@ -12,7 +12,7 @@
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
-#include "core/estimator/run.h"
+#include "core/pipeline/run.h"
 #include "tools/command.h"
 
 namespace marglab {
@@ -126,7 +126,7 @@ const bool kRegistered = cli::registerCommand(
            ->required();
        sub.add_option("--variant", args->variant,
                       "opt-marg-storage-precision, e.g. ns-qr-sqrt-f32 (opt ns|sc, marg qr|sc, "
-                      "storage sqrt|sq, precision f32|f64)")
+                      "storage sqrt|sq, precision f32|f64|mixed)")
            ->required();
        sub.add_option("--mode", args->mode,
                       "vo (stereo), vio (stereo + IMU) or auto: vio where the dataset has an IMU "

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "core/bench/window_io.h"
+#include "core/estimator/window_io.h"
 #include "core/data/sequence.h"
 
 namespace marglab {

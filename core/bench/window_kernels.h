@@ -1,20 +1,23 @@
 #pragma once
-// The phases of one Levenberg–Marquardt iteration of the estimator, run separately on a captured
-// window (for the benchmark suite and `marglab bench`), with the estimator's own code:
-//   linearize()  relative poses, per-landmark reprojection Jacobians (J_p, J_l, r), IMU factors;
+// The phases of one Levenberg–Marquardt iteration of the estimator on a captured window (for the
+// benchmark suite and `marglab bench`), run by the estimator's own Linearization object
+// (core/estimator/linearization.h) — the code a run executes:
+//   linearize()  relative poses, per-landmark reprojection Jacobians (J_p, J_l, r), IMU factors,
+//                the fixed part of the reduced system (IMU, direct rows, prior);
 //   eliminate()  landmark elimination of the variant (ns: in-place Householder QR of [J_p J_l r]
-//                and the Q2ᵀ rows into the reduced camera system; sc: Schur complement), on top
-//                of the IMU and prior terms;
-//   solve()      damped LDLT of the reduced system and back-substitution of the landmarks.
+//                and the Q2ᵀ rows into the reduced camera system; sc: Schur complement);
+//   solve()      damped LDLT of the reduced system, back-substitution of the landmarks and the
+//                model cost change.
 // iteration() is the three in a row; optimizeOnce() is the estimator's optimize() itself with one
 // LM iteration (including the cost evaluations and λ trials). marginalize() is one marginalization
 // event (the oldest keyframe with its landmarks; for VIO also the oldest state's speed-bias) by the
-// flat QR or by the Schur complement, on a copy of the prior.
+// variant's Marginalizer (flat QR or Schur complement), on a copy of the prior.
 
 #include <memory>
 #include <vector>
 
 #include "core/estimator/estimator.h"
+#include "core/linalg/landmark_block.h"
 
 namespace marglab {
 

@@ -1,6 +1,7 @@
 #include "core/estimator/marg_prior.h"
 
 #include <algorithm>
+#include <utility>
 
 #include "core/common/scalar.h"
 
@@ -52,6 +53,29 @@ VecX<Scalar> MargPrior<Scalar>::delta(const std::function<SE3<Scalar>(int64_t)>&
     }
   }
   return d;
+}
+
+template <typename Scalar>
+MatX<Scalar> MargPrior<Scalar>::hessianAtAnchor() const {
+  return storage == PriorStorage::kSqrt ? MatX<Scalar>(sqrt.J.transpose() * sqrt.J) : hessian.H;
+}
+
+template <typename Scalar>
+VecX<Scalar> MargPrior<Scalar>::gradientAtAnchor() const {
+  return storage == PriorStorage::kSqrt ? VecX<Scalar>(sqrt.J.transpose() * sqrt.r) : hessian.b;
+}
+
+template <typename Scalar>
+void MargPrior<Scalar>::setSqrt(MatX<Scalar> J, VecX<Scalar> r) {
+  sqrt.J = std::move(J);
+  sqrt.r = std::move(r);
+}
+
+template <typename Scalar>
+void MargPrior<Scalar>::setHessian(MatX<Scalar> H, VecX<Scalar> b, Scalar c) {
+  hessian.H = std::move(H);
+  hessian.b = std::move(b);
+  hessian.c = c;
 }
 
 template <typename Scalar>

@@ -73,6 +73,12 @@ struct MargPrior {
   VecX<Scalar> delta(const std::function<SE3<Scalar>(int64_t)>& pose_of,
                      const std::function<Vec9S(int64_t)>& speed_bias_of,
                      const std::function<Vec3<Scalar>(int64_t)>& point_of = {}) const;
+  // The stored expansion at δ = 0: Hessian JᵀJ | H_m and gradient Jᵀr | b_m.
+  MatX<Scalar> hessianAtAnchor() const;
+  VecX<Scalar> gradientAtAnchor() const;
+  // Replaces the stored expansion (the layout stays).
+  void setSqrt(MatX<Scalar> J, VecX<Scalar> r);
+  void setHessian(MatX<Scalar> H, VecX<Scalar> b, Scalar c);
   // E_m at δ.
   Scalar cost(const VecX<Scalar>& delta) const;
   // Gradient and Hessian at δ: b = Jᵀ(r + Jδ), H = JᵀJ  |  b = b_m + H_m δ, H = H_m.

@@ -14,9 +14,19 @@ std::string Variant::method() const {
                      storage == PriorStorage::kSqrt ? "sqrt" : "sq");
 }
 
-std::string Variant::name() const {
-  return method() + (precision == Precision::kF32 ? "-f32" : "-f64");
+std::string Variant::precisionName() const {
+  switch (precision) {
+    case Precision::kF32:
+      return "f32";
+    case Precision::kF64:
+      return "f64";
+    case Precision::kMixed:
+      return "mixed";
+  }
+  return "";
 }
+
+std::string Variant::name() const { return method() + "-" + precisionName(); }
 
 bool Variant::operator==(const Variant& other) const { return name() == other.name(); }
 
@@ -26,7 +36,7 @@ Variant Variant::parse(const std::string& text) {
   for (std::string part; std::getline(stream, part, '-');) parts.push_back(part);
   const std::string expected =
       "expected opt-marg-storage-precision with opt ns|sc, marg qr|sc, storage sqrt|sq, "
-      "precision f32|f64 (e.g. ns-qr-sqrt-f32)";
+      "precision f32|f64|mixed (e.g. ns-qr-sqrt-f32; mixed needs opt ns)";
   if (parts.size() != 4) {
     throw UsageError(fmt::format("unknown variant '{}': {}", text, expected));
   }
@@ -59,6 +69,8 @@ Variant Variant::parse(const std::string& text) {
     v.precision = Precision::kF32;
   } else if (parts[3] == "f64") {
     v.precision = Precision::kF64;
+  } else if (parts[3] == "mixed") {
+    v.precision = Precision::kMixed;
   } else {
     throw bad("precision '" + parts[3] + "'");
   }
@@ -66,6 +78,10 @@ Variant Variant::parse(const std::string& text) {
     throw UsageError(fmt::format(
         "variant '{}': qr marginalization produces a square-root prior and requires storage sqrt",
         text));
+  }
+  if (v.precision == Precision::kMixed && v.opt != OptElimination::kNullspace) {
+    throw UsageError(fmt::format(
+        "variant '{}': mixed precision eliminates landmarks by nullspace projection (opt ns)", text));
   }
   return v;
 }

@@ -8,7 +8,9 @@
 //                       Hessian with a pseudo-inverse of H_μμ (eqs. 22–23);
 //   storage  sqrt | sq  prior stored as (J_m, r_m) (eq. 4) or (H_m, b_m) (eq. 3); `sc` + `sqrt`
 //                       factorizes the new prior by LDLT (√D Lᵀ P); `qr` requires `sqrt`;
-//   precision f32 | f64 the scalar type of the whole estimator.
+//   precision f32 | f64 the scalar type of the whole estimator;
+//             mixed     (ns only) landmark linearization storage and elimination in f32, reduced
+//                       system, prior and marginalization in f64 (core/estimator/linearization.h).
 // The paper's columns: √VIO/√VO = ns-qr-sqrt, baseline = sc-sc-sq; ablation adds sc-qr-sqrt,
 // ns-sc-sqrt, sc-sc-sqrt — ten variants with both precisions.
 
@@ -20,7 +22,7 @@ namespace marglab {
 enum class OptElimination { kNullspace, kSchur };
 enum class MargMethod { kQr, kSchur };
 enum class PriorStorage { kSqrt, kHessian };
-enum class Precision { kF32, kF64 };
+enum class Precision { kF32, kF64, kMixed };
 
 struct Variant {
   OptElimination opt = OptElimination::kNullspace;
@@ -32,6 +34,10 @@ struct Variant {
   std::string name() const;
   // Name without the precision, e.g. "ns-qr-sqrt".
   std::string method() const;
+  // "f32", "f64" or "mixed".
+  std::string precisionName() const;
+  // The scalar type of the estimator's state: float for f32, double for f64 and mixed.
+  bool floatState() const { return precision == Precision::kF32; }
   // Throws UsageError naming the part that is wrong and the accepted values.
   static Variant parse(const std::string& text);
   bool operator==(const Variant& other) const;

@@ -5,6 +5,7 @@
 #include <Eigen/Householder>
 #include <Eigen/Jacobi>
 #include <limits>
+#include <type_traits>
 #include <vector>
 
 #include "core/common/scalar.h"
@@ -34,29 +35,37 @@ Status checkInput(const MatX<Scalar>& J_p, const Mat<Scalar, Eigen::Dynamic, 3>&
 // Adds a local system whose H_loc holds only its lower triangle (from a symmetric rank update,
 // half the flops of a full product) to both triangles of the global H. PD is the pose block size
 // when known at compile time (fixed-size block copies), Eigen::Dynamic otherwise.
-template <int PD, typename Scalar>
+template <int PD, typename Scalar, typename HScalar>
 void scatterReducedBlocks(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
-                          const VecX<Scalar>& b_loc, MatX<Scalar>& H, VecX<Scalar>& b) {
+                          const VecX<Scalar>& b_loc, MatX<HScalar>& H, VecX<HScalar>& b) {
   const int pd = map.pose_dim;
   const int n_blocks = static_cast<int>(map.rcs_offset.size());
   for (int i = 0; i < n_blocks; ++i) {
     const int oi = map.rcs_offset[i];
-    b.template segment<PD>(oi, pd) += b_loc.template segment<PD>(i * pd, pd);
-    H.template block<PD, PD>(oi, oi, pd, pd) +=
-        H_loc_lower.template block<PD, PD>(i * pd, i * pd, pd, pd)
-            .template selfadjointView<Eigen::Lower>();
+    b.template segment<PD>(oi, pd) += b_loc.template segment<PD>(i * pd, pd).template cast<HScalar>();
+    if constexpr (std::is_same_v<Scalar, HScalar>) {
+      H.template block<PD, PD>(oi, oi, pd, pd) +=
+          H_loc_lower.template block<PD, PD>(i * pd, i * pd, pd, pd)
+              .template selfadjointView<Eigen::Lower>();
+    } else {
+      const Eigen::Matrix<Scalar, PD, PD> diag =
+          H_loc_lower.template block<PD, PD>(i * pd, i * pd, pd, pd)
+              .template selfadjointView<Eigen::Lower>();
+      H.template block<PD, PD>(oi, oi, pd, pd) += diag.template cast<HScalar>();
+    }
     for (int j = 0; j < i; ++j) {
       const int oj = map.rcs_offset[j];
-      const auto block = H_loc_lower.template block<PD, PD>(i * pd, j * pd, pd, pd);
+      const auto block =
+          H_loc_lower.template block<PD, PD>(i * pd, j * pd, pd, pd).template cast<HScalar>();
       H.template block<PD, PD>(oi, oj, pd, pd) += block;
       H.template block<PD, PD>(oj, oi, pd, pd) += block.transpose();
     }
   }
 }
 
-template <typename Scalar>
+template <typename Scalar, typename HScalar>
 void scatterReduced(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
-                    const VecX<Scalar>& b_loc, MatX<Scalar>& H, VecX<Scalar>& b) {
+                    const VecX<Scalar>& b_loc, MatX<HScalar>& H, VecX<HScalar>& b) {
   if (map.pose_dim == 6) {
     scatterReducedBlocks<6>(map, H_loc_lower, b_loc, H, b);
   } else {
@@ -183,7 +192,12 @@ bool LandmarkBlockNs<Scalar>::landmarkSolvable() const {
 }
 
 template <typename Scalar>
-void LandmarkBlockNs<Scalar>::addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const {
+template <typename HScalar>
+Status LandmarkBlockNs<Scalar>::addToReducedSystem(MatX<HScalar>& H, VecX<HScalar>& b) const {
+  if (!landmarkSolvable()) {
+    return Status::Error(Status::Code::kRankDeficient,
+                         "landmark elimination: R1 is singular (landmark not observable)");
+  }
   // Eigen's symmetric rank update (lower triangle) into a per-thread local system that keeps its
   // storage; hand-written rank-1 loops and per-entry dot products over these ~20 × 6k blocks
   // measured slower (more instructions, callgrind).
@@ -196,6 +210,7 @@ void LandmarkBlockNs<Scalar>::addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& 
   if (b_loc.size() != n_p_) b_loc.resize(n_p_);
   b_loc.noalias() = Jr.transpose() * reducedR();
   scatterReduced(map_, H_loc, b_loc, H, b);
+  return Status::Ok();
 }
 
 template <typename Scalar>
@@ -274,7 +289,8 @@ Status LandmarkBlockSc<Scalar>::dampedFactor(Eigen::LLT<Mat3<Scalar>>* llt) cons
 }
 
 template <typename Scalar>
-Status LandmarkBlockSc<Scalar>::addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const {
+template <typename HScalar>
+Status LandmarkBlockSc<Scalar>::addToReducedSystem(MatX<HScalar>& H, VecX<HScalar>& b) const {
   Eigen::LLT<Mat3<Scalar>> llt;
   Status status = dampedFactor(&llt);
   if (!status.ok()) return status;
@@ -311,12 +327,19 @@ Scalar LandmarkBlockSc<Scalar>::linearizedCostChange(const VecX<Scalar>& delta_r
   return b_p_.dot(delta_p) + b_l_.dot(delta_l) + Scalar(0.5) * quadratic;
 }
 
-#define MARGLAB_INST(S)                                                 \
-  template class LandmarkBlockNs<S>;                                    \
-  template class LandmarkBlockSc<S>;                                    \
+#define MARGLAB_INST(S)                                                                  \
+  template class LandmarkBlockNs<S>;                                                     \
+  template class LandmarkBlockSc<S>;                                                     \
+  template Status LandmarkBlockNs<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const;   \
+  template Status LandmarkBlockSc<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const;   \
   template VecX<S> gatherLocal<S>(const PoseBlockMap&, const VecX<S>&); \
   template void householderLandmarkColumns<S>(S*, Eigen::Index, Eigen::Index, Eigen::Index);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
+#if defined(MARGLAB_WITH_FLOAT)
+// Mixed precision: float landmark blocks in a double reduced system.
+template Status LandmarkBlockNs<float>::addToReducedSystem<double>(MatX<double>&,
+                                                                  VecX<double>&) const;
+#endif
 
 }  // namespace marglab

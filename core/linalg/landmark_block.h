@@ -41,9 +41,19 @@ struct PoseBlockMap {
   int localCols() const { return pose_dim * static_cast<int>(rcs_offset.size()); }
 };
 
-template <typename Scalar>
+// The landmark-block interface both eliminations implement (core/estimator/linearization.h runs
+// either through it):
+//   Status setFromJacobians(J_p, J_l, r, map)      the landmark's rows over its pose blocks;
+//   landmarkHessianDiagonal(), setLandmarkDamping(d) LM damping diag(d) of the landmark;
+//   Status addToReducedSystem(H, b)                  its share of the reduced camera system (H of
+//                                                    the block's precision or higher); fails, and
+//                                                    adds nothing, when the landmark cannot be
+//                                                    eliminated (singular R1 / H_ll + diag(d));
+//   Status backSubstitute(δ_rcs, &δl), linearizedCostChange(δ_rcs, δl).
+template <typename S>
 class LandmarkBlockNs {
  public:
+  using Scalar = S;
   // J_p: m × map.localCols(), J_l: m × 3, r: m, with m ≥ 3.
   Status setFromJacobians(const MatX<Scalar>& J_p, const Mat<Scalar, Eigen::Dynamic, 3>& J_l,
                           const VecX<Scalar>& r, PoseBlockMap map);
@@ -58,8 +68,10 @@ class LandmarkBlockNs {
   // The reduced rows [Q2ᵀJ_p | Q2ᵀr] (plus the three damping rows when damped).
   auto reducedJp() const { return storage_.block(3, 0, reduced_rows_, n_p_); }
   auto reducedR() const { return storage_.col(n_p_ + 3).segment(3, reduced_rows_); }
-  // H += (Q2ᵀJ_p)ᵀ(Q2ᵀJ_p), b += (Q2ᵀJ_p)ᵀQ2ᵀr on the reduced camera system (upper and lower).
-  void addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const;
+  // H += (Q2ᵀJ_p)ᵀ(Q2ᵀJ_p), b += (Q2ᵀJ_p)ᵀQ2ᵀr on the reduced camera system (upper and lower),
+  // formed in Scalar and accumulated in HScalar. Fails (adds nothing) when R1 is singular.
+  template <typename HScalar>
+  Status addToReducedSystem(MatX<HScalar>& H, VecX<HScalar>& b) const;
   // Copies the reduced rows into rows [row, row + numReducedRows()) of a stacked square-root
   // system whose pose columns follow the map (other columns untouched) and whose last column is r.
   void copyReducedRows(Eigen::Ref<MatX<Scalar>> stacked, int row) const;
@@ -83,15 +95,17 @@ class LandmarkBlockNs {
   Vec3<Scalar> H_ll_diagonal_ = Vec3<Scalar>::Zero();
 };
 
-template <typename Scalar>
+template <typename S>
 class LandmarkBlockSc {
  public:
+  using Scalar = S;
   Status setFromJacobians(const MatX<Scalar>& J_p, const Mat<Scalar, Eigen::Dynamic, 3>& J_l,
                           const VecX<Scalar>& r, PoseBlockMap map);
   Vec3<Scalar> landmarkHessianDiagonal() const { return H_ll_.diagonal(); }
   void setLandmarkDamping(const Vec3<Scalar>& d) { damping_ = d; }
   // H += H_pp − H_pl H_ll⁻¹ H_lp, b += b_p − H_pl H_ll⁻¹ b_l. Fails if H_ll + diag(d) is singular.
-  Status addToReducedSystem(MatX<Scalar>& H, VecX<Scalar>& b) const;
+  template <typename HScalar>
+  Status addToReducedSystem(MatX<HScalar>& H, VecX<HScalar>& b) const;
   Status backSubstitute(const VecX<Scalar>& delta_rcs, Vec3<Scalar>* delta_l) const;
   // ½‖J δ + r‖² − ½‖r‖² = bᵀδ + ½ δᵀHδ with the undamped blocks, δ = (δp, δl).
   Scalar linearizedCostChange(const VecX<Scalar>& delta_rcs, const Vec3<Scalar>& delta_l) const;

@@ -1,5 +1,5 @@
 #pragma once
-// Levenberg–Marquardt step on the reduced camera system (DESIGN §3, LM):
+// Levenberg–Marquardt step on the reduced camera system (docs/design.md §3, LM):
 //     (H + D) δ = −b,   D_ii = max(λ · H_ii, λ_min),
 // solved by LDLT (Eigen's, with diagonal pivoting). The damping rule bounds the step along
 // directions the data does not constrain (gauge, weakly observed variables) instead of letting a

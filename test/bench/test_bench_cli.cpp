@@ -9,7 +9,7 @@
 #include <fmt/core.h>
 
 #include "common/cli_runner.h"
-#include "core/bench/window_io.h"
+#include "core/estimator/window_io.h"
 
 namespace marglab {
 namespace {

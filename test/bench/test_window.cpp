@@ -10,10 +10,10 @@
 #include <fstream>
 #include <string>
 
-#include "core/bench/window_io.h"
+#include "core/estimator/window_io.h"
 #include "core/bench/window_replay.h"
 #include "core/common/error.h"
-#include "core/estimator/run.h"
+#include "core/pipeline/run.h"
 
 namespace marglab {
 namespace {

@@ -9,7 +9,7 @@
 
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
-#include "core/estimator/run.h"
+#include "core/pipeline/run.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
 #include "estimator/variant_params.h"
@@ -108,6 +108,49 @@ TEST_P(VoVariantTest, NoiseFreeTracksRecoverTheTruthToAMillimetre) {
 
 INSTANTIATE_TEST_SUITE_P(F64, VoVariantTest, test::doublePrecisionVariants(),
                          test::variantTestName);
+
+// Mixed precision (landmarks eliminated in f32, the rest in f64) on the same tracks.
+TEST(VoMixed, NoiseFreeTracksRecoverTheTruthToAMillimetre) {
+  static const Scenario scenario(200);
+  EXPECT_LT(maxPositionError<double>(scenario, Variant::parse("ns-qr-sqrt-mixed")), 1e-3);
+}
+
+// The same window's damped LM step with float landmark blocks in a double reduced system agrees
+// with the all-double step to κ(H_damped)·ε_f (the float rounding of the reduced system, amplified
+// by the solve), and is not the double step bit for bit (the elimination did run in float).
+TEST(VoMixed, StepMatchesDoubleToFloatAccuracy) {
+  const Scenario scenario(40, true);
+  SlidingWindowEstimator<double> estimator(testConfig(), Variant::parse("ns-qr-sqrt-f64"),
+                                           rigFromCalib(scenario.calib), scenario.truth(0));
+  for (int i = 0; i < 30; ++i) {
+    ASSERT_TRUE(estimator.processFrame(scenario.stream.frames[i]).status.ok());
+  }
+  const double lambda = 1e-4;
+  Linearization<double>::Options options;
+  options.lambda_min = testConfig().lambda_min;
+  auto step = [&](const char* name, MatXd* H) {
+    auto lin = makeLinearization<double>(Variant::parse(name), options);
+    lin->linearize(estimator.window());
+    EXPECT_TRUE(lin->eliminate().ok());
+    if (H != nullptr) *H = lin->reducedHessian();
+    LinearStep<double> s;
+    EXPECT_TRUE(lin->solve(lambda, &s).ok());
+    return s.delta;
+  };
+  MatXd H;
+  const VecXd ref = step("ns-qr-sqrt-f64", &H);
+  const VecXd mixed = step("ns-qr-sqrt-mixed", nullptr);
+  for (Eigen::Index i = 0; i < H.rows(); ++i) {
+    H(i, i) += std::max(lambda * H(i, i), options.lambda_min);
+  }
+  const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<MatXd>(H).eigenvalues();
+  const double kappa = ev.maxCoeff() / ev.minCoeff();
+  const double tol = 10 * kappa * std::numeric_limits<float>::epsilon();
+  ASSERT_LT(tol, 0.1) << "the window is too ill-conditioned for a meaningful bound";
+  const double diff = (mixed - ref).norm() / ref.norm();
+  EXPECT_LT(diff, tol);
+  EXPECT_GT(diff, 0.0);
+}
 
 // Runs a few frames so that the window is full and has a prior, then compares.
 TEST(VoEquivalence, NullspaceAndSchurGiveTheSameStep) {

@@ -7,7 +7,7 @@
 
 #include "core/data/sequence.h"
 #include "core/estimator/estimator.h"
-#include "core/estimator/run.h"
+#include "core/pipeline/run.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/imu_synth.h"
 #include "core/sim/trajectory_spline.h"

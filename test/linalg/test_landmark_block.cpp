@@ -98,7 +98,7 @@ void checkEliminationEquivalence(double lambda) {
     }
     ns[l].setLandmarkDamping(d_l[l]);
     sc[l].setLandmarkDamping(d_l[l]);
-    ns[l].addToReducedSystem(red_ns.H, red_ns.b);
+    ASSERT_TRUE(ns[l].addToReducedSystem(red_ns.H, red_ns.b).ok());
     ASSERT_TRUE(sc[l].addToReducedSystem(red_sc.H, red_sc.b).ok());
   }
   EXPECT_LE(relError(red_ns.H, red_sc.H), tol_reduced);
@@ -166,7 +166,7 @@ TEST(LandmarkBlockDouble, StepAgreesToRelative1e10) {
     LandmarkBlockSc<double> sc;
     ASSERT_TRUE(ns.setFromJacobians(lm.J_p, lm.J_l, lm.r, lm.map).ok());
     ASSERT_TRUE(sc.setFromJacobians(lm.J_p, lm.J_l, lm.r, lm.map).ok());
-    ns.addToReducedSystem(red_ns.H, red_ns.b);
+    ASSERT_TRUE(ns.addToReducedSystem(red_ns.H, red_ns.b).ok());
     ASSERT_TRUE(sc.addToReducedSystem(red_sc.H, red_sc.b).ok());
   }
   const auto step_ns = solveDampedLdlt<double>(red_ns.H, red_ns.b, 1e-4, 1e-7);
@@ -193,11 +193,32 @@ TYPED_TEST(LandmarkBlockTest, ReducedRowsAreNullspaceProjection) {
   MatX<Scalar> stacked = MatX<Scalar>::Zero(ns.numReducedRows(), kRcsSize + 1);
   ns.copyReducedRows(stacked, 0);
   Reduced<Scalar> red;
-  ns.addToReducedSystem(red.H, red.b);
+  ASSERT_TRUE(ns.addToReducedSystem(red.H, red.b).ok());
   const MatX<Scalar> Js = stacked.leftCols(kRcsSize);
   EXPECT_LE(relError(MatX<Scalar>(Js.transpose() * Js), red.H), 10 * eps<Scalar>());
   EXPECT_LE(relError(VecX<Scalar>(Js.transpose() * stacked.col(kRcsSize)), red.b),
             10 * eps<Scalar>());
+}
+
+// Mixed precision (variant ...-mixed): a float elimination accumulated into a double reduced
+// system agrees with the double elimination to float accuracy (same bound as the reduced rows
+// above), and is not the double result (the elimination did run in float).
+TEST(LandmarkBlockMixed, FloatBlocksIntoDoubleSystem) {
+  std::mt19937_64 rng(37);
+  Reduced<double> mixed, reference;
+  for (const LandmarkData& lm : makeLandmarks(rng, 20)) {
+    LandmarkBlockNs<float> f;
+    LandmarkBlockNs<double> d;
+    ASSERT_TRUE(f.setFromJacobians(lm.J_p.cast<float>(), lm.J_l.cast<float>(), lm.r.cast<float>(),
+                                   lm.map)
+                    .ok());
+    ASSERT_TRUE(d.setFromJacobians(lm.J_p, lm.J_l, lm.r, lm.map).ok());
+    ASSERT_TRUE(f.addToReducedSystem(mixed.H, mixed.b).ok());
+    ASSERT_TRUE(d.addToReducedSystem(reference.H, reference.b).ok());
+  }
+  EXPECT_LE(relError(mixed.H, reference.H), 1e3 * eps<float>());
+  EXPECT_LE(relError(mixed.b, reference.b), 1e3 * eps<float>());
+  EXPECT_GT(relError(mixed.H, reference.H), 10 * eps<double>());
 }
 
 TYPED_TEST(LandmarkBlockTest, DampingCanBeChangedAndRemoved) {
@@ -209,11 +230,11 @@ TYPED_TEST(LandmarkBlockTest, DampingCanBeChangedAndRemoved) {
       ns.setFromJacobians(lm.J_p.cast<Scalar>(), lm.J_l.cast<Scalar>(), lm.r.cast<Scalar>(), lm.map)
           .ok());
   Reduced<Scalar> before, after;
-  ns.addToReducedSystem(before.H, before.b);
+  ASSERT_TRUE(ns.addToReducedSystem(before.H, before.b).ok());
   ns.setLandmarkDamping(Vec3<Scalar>(1, 2, 3));
   EXPECT_EQ(ns.numReducedRows(), lm.r.size());
   ns.setLandmarkDamping(Vec3<Scalar>::Zero());
-  ns.addToReducedSystem(after.H, after.b);
+  ASSERT_TRUE(ns.addToReducedSystem(after.H, after.b).ok());
   EXPECT_EQ(relError(after.H, before.H), 0.0);
 }
 
@@ -238,6 +259,9 @@ TYPED_TEST(LandmarkBlockTest, InvalidOrSingularInputIsAStatus) {
   ASSERT_TRUE(ns.setFromJacobians(MatX<Scalar>::Ones(4, 6), J_l, VecX<Scalar>::Ones(4), map).ok());
   Vec3<Scalar> dl;
   EXPECT_FALSE(ns.backSubstitute(VecX<Scalar>::Zero(6), &dl).ok());
+  // Neither elimination adds a landmark it cannot back-substitute.
+  EXPECT_FALSE(ns.addToReducedSystem(H, b).ok());
+  EXPECT_TRUE(H.isZero(0) && b.isZero(0));
   EXPECT_FALSE(ns.landmarkSolvable());
   // With damping both succeed.
   ns.setLandmarkDamping(Vec3<Scalar>::Constant(Scalar(1e-3)));

@@ -44,7 +44,7 @@ struct RunOptions {
   int inject_nan_frame = -1;
   // Window capture: the windows of these frame indices (0-based, before their optimization, with
   // the step taken) are written to dump_dir as <dataset>_<variant>_<frame>.win.gz
-  // (core/bench/window_io.h).
+  // (core/estimator/window_io.h).
   std::vector<int> dump_windows;
   std::string dump_dir;
   // Called after each frame with (frames done, total frames).

@@ -1,4 +1,4 @@
-#include "core/bench/window_io.h"
+#include "core/estimator/window_io.h"
 
 #include <fmt/core.h>
 #include <zlib.h>
@@ -150,10 +150,8 @@ bool endsWith(const std::string& s, const std::string& suffix) {
          s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-}  // namespace
-
-void writeWindow(const WindowSnapshot& w, const std::string& path) {
-  Writer out;
+// Sections of the text format, in file order.
+void writeHeader(Writer& out, const WindowSnapshot& w) {
   out.word("marglab-window");
   out.integer(1);
   out.newline();
@@ -178,6 +176,9 @@ void writeWindow(const WindowSnapshot& w, const std::string& path) {
   out.pose(w.rig.T_i_c0);
   out.pose(w.rig.T_i_c1);
   out.newline();
+}
+
+void writeImu(Writer& out, const WindowSnapshot& w) {
   out.word("imu");
   out.number(w.imu_noise.gyro_noise_density);
   out.number(w.imu_noise.gyro_random_walk);
@@ -193,6 +194,9 @@ void writeWindow(const WindowSnapshot& w, const std::string& path) {
     out.numbers(w.imu.accel[k]);
     out.newline();
   }
+}
+
+void writeStates(Writer& out, const WindowSnapshot& w) {
   out.word("failed_solves");
   out.integer(w.failed_solves);
   out.newline();
@@ -238,6 +242,9 @@ void writeWindow(const WindowSnapshot& w, const std::string& path) {
     out.numbers(l.bias_accel_lin);
     out.newline();
   }
+}
+
+void writePrior(Writer& out, const WindowSnapshot& w) {
   out.word("prior");
   out.word(w.prior_storage == PriorStorage::kSqrt ? "sqrt" : "hessian");
   out.integer(static_cast<int64_t>(w.prior_blocks.size()));
@@ -256,6 +263,9 @@ void writeWindow(const WindowSnapshot& w, const std::string& path) {
   out.matrix(w.prior_b);
   out.number(w.prior_c);
   out.newline();
+}
+
+void writeAfter(Writer& out, const WindowSnapshot& w) {
   out.word("after");
   out.integer(w.after.present);
   if (w.after.present) {
@@ -285,21 +295,24 @@ void writeWindow(const WindowSnapshot& w, const std::string& path) {
   }
   out.word("end");
   out.newline();
+}
 
+// The text, gzip-compressed for a .gz path, under a temporary name renamed into place.
+void writeText(const std::string& text, const std::string& path) {
   const std::string tmp = path + ".tmp";
   if (endsWith(path, ".gz")) {
     gzFile f = gzopen(tmp.c_str(), "wb9");
     if (f == nullptr) throw InputError(path, 0, "cannot write the window file");
-    const int n = gzwrite(f, out.text().data(), static_cast<unsigned>(out.text().size()));
-    if (gzclose(f) != Z_OK || n != static_cast<int>(out.text().size())) {
+    const int n = gzwrite(f, text.data(), static_cast<unsigned>(text.size()));
+    if (gzclose(f) != Z_OK || n != static_cast<int>(text.size())) {
       std::remove(tmp.c_str());
       throw InputError(path, 0, "cannot write the window file");
     }
   } else {
     std::FILE* f = std::fopen(tmp.c_str(), "wb");
     if (f == nullptr) throw InputError(path, 0, "cannot write the window file");
-    const size_t n = std::fwrite(out.text().data(), 1, out.text().size(), f);
-    if (std::fclose(f) != 0 || n != out.text().size()) {
+    const size_t n = std::fwrite(text.data(), 1, text.size(), f);
+    if (std::fclose(f) != 0 || n != text.size()) {
       std::remove(tmp.c_str());
       throw InputError(path, 0, "cannot write the window file");
     }
@@ -310,19 +323,7 @@ void writeWindow(const WindowSnapshot& w, const std::string& path) {
   }
 }
 
-WindowSnapshot readWindow(const std::string& path) {
-  gzFile f = gzopen(path.c_str(), "rb");  // reads plain text transparently
-  if (f == nullptr) throw InputError(path, 0, "cannot open the window file");
-  std::string text;
-  char buf[1 << 16];
-  int n = 0;
-  while ((n = gzread(f, buf, sizeof(buf))) > 0) text.append(buf, static_cast<size_t>(n));
-  const bool read_error = n < 0;
-  gzclose(f);
-  if (read_error) throw InputError(path, 0, "cannot read the window file (corrupt gzip?)");
-
-  Reader in(std::move(text), path);
-  WindowSnapshot w;
+void readHeader(Reader& in, const std::string& path, WindowSnapshot& w) {
   in.expect("marglab-window");
   if (in.integer() != 1) in.fail("unsupported format version");
   in.expect("dataset");
@@ -344,6 +345,9 @@ WindowSnapshot readWindow(const std::string& path) {
   w.rig.cam1 = readCamera(in);
   w.rig.T_i_c0 = in.pose();
   w.rig.T_i_c1 = in.pose();
+}
+
+void readImu(Reader& in, WindowSnapshot& w) {
   in.expect("imu");
   w.imu_noise.gyro_noise_density = in.number();
   w.imu_noise.gyro_random_walk = in.number();
@@ -357,6 +361,9 @@ WindowSnapshot readWindow(const std::string& path) {
     w.imu.gyro.push_back(in.fixed<3, 1>());
     w.imu.accel.push_back(in.fixed<3, 1>());
   }
+}
+
+void readStates(Reader& in, WindowSnapshot& w) {
   in.expect("failed_solves");
   w.failed_solves = static_cast<int>(in.integer());
   in.expect("frames");
@@ -395,6 +402,9 @@ WindowSnapshot readWindow(const std::string& path) {
     l.bias_gyro_lin = in.fixed<3, 1>();
     l.bias_accel_lin = in.fixed<3, 1>();
   }
+}
+
+void readPrior(Reader& in, WindowSnapshot& w) {
   in.expect("prior");
   const std::string storage = in.word();
   if (storage != "sqrt" && storage != "hessian") in.fail("prior storage must be sqrt or hessian");
@@ -414,6 +424,9 @@ WindowSnapshot readWindow(const std::string& path) {
   w.prior_H = in.matrix();
   w.prior_b = in.matrix();
   w.prior_c = in.number();
+}
+
+void readAfter(Reader& in, WindowSnapshot& w) {
   in.expect("after");
   w.after.present = in.integer() != 0;
   if (w.after.present) {
@@ -435,6 +448,42 @@ WindowSnapshot readWindow(const std::string& path) {
     }
   }
   in.expect("end");
+}
+
+// The file's text (gzip or plain).
+std::string readText(const std::string& path) {
+  gzFile f = gzopen(path.c_str(), "rb");  // reads plain text transparently
+  if (f == nullptr) throw InputError(path, 0, "cannot open the window file");
+  std::string text;
+  char buf[1 << 16];
+  int n = 0;
+  while ((n = gzread(f, buf, sizeof(buf))) > 0) text.append(buf, static_cast<size_t>(n));
+  const bool read_error = n < 0;
+  gzclose(f);
+  if (read_error) throw InputError(path, 0, "cannot read the window file (corrupt gzip?)");
+  return text;
+}
+
+}  // namespace
+
+void writeWindow(const WindowSnapshot& w, const std::string& path) {
+  Writer out;
+  writeHeader(out, w);
+  writeImu(out, w);
+  writeStates(out, w);
+  writePrior(out, w);
+  writeAfter(out, w);
+  writeText(out.text(), path);
+}
+
+WindowSnapshot readWindow(const std::string& path) {
+  Reader in(readText(path), path);
+  WindowSnapshot w;
+  readHeader(in, path, w);
+  readImu(in, w);
+  readStates(in, w);
+  readPrior(in, w);
+  readAfter(in, w);
   return w;
 }
 

@@ -1,4 +1,4 @@
-#include "core/estimator/run.h"
+#include "core/pipeline/run.h"
 
 #include <fmt/core.h>
 
@@ -9,12 +9,13 @@
 #include <limits>
 #include <optional>
 
-#include "core/bench/window_io.h"
+#include "core/estimator/window_io.h"
 #include "core/common/error.h"
 #include "core/data/sequence.h"
 #include "core/diagnostics/ate.h"
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
+#include "core/pipeline/records.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/imu_synth.h"
 #include "core/sim/trajectory_spline.h"
@@ -130,7 +131,7 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
   const std::string& name = sequence.name;
   metadata.sequence = name.substr(name.find('/') == std::string::npos ? 0 : name.find('/') + 1);
   metadata.variant = options.variant.name();
-  metadata.precision = options.variant.precision == Precision::kF32 ? "f32" : "f64";
+  metadata.precision = options.variant.precisionName();
   metadata.mode = vio ? "vio" : "vo";
   metadata.seed = options.seed;
   metadata.config_toml = config.toToml();
@@ -176,18 +177,7 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
       writeWindow(*window, path);
     }
 
-    FrameRecord record;
-    record.t_ns = frame.t_ns;
-    record.is_keyframe = result.is_keyframe;
-    record.n_landmarks = result.n_landmarks;
-    record.n_observations = result.n_observations;
-    record.lm_iterations = result.lm_iterations;
-    record.cost_initial = result.cost_initial;
-    record.cost_final = result.cost_final;
-    record.t_opt_s = result.t_opt_s;
-    record.t_marg_s = result.t_marg_s;
-    record.p_est = result.T_w_i.translation();
-    record.q_est = result.T_w_i.unitQuaternion();
+    FrameRecord record = toFrameRecord(result);
     if (auto p_gt = interpolatePosition(gt_est, frame.t_ns)) record.p_gt = *p_gt;
     writer.appendFrame(record);
     t_ns.push_back(frame.t_ns);
@@ -213,10 +203,7 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
     }
     if (result.sparsify_event && result.status.ok()) {
       const SparsifyEvent& event = *result.sparsify_event;
-      SparsifyRecord sparsify = event;
-      sparsify.frame_index = k;
-      sparsify.t_ns = frame.t_ns;
-      writer.appendSparsify(sparsify);
+      writer.appendSparsify(toSparsifyRecord(event, k, frame.t_ns));
       ++outcome.n_keyframe_events;
       if (!event.fallback_reason.empty()) {
         fmt::print(stderr, "frame {}: nfr kept the dense prior: {}\n", k, event.fallback_reason);
@@ -310,7 +297,7 @@ RunOutcome runSequence(const RunOptions& options) {
       throw UsageError("window capture (--dump-windows) needs marginalization strategy discard");
     }
   }
-  if (options.variant.precision == Precision::kF32) {
+  if (options.variant.floatState()) {
     return runWith<float>(resolved, sequence, stream, spline, config);
   }
   return runWith<double>(resolved, sequence, stream, spline, config);

@@ -1,0 +1,266 @@
+#include "core/estimator/marginalizer.h"
+
+#include <stdexcept>
+
+#include "core/common/scalar.h"
+#include "core/estimator/system_blocks.h"
+#include "core/linalg/flat_qr.h"
+#include "core/linalg/landmark_block.h"
+#include "core/linalg/schur.h"
+
+namespace marglab {
+namespace {
+
+// The linear problem of one marginalization: columns [marginalized | kept], the landmarks to
+// eliminate, the rows taken as they are, the old prior at its current δ and the new prior's
+// layout (anchored at the kept variables' first estimates).
+template <typename Scalar>
+struct MargProblem {
+  std::vector<LandmarkJacobians<Scalar>> lins;
+  std::vector<RowBlock<Scalar>> direct;
+  ColumnMap column_of;
+  int n_marg = 0;
+  int n = 0;
+  MargPrior<Scalar> next;
+  VecX<Scalar> old_delta, new_delta;
+};
+
+// The plan's landmarks over the frames whose observations stay; those with pose information.
+template <typename Scalar>
+void gatherLandmarks(const Window<Scalar>& w, const MargPlan& plan,
+                     const std::set<int64_t>& system_frames,
+                     const typename Window<Scalar>::RelativePoses& rel, MargProblem<Scalar>* p) {
+  for (int64_t id : plan.landmarks) {
+    LandmarkJacobians<Scalar> lin;
+    if (!w.linearizeLandmark(id, w.landmarks.at(id), system_frames, rel, &lin)) continue;
+    // Rows beyond the three the landmark consumes carry pose information.
+    if (lin.r.size() <= 3 || lin.frames.empty()) continue;
+    p->lins.push_back(std::move(lin));
+  }
+}
+
+// Rows stacked as they are: IMU factors, observations whose landmark stays, landmarks of the prior
+// that go, recovered factors on marginalized variables.
+template <typename Scalar>
+void gatherDirectRows(const Window<Scalar>& w, const MargPlan& plan,
+                      const std::set<int64_t>& system_frames,
+                      const typename Window<Scalar>::RelativePoses& rel, MargProblem<Scalar>* p) {
+  for (int64_t from : plan.imu_links) {
+    const LinkLinearized<Scalar> lin = w.linearizeLink(from, w.imu_links.at(from));
+    p->direct.push_back({lin.vars(), lin.J, lin.r});
+  }
+  for (const auto& [track, frame] : plan.kept_landmark_obs) {
+    RowBlock<Scalar> rows;
+    if (w.landmarkRows(track, {frame}, rel, false, &rows)) p->direct.push_back(std::move(rows));
+  }
+  for (const VarKey& var : plan.vars) {
+    RowBlock<Scalar> rows;
+    if (var.block == StateBlock::kLandmark &&
+        w.landmarkRows(var.frame_id, system_frames, rel, true, &rows)) {
+      p->direct.push_back(std::move(rows));
+    }
+  }
+  for (const auto& f : w.nfr_unary) {
+    if (plan.vars.count(f.var()) != 0) p->direct.push_back(w.linearizeNfr(f, -1, nullptr));
+  }
+  const std::set<int64_t> eliminated(plan.landmarks.begin(), plan.landmarks.end());
+  for (const auto& [id, lm] : w.landmarks) {
+    if (eliminated.count(id) != 0 || plan.vars.count({id, StateBlock::kLandmark}) != 0) continue;
+    for (const auto& f : lm.nfr) {
+      if (plan.vars.count(f.var()) != 0) p->direct.push_back(w.linearizeNfr(f, id, &lm));
+    }
+  }
+}
+
+// Columns [plan.vars | kept] and the new prior's layout over the kept variables.
+template <typename Scalar>
+void layoutColumns(const Window<Scalar>& w, const MargPlan& plan, const MargPrior<Scalar>& prior,
+                   PriorStorage storage, MargProblem<Scalar>* p) {
+  std::set<VarKey> keep;
+  for (const auto& lin : p->lins) {
+    for (int64_t f : lin.frames) keep.insert({f, StateBlock::kPose});
+  }
+  for (const RowBlock<Scalar>& rows : p->direct) {
+    for (const auto& [var, offset] : rows.vars) keep.insert(var);
+  }
+  for (const auto& block : prior.blocks) keep.insert(block.var);
+  for (const VarKey& var : plan.vars) keep.erase(var);
+  int col = 0;
+  for (const VarKey& var : plan.vars) {
+    p->column_of[var] = col;
+    col += stateBlockDim(var.block);
+  }
+  p->n_marg = col;
+  p->next.storage = storage;
+  for (const VarKey& var : keep) {
+    p->column_of[var] = col;
+    col += stateBlockDim(var.block);
+    if (var.block == StateBlock::kLandmark) {
+      p->next.addBlock(var, SE3<Scalar>(), Vec<Scalar, kSpeedBiasDim>::Zero(),
+                       w.landmarks.at(var.frame_id).jacobianPoint());
+      continue;
+    }
+    const auto& frame = w.frames.at(var.frame_id);
+    p->next.addBlock(var, w.jacobianPoseOf(var.frame_id),
+                     frame.speed_bias_linearized ? frame.speed_bias_lin : frame.speed_bias);
+  }
+  p->n = col;
+}
+
+template <typename Scalar>
+MargProblem<Scalar> gatherProblem(const Window<Scalar>& w, const MargPlan& plan,
+                                  const MargPrior<Scalar>& prior, PriorStorage storage) {
+  std::set<int64_t> system_frames;
+  for (const auto& [id, frame] : w.frames) {
+    if (plan.drop_obs_frames.count(id) == 0) system_frames.insert(id);
+  }
+  MargProblem<Scalar> p;
+  const typename Window<Scalar>::RelativePoses rel = w.relativePoses(true);
+  gatherLandmarks(w, plan, system_frames, rel, &p);
+  gatherDirectRows(w, plan, system_frames, rel, &p);
+  layoutColumns(w, plan, prior, storage, &p);
+  p.old_delta = w.priorDelta(prior);
+  p.new_delta = w.priorDelta(p.next);
+  return p;
+}
+
+template <typename Scalar>
+class QrMarginalizer final : public Marginalizer<Scalar> {
+ public:
+  explicit QrMarginalizer(const EstimatorConfig& config) {
+    options_.mode = config.qr_threshold_mode;
+    if (config.qr_threshold >= 0) options_.threshold = static_cast<Scalar>(config.qr_threshold);
+  }
+
+  Status marginalize(const Window<Scalar>& w, const MargPlan& plan, MargPrior<Scalar>* prior,
+                     int* qr_rank) const override {
+    MargProblem<Scalar> p = gatherProblem(w, plan, *prior, PriorStorage::kSqrt);
+    std::vector<LandmarkBlockNs<Scalar>> blocks(p.lins.size());
+    int rows = prior->empty() ? 0 : prior->rows();
+    for (size_t l = 0; l < p.lins.size(); ++l) {
+      const LandmarkJacobians<Scalar>& lin = p.lins[l];
+      Status s = blocks[l].setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, p.column_of));
+      if (!s.ok()) return s;
+      rows += blocks[l].numReducedRows();
+    }
+    for (const RowBlock<Scalar>& d : p.direct) rows += static_cast<int>(d.r.size());
+    MatX<Scalar> A = MatX<Scalar>::Zero(rows, p.n + 1);
+    stack(blocks, p, *prior, A);
+    FlatQrMarginalization<Scalar> qr = flatQrMarginalize<Scalar>(std::move(A), p.n_marg, options_);
+    if (!qr.status.ok()) return qr.status;
+    if (qr_rank != nullptr) *qr_rank = qr.total_rank;
+    VecX<Scalar> r = qr.prior.r - qr.prior.J * p.new_delta;
+    p.next.setSqrt(std::move(qr.prior.J), std::move(r));
+    *prior = std::move(p.next);
+    return Status::Ok();
+  }
+
+ private:
+  // [J | r] of the landmarks' reduced rows, the direct rows and the old prior's rows.
+  static void stack(const std::vector<LandmarkBlockNs<Scalar>>& blocks,
+                    const MargProblem<Scalar>& p, const MargPrior<Scalar>& prior,
+                    MatX<Scalar>& A) {
+    int row = 0;
+    for (const auto& block : blocks) {
+      block.copyReducedRows(A, row);
+      row += block.numReducedRows();
+    }
+    for (const RowBlock<Scalar>& d : p.direct) {
+      const int m = static_cast<int>(d.r.size());
+      for (const auto& [var, offset] : d.vars) {
+        const int dim = stateBlockDim(var.block);
+        A.block(row, p.column_of.at(var), m, dim) = d.J.middleCols(offset, dim);
+      }
+      A.col(p.n).segment(row, m) = d.r;
+      row += m;
+    }
+    if (prior.empty()) return;
+    MatX<Scalar> J;
+    VecX<Scalar> r;
+    prior.sqrtRows(p.old_delta, &J, &r);
+    for (const auto& block : prior.blocks) {
+      const int dim = stateBlockDim(block.var.block);
+      A.block(row, p.column_of.at(block.var), J.rows(), dim) = J.middleCols(block.offset, dim);
+    }
+    A.col(p.n).segment(row, r.size()) = r;
+  }
+
+  FlatQrOptions<Scalar> options_;
+};
+
+template <typename Scalar>
+class SchurMarginalizer final : public Marginalizer<Scalar> {
+ public:
+  explicit SchurMarginalizer(PriorStorage storage) : storage_(storage) {}
+
+  Status marginalize(const Window<Scalar>& w, const MargPlan& plan, MargPrior<Scalar>* prior,
+                     int* /*qr_rank*/) const override {
+    MargProblem<Scalar> p = gatherProblem(w, plan, *prior, storage_);
+    MatX<Scalar> H = MatX<Scalar>::Zero(p.n, p.n);
+    VecX<Scalar> b = VecX<Scalar>::Zero(p.n);
+    for (const LandmarkJacobians<Scalar>& lin : p.lins) {
+      LandmarkBlockSc<Scalar> block;
+      Status s = block.setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, p.column_of));
+      if (!s.ok()) return s;
+      // A landmark whose H_ll is singular carries no usable pose information: skip it.
+      block.addToReducedSystem(H, b).ok();
+    }
+    for (const RowBlock<Scalar>& d : p.direct) addRows(d, d.vars, p.column_of, H, b);
+    if (!prior->empty()) addPrior(*prior, p.old_delta, p.column_of, H, b);
+    SchurMarginalization<Scalar> sc = schurMarginalize<Scalar>(H, b, p.n_marg);
+    if (!sc.status.ok()) return sc.status;
+    Status s = store(std::move(sc.prior), p.new_delta, &p.next);
+    if (!s.ok()) return s;
+    *prior = std::move(p.next);
+    return Status::Ok();
+  }
+
+ private:
+  // The prior anchored at x⁰ in the storage. Its square root ½‖r + Jδ‖² is the LDLT of H; a
+  // Hessian prior keeps its value at δ = 0 as the constant c = ½ b_mᵀ H⁺ b_m, so that both
+  // storages are the same function and the flat QR's (rows without Jacobian carry no constant
+  // either). The energy of the marginalized residuals themselves would grow with every
+  // marginalization and loosen the relative-decrease stopping rule for the Hessian storage alone.
+  Status store(HessianPrior<Scalar> marginal, const VecX<Scalar>& new_delta,
+               MargPrior<Scalar>* next) const {
+    VecX<Scalar> b_m = marginal.b - marginal.H * new_delta;
+    LdltSqrt<Scalar> ldlt = hessianToSqrtLdlt<Scalar>(marginal.H, b_m);
+    if (!ldlt.status.ok()) {
+      return storage_ == PriorStorage::kHessian
+                 ? Status::Error(ldlt.status.code(),
+                                 "the constant of the Hessian prior: " + ldlt.status.message())
+                 : ldlt.status;
+    }
+    if (storage_ == PriorStorage::kHessian) {
+      const Scalar c = Scalar(0.5) * ldlt.prior.r.squaredNorm();
+      next->setHessian(std::move(marginal.H), std::move(b_m), c);
+    } else {
+      next->setSqrt(std::move(ldlt.prior.J), std::move(ldlt.prior.r));
+    }
+    return Status::Ok();
+  }
+
+  PriorStorage storage_;
+};
+
+}  // namespace
+
+template <typename Scalar>
+std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method, PriorStorage storage,
+                                                       const EstimatorConfig& config) {
+  if (method == MargMethod::kQr) {
+    if (storage != PriorStorage::kSqrt) {
+      throw std::invalid_argument("qr marginalization produces a square-root prior");
+    }
+    return std::make_unique<QrMarginalizer<Scalar>>(config);
+  }
+  return std::make_unique<SchurMarginalizer<Scalar>>(storage);
+}
+
+#define MARGLAB_INST(S)                                                 \
+  template std::unique_ptr<Marginalizer<S>> makeMarginalizer<S>(MargMethod, PriorStorage, \
+                                                                const EstimatorConfig&);
+MARGLAB_INSTANTIATE(MARGLAB_INST)
+#undef MARGLAB_INST
+
+}  // namespace marglab

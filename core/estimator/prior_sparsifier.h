@@ -1,0 +1,56 @@
+#pragma once
+// Strategy nfr (Hsiung et al., IROS 2018): after a keyframe marginalization the dense prior over
+// its Markov blanket is replaced by nonlinear factors recovered from it (core/sparsify/nfr.h).
+//
+// Blanket. The prior's variables: poses, speed-bias blocks (split into velocity and bias) and
+// landmarks as world points. Topology `paper`: unary factors on every pose, velocity and bias, and
+// pose–landmark factors from the newest keyframe pose of the blanket (keyframes leave last);
+// `joint-states`: one joint factor over all state blocks instead of the unary ones — the dense
+// prior marginalized onto the states, gradient kept — plus the same pose–landmark factors.
+//
+// Regularization. Our blanket is only positive semi-definite in general (a keyframe pose that
+// enters through landmark eliminations alone carries relative information), while the closed form
+// needs Σ_t: it is recovered for Λ_t + εI, ε = 10 n ε_mach tr Λ_t, just above core/sparsify's rank
+// threshold; the factors carry information of order ε along the directions Λ_t leaves free.
+//
+// Insertion. Unary factors join the window's factor list, pose–landmark ones their landmark's rows
+// (landmarks are still eliminated per landmark). The prior is emptied (paper) or keeps the joint
+// factor over the states (joint-states); variables no longer in a linear prior drop their first
+// estimates.
+
+#include <cstdint>
+#include <limits>
+#include <string>
+
+#include "core/common/eigen_types.h"
+#include "core/estimator/config.h"
+#include "core/estimator/window.h"
+
+namespace marglab {
+
+// One keyframe marginalization of a dense / nfr run, as the estimator reports it.
+struct SparsifyEvent {
+  int blanket_cols = 0;
+  int n_blanket_poses = 0;
+  int n_blanket_landmarks = 0;
+  std::int64_t nnz_dense = 0;
+  std::int64_t nnz_sparse = 0;
+  double kld = std::numeric_limits<double>::quiet_NaN();  // NaN: kept dense
+  bool recovered = false;
+  double t_schur_s = 0.0;
+  double t_recovery_s = 0.0;
+  double t_insert_s = 0.0;
+  std::string fallback_reason;  // why nfr kept the dense prior (empty otherwise)
+};
+
+// Size and non-zeros of the window's prior as the blanket of a keyframe event (strategy dense);
+// returns Λ_t.
+template <typename Scalar>
+MatX<Scalar> describeBlanket(const Window<Scalar>& window, SparsifyEvent* event);
+
+// Strategy nfr: replaces the window's prior by recovered factors; keeps it dense when the recovery
+// fails (event->fallback_reason).
+template <typename Scalar>
+void sparsifyPrior(Window<Scalar>& window, SparsifyTopology topology, SparsifyEvent* event);
+
+}  // namespace marglab

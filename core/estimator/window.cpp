@@ -1,0 +1,433 @@
+#include "core/estimator/window.h"
+
+#include <algorithm>
+
+#include "core/common/scalar.h"
+#include "core/imu/preintegration.h"
+
+namespace marglab {
+
+template <typename Scalar>
+std::vector<std::pair<VarKey, int>> LinkLinearized<Scalar>::vars() const {
+  return {{{from, StateBlock::kPose}, 0},
+          {{from, StateBlock::kSpeedBias}, kPoseDim},
+          {{to, StateBlock::kPose}, 15},
+          {{to, StateBlock::kSpeedBias}, 15 + kPoseDim}};
+}
+
+template <typename Scalar>
+Window<Scalar>::Window(const EstimatorConfig& config, const StereoRig<double>& rig,
+                       std::optional<ImuSetup> imu)
+    : config_(config),
+      noise_{static_cast<Scalar>(config.huber_px), static_cast<Scalar>(config.obs_std_px)},
+      rig_input_(rig),
+      rig_(rig.template cast<Scalar>()),
+      imu_(std::move(imu)),
+      pool_(std::make_shared<ThreadPool>(std::max(config.lm_threads, 1))) {
+  if (imu_) {
+    T_i_c_ = {rig.T_i_c0.template cast<Scalar>(), rig.T_i_c1.template cast<Scalar>()};
+    g_w_ = imu_->g_w.template cast<Scalar>();
+  } else {
+    T_i_c_ = {SE3S(), rig.T_c0_c1().template cast<Scalar>()};
+  }
+  for (int cam = 0; cam < 2; ++cam) {
+    T_c_i_[cam] = T_i_c_[cam].inverse();
+    T_c_h_host_[cam] = T_c_i_[cam] * T_i_c_[0];
+  }
+  prior.storage = PriorStorage::kSqrt;
+}
+
+template <typename Scalar>
+typename Window<Scalar>::SE3S Window<Scalar>::jacobianPoseOf(int64_t frame_id) const {
+  const Frame& frame = frames.at(frame_id);
+  return frame.linearized ? frame.T_w_i_lin : frame.T_w_i;
+}
+
+template <typename Scalar>
+ImuState<Scalar> Window<Scalar>::stateOf(int64_t frame_id, bool at_linearization_point) const {
+  const Frame& frame = frames.at(frame_id);
+  ImuState<Scalar> s;
+  s.t_ns = frame.t_ns;
+  s.T_w_i = at_linearization_point ? jacobianPoseOf(frame_id) : frame.T_w_i;
+  const Vec9S& sb = at_linearization_point && frame.speed_bias_linearized ? frame.speed_bias_lin
+                                                                          : frame.speed_bias;
+  s.v_w = sb.template head<3>();
+  s.b_g = sb.template segment<3>(3);
+  s.b_a = sb.template tail<3>();
+  return s;
+}
+
+template <typename Scalar>
+std::vector<int64_t> Window<Scalar>::keyframeIds() const {
+  std::vector<int64_t> ids;
+  for (const auto& [id, frame] : frames) {
+    if (frame.is_keyframe) ids.push_back(id);
+  }
+  return ids;
+}
+
+template <typename Scalar>
+std::vector<int64_t> Window<Scalar>::stateIds() const {
+  std::vector<int64_t> ids;
+  for (const auto& [id, frame] : frames) {
+    if (frame.has_speed_bias) ids.push_back(id);
+  }
+  return ids;
+}
+
+template <typename Scalar>
+std::set<int64_t> Window<Scalar>::priorLandmarks() const {
+  std::set<int64_t> tracks;
+  for (const auto& block : prior.blocks) {
+    if (block.var.block == StateBlock::kLandmark) tracks.insert(block.var.frame_id);
+  }
+  return tracks;
+}
+
+template <typename Scalar>
+int Window<Scalar>::windowColumns(ColumnMap* column_of) const {
+  int col = 0;
+  for (const auto& [id, frame] : frames) {
+    (*column_of)[{id, StateBlock::kPose}] = col;
+    col += kPoseDim;
+    if (frame.has_speed_bias) {
+      (*column_of)[{id, StateBlock::kSpeedBias}] = col;
+      col += kSpeedBiasDim;
+    }
+  }
+  for (int64_t track : priorLandmarks()) {
+    (*column_of)[{track, StateBlock::kLandmark}] = col;
+    col += kPointDim;
+  }
+  return col;
+}
+
+template <typename Scalar>
+VecX<Scalar> Window<Scalar>::priorDelta(const MargPrior<Scalar>& p) const {
+  return p.delta([this](int64_t f) { return poseOf(f); },
+                 [this](int64_t f) { return speedBiasOf(f); },
+                 [this](int64_t track) { return landmarks.at(track).param; });
+}
+
+template <typename Scalar>
+size_t Window<Scalar>::RelativePoses::index(int64_t host, int64_t target, int cam) const {
+  const size_t n = ids.size();
+  const size_t h = std::lower_bound(ids.begin(), ids.end(), host) - ids.begin();
+  const size_t t = std::lower_bound(ids.begin(), ids.end(), target) - ids.begin();
+  return (h * n + t) * 2 + static_cast<size_t>(cam);
+}
+
+template <typename Scalar>
+typename Window<Scalar>::RelativePoses Window<Scalar>::relativePoses(bool with_jacobians) const {
+  RelativePoses rel;
+  for (const auto& [id, frame] : frames) rel.ids.push_back(id);
+  const size_t size = rel.ids.size() * rel.ids.size() * 2;
+  rel.T_ct_h.resize(size);
+  if (with_jacobians) {
+    rel.T_ct_h_jac.resize(size);
+    rel.D_rel_h.resize(size);
+    rel.D_rel_t.resize(size);
+  }
+  for (const auto& [h, host] : frames) {
+    for (const auto& [t, target] : frames) {
+      for (int cam = 0; cam < 2; ++cam) {
+        const size_t k = rel.index(h, t, cam);
+        if (h == t) {
+          rel.T_ct_h[k] = T_c_h_host_[cam];
+          if (with_jacobians) rel.T_ct_h_jac[k] = T_c_h_host_[cam];
+          continue;
+        }
+        if (!with_jacobians) {
+          rel.T_ct_h[k] = relativePose<Scalar>(host.T_w_i, T_i_c_[0], target.T_w_i, T_i_c_[cam]);
+          continue;
+        }
+        rel.T_ct_h_jac[k] = relativePose<Scalar>(jacobianPoseOf(h), T_i_c_[0], jacobianPoseOf(t),
+                                                 T_i_c_[cam], &rel.D_rel_h[k], &rel.D_rel_t[k]);
+        // The residual needs its own relative pose only when a first estimate differs from the
+        // current one.
+        rel.T_ct_h[k] = host.linearized || target.linearized
+                            ? relativePose<Scalar>(host.T_w_i, T_i_c_[0], target.T_w_i, T_i_c_[cam])
+                            : rel.T_ct_h_jac[k];
+      }
+    }
+  }
+  return rel;
+}
+
+template <typename Scalar>
+Scalar Window<Scalar>::landmarkCost(const Landmark& lm, const RelativePoses& rel) const {
+  Scalar cost = 0;
+  for (const auto& [frame_id, obs] : lm.obs) {
+    const Vec3S p_i = lm.world() ? poseOf(frame_id).inverse() * lm.param : Vec3S::Zero();
+    for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
+      const Vec3S q = lm.world() ? T_c_i_[cam] * p_i
+                                 : transformLandmark<Scalar>(
+                                       rel.T_ct_h[rel.index(lm.host, frame_id, cam)], lm.param);
+      cost += reprojectionCost<Scalar>(cam == 0 ? rig_.cam0 : rig_.cam1, q,
+                                       cam == 0 ? obs.uv0 : obs.uv1, noise_);
+    }
+  }
+  for (const NfrFactor& f : lm.nfr) cost += nfrCost(f, &lm);
+  return cost;
+}
+
+template <typename Scalar>
+Blanket<Scalar> Window<Scalar>::nfrBlanket(const NfrFactor& f, const Landmark* lm,
+                                           bool at_first_estimates) const {
+  Blanket<Scalar> x(1);
+  x[0].kind = f.kind;
+  if (f.kind == BlanketKind::kPose) {
+    x[0].T_w_i = at_first_estimates ? jacobianPoseOf(f.frame) : poseOf(f.frame);
+  } else {
+    const Frame& frame = frames.at(f.frame);
+    const Vec9S sb =
+        at_first_estimates && frame.speed_bias_linearized ? frame.speed_bias_lin : frame.speed_bias;
+    x[0].value = f.kind == BlanketKind::kVelocity ? VecX<Scalar>(sb.template head<3>())
+                                                  : VecX<Scalar>(sb.template tail<6>());
+  }
+  if (lm != nullptr) {
+    x.push_back({BlanketKind::kLandmark, kPoseDim, SE3S(),
+                 at_first_estimates ? lm->jacobianPoint() : lm->param});
+  }
+  return x;
+}
+
+template <typename Scalar>
+Scalar Window<Scalar>::nfrCost(const NfrFactor& f, const Landmark* lm) const {
+  return Scalar(0.5) * f.factor.whitenedResidual(nfrBlanket(f, lm, false)).squaredNorm();
+}
+
+template <typename Scalar>
+RowBlock<Scalar> Window<Scalar>::linearizeNfr(const NfrFactor& f, int64_t track_id,
+                                              const Landmark* lm) const {
+  // Residual at the current state, Jacobian at the first estimates, as every other residual.
+  RowBlock<Scalar> out;
+  MatX<Scalar> J_f;
+  f.factor.whitenedResidual(nfrBlanket(f, lm, true), &J_f);
+  out.r = f.factor.whitenedResidual(nfrBlanket(f, lm, false));
+  out.vars.push_back({f.var(), 0});
+  if (f.kind == BlanketKind::kPose) {
+    if (lm != nullptr) out.vars.push_back({{track_id, StateBlock::kLandmark}, kPoseDim});
+    out.J = J_f;
+    return out;
+  }
+  // A velocity or bias factor: its columns within the speed-bias block [v; b_g; b_a].
+  out.J.setZero(J_f.rows(), kSpeedBiasDim);
+  out.J.middleCols(f.kind == BlanketKind::kVelocity ? 0 : 3, J_f.cols()) = J_f;
+  return out;
+}
+
+template <typename Scalar>
+Scalar Window<Scalar>::linkCost(int64_t from, const ImuLink& link) const {
+  const ImuState<Scalar> s_i = stateOf(from, false);
+  const ImuState<Scalar> s_j = stateOf(link.to, false);
+  return Scalar(0.5) *
+         (link.factor.whitenedResidual(s_i, s_j).squaredNorm() +
+          biasRandomWalkResidual<Scalar>(s_i, s_j, link.dt_s, imu_->noise).squaredNorm());
+}
+
+template <typename Scalar>
+Scalar Window<Scalar>::totalCost() const {
+  const RelativePoses rel = relativePoses(false);
+  std::vector<const Landmark*> lms;
+  lms.reserve(landmarks.size());
+  for (const auto& [id, lm] : landmarks) lms.push_back(&lm);
+  std::vector<Scalar> chunk_cost(static_cast<size_t>(pool_->threads()), Scalar(0));
+  pool_->forChunks(lms.size(), [&](size_t begin, size_t end, int chunk) {
+    Scalar sum = 0;
+    for (size_t i = begin; i < end; ++i) sum += landmarkCost(*lms[i], rel);
+    chunk_cost[static_cast<size_t>(chunk)] = sum;
+  });
+  Scalar cost = 0;
+  for (const Scalar c : chunk_cost) cost += c;
+  for (const auto& [from, link] : imu_links) cost += linkCost(from, link);
+  for (const NfrFactor& f : nfr_unary) cost += nfrCost(f, nullptr);
+  if (!prior.empty()) cost += prior.cost(priorDelta(prior));
+  return cost;
+}
+
+template <typename Scalar>
+void Window<Scalar>::observationRows(const Landmark& lm, const std::set<int64_t>& system_frames,
+                                     const RelativePoses& rel,
+                                     std::vector<ReprojectionRows<Scalar>>* rows,
+                                     Scalar* cost) const {
+  const Vec3S p_w_jac = lm.world() ? lm.jacobianPoint() : Vec3S::Zero();
+  for (const auto& [frame_id, obs] : lm.obs) {
+    if (system_frames.count(frame_id) == 0) continue;
+    const bool in_host = frame_id == lm.host;
+    BodyPoint<Scalar> body;
+    if (lm.world()) body = worldBodyPoint<Scalar>(jacobianPoseOf(frame_id), poseOf(frame_id),
+                                                  p_w_jac, lm.param);
+    for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
+      size_t k_rel = 0;
+      TargetPoint<Scalar> point;
+      if (lm.world()) {
+        point = worldTargetPoint<Scalar>(T_c_i_[cam], body);
+      } else {
+        k_rel = rel.index(lm.host, frame_id, cam);
+        point = hostedTargetPoint<Scalar>(rel.T_ct_h_jac[k_rel], rel.T_ct_h[k_rel], lm.param);
+      }
+      ReprojectionRows<Scalar> row;
+      if (!linearizeReprojection<Scalar>(cam == 0 ? rig_.cam0 : rig_.cam1, point,
+                                         cam == 0 ? obs.uv0 : obs.uv1, noise_, &row, cost)) {
+        continue;
+      }
+      row.target = in_host ? -1 : frame_id;
+      if (!lm.world() && !in_host) {
+        // Through the relative pose onto the host and target increments.
+        const Mat<Scalar, 2, 6> D_r_T = row.J_t;
+        row.J_h = D_r_T * rel.D_rel_h[k_rel];
+        row.J_t = D_r_T * rel.D_rel_t[k_rel];
+      }
+      rows->push_back(row);
+    }
+  }
+}
+
+template <typename Scalar>
+bool Window<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm,
+                                       const std::set<int64_t>& system_frames,
+                                       const RelativePoses& rel, LandmarkJacobians<Scalar>* out,
+                                       bool with_nfr, int min_rows) const {
+  // Scratch reused across calls (no allocation per landmark once warm); one per thread.
+  thread_local std::vector<ReprojectionRows<Scalar>> rows;
+  thread_local std::vector<PoseLandmarkRows<Scalar>> extra;
+  rows.clear();
+  extra.clear();
+  out->cost = 0;
+  observationRows(lm, system_frames, rel, &rows, &out->cost);
+  Eigen::Index m = 2 * static_cast<Eigen::Index>(rows.size());
+  for (const NfrFactor& f : lm.nfr) {
+    if (!with_nfr || system_frames.count(f.frame) == 0) continue;
+    RowBlock<Scalar> block = linearizeNfr(f, track_id, &lm);
+    out->cost += Scalar(0.5) * block.r.squaredNorm();
+    m += block.r.size();
+    extra.push_back({f.frame, std::move(block.J), std::move(block.r)});
+  }
+  if (m < min_rows) return false;
+  stackLandmarkRows<Scalar>(track_id, lm.host, rows, extra, out);
+  return true;
+}
+
+template <typename Scalar>
+bool Window<Scalar>::landmarkRows(int64_t track_id, const std::set<int64_t>& system_frames,
+                                  const RelativePoses& rel, bool with_nfr,
+                                  RowBlock<Scalar>* out) const {
+  LandmarkJacobians<Scalar> lin;
+  if (!linearizeLandmark(track_id, landmarks.at(track_id), system_frames, rel, &lin, with_nfr,
+                         1)) {
+    return false;
+  }
+  out->vars.clear();
+  for (size_t i = 0; i < lin.frames.size(); ++i) {
+    out->vars.push_back({{lin.frames[i], StateBlock::kPose}, kPoseDim * static_cast<int>(i)});
+  }
+  const Eigen::Index n_p = lin.J_p.cols();
+  out->vars.push_back({{track_id, StateBlock::kLandmark}, static_cast<int>(n_p)});
+  out->J.resize(lin.r.size(), n_p + kPointDim);
+  out->J << lin.J_p, lin.J_l;
+  out->r = std::move(lin.r);
+  return true;
+}
+
+template <typename Scalar>
+std::vector<RowBlock<Scalar>> Window<Scalar>::directRows(const std::set<int64_t>& system_frames,
+                                                         const RelativePoses& rel) const {
+  std::vector<RowBlock<Scalar>> out;
+  for (int64_t track : priorLandmarks()) {
+    RowBlock<Scalar> rows;
+    if (landmarkRows(track, system_frames, rel, true, &rows)) out.push_back(std::move(rows));
+  }
+  for (const NfrFactor& f : nfr_unary) out.push_back(linearizeNfr(f, -1, nullptr));
+  return out;
+}
+
+template <typename Scalar>
+LinkLinearized<Scalar> Window<Scalar>::linearizeLink(int64_t from, const ImuLink& link) const {
+  LinkLinearized<Scalar> out;
+  out.from = from;
+  out.to = link.to;
+  const ImuState<Scalar> s_i = stateOf(from, false), s_j = stateOf(link.to, false);
+  const ImuState<Scalar> s_i_jac = stateOf(from, true), s_j_jac = stateOf(link.to, true);
+  typename ImuFactor<Scalar>::Jacobian J_imu;
+  Mat<Scalar, 6, 30> J_rw;
+  link.factor.whitenedResidual(s_i_jac, s_j_jac, &J_imu);
+  biasRandomWalkResidual<Scalar>(s_i_jac, s_j_jac, link.dt_s, imu_->noise, &J_rw);
+  out.J.template topRows<9>() = J_imu;
+  out.J.template bottomRows<6>() = J_rw;
+  out.r.template head<9>() = link.factor.whitenedResidual(s_i, s_j);
+  out.r.template tail<6>() = biasRandomWalkResidual<Scalar>(s_i, s_j, link.dt_s, imu_->noise);
+  return out;
+}
+
+template <typename Scalar>
+typename Window<Scalar>::ImuLink Window<Scalar>::makeImuLink(int64_t from, int64_t to,
+                                                             const Eigen::Vector3d& b_g,
+                                                             const Eigen::Vector3d& b_a) const {
+  const ImuPreintegration<double> pre = preintegrate<double>(
+      imu_->imu, frames.at(from).t_ns, frames.at(to).t_ns, b_g, b_a,
+      ImuSampleNoise<double>::fromDensities(imu_->noise, imu_->sample_period_s));
+  return ImuLink{to, ImuFactor<Scalar>(pre.template cast<Scalar>(), g_w_),
+                 static_cast<Scalar>(pre.durationSeconds())};
+}
+
+template <typename Scalar>
+void Window<Scalar>::dropMarginalizedFactors(const MargPlan& plan) {
+  for (const auto& [track, frame] : plan.kept_landmark_obs) {
+    landmarks.at(track).obs.erase(frame);
+  }
+  // Recovered factors on marginalized variables are in the prior now.
+  auto in_plan = [&plan](const NfrFactor& f) {
+    return plan.vars.count(f.var()) != 0;
+  };
+  nfr_unary.erase(std::remove_if(nfr_unary.begin(), nfr_unary.end(), in_plan), nfr_unary.end());
+  for (auto& [id, lm] : landmarks) {
+    lm.nfr.erase(std::remove_if(lm.nfr.begin(), lm.nfr.end(), in_plan), lm.nfr.end());
+  }
+}
+
+template <typename Scalar>
+void Window<Scalar>::fixFirstEstimates() {
+  for (const auto& block : prior.blocks) {
+    if (block.var.block == StateBlock::kLandmark) {
+      Landmark& lm = landmarks.at(block.var.frame_id);
+      if (!lm.linearized) {
+        lm.linearized = true;
+        lm.param_lin = lm.param;
+      }
+      continue;
+    }
+    Frame& frame = frames.at(block.var.frame_id);
+    if (block.var.block == StateBlock::kPose && !frame.linearized) {
+      frame.linearized = true;
+      frame.T_w_i_lin = frame.T_w_i;
+    } else if (block.var.block == StateBlock::kSpeedBias && !frame.speed_bias_linearized) {
+      frame.speed_bias_linearized = true;
+      frame.speed_bias_lin = frame.speed_bias;
+    }
+  }
+}
+
+template <typename Scalar>
+void Window<Scalar>::removeMarginalized(const MargPlan& plan) {
+  for (int64_t id : plan.landmarks) landmarks.erase(id);
+  for (int64_t from : plan.imu_links) imu_links.erase(from);
+  for (const VarKey& var : plan.vars) {
+    if (var.block == StateBlock::kLandmark) {
+      landmarks.erase(var.frame_id);
+    } else if (var.block == StateBlock::kPose) {
+      frames.erase(var.frame_id);
+    } else if (auto it = frames.find(var.frame_id); it != frames.end()) {
+      it->second.has_speed_bias = false;
+      it->second.speed_bias_linearized = false;
+    }
+  }
+}
+
+#define MARGLAB_INST(S)                  \
+  template struct LinkLinearized<S>;     \
+  template class Window<S>;
+MARGLAB_INSTANTIATE(MARGLAB_INST)
+#undef MARGLAB_INST
+
+}  // namespace marglab
