@@ -18,7 +18,7 @@
 #include "core/bench/perf_suite.h"
 #include "core/bench/window_kernels.h"
 #include "core/common/error.h"
-#include "core/estimator/run.h"
+#include "core/pipeline/run.h"
 #include "core/io/results_file.h"
 #include "core/linalg/landmark_block.h"
 #include "marglab/version.h"
@@ -160,20 +160,22 @@ BenchReport runBench(const BenchOptions& o) {
     const WindowSnapshot& w = nw.window;
     WindowTimes t;
     t.name = nw.name;
-    // LM iteration, four variants side by side.
+    // LM iteration, five variants side by side (the mixed one is not a paper variant).
     WindowKernels<float> ns32(w, Variant::parse("ns-qr-sqrt-f32")),
         sc32(w, Variant::parse("sc-sc-sq-f32"));
     WindowKernels<double> ns64(w, Variant::parse("ns-qr-sqrt-f64")),
-        sc64(w, Variant::parse("sc-sc-sq-f64"));
+        sc64(w, Variant::parse("sc-sc-sq-f64")), nsmix(w, Variant::parse("ns-qr-sqrt-mixed"));
     ns32.linearize();
     t.landmarks = ns32.numLandmarkBlocks();
     std::vector<double> it =
-        timeSideBySide({iterationOf(ns32), iterationOf(ns64), iterationOf(sc32), iterationOf(sc64)},
+        timeSideBySide({iterationOf(ns32), iterationOf(ns64), iterationOf(sc32), iterationOf(sc64),
+                        iterationOf(nsmix)},
                        o.rounds, o.batch_s);
     t.ns_f32 = it[0];
     t.ns_f64 = it[1];
     t.sc_f32 = it[2];
     t.sc_f64 = it[3];
+    t.ns_mixed = it[4];
     // Marginalization, qr vs sc (square-root storage), side by side.
     WindowKernels<float> mq32(w, Variant::parse("ns-qr-sqrt-f32")),
         ms32(w, Variant::parse("ns-sc-sqrt-f32"));
@@ -277,19 +279,21 @@ std::string benchMarkdown(const BenchReport& r) {
       "best of {} rounds, candidates interleaved\n\n",
       r.date_utc, r.git_sha, r.cpu, r.load_before, r.load_after, r.rounds);
   s += "## One LM iteration on the captured windows (linearize + eliminate + solve), µs\n\n";
-  s += "| window | landmarks | ns-f32 | ns-f64 | sc-f32 | sc-f64 | sc-f64 / ns-f32 |\n"
-       "|---|---:|---:|---:|---:|---:|---:|\n";
+  s += "| window | landmarks | ns-f32 | ns-f64 | sc-f32 | sc-f64 | ns-mixed | sc-f64 / ns-f32 |\n"
+       "|---|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const auto& t : r.windows) {
-    s += fmt::format("| {} | {} | {} | {} | {} | {} | {:.2f} |\n", t.name, t.landmarks,
-                     us(t.ns_f32), us(t.ns_f64), us(t.sc_f32), us(t.sc_f64), t.sc_f64 / t.ns_f32);
+    s += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {:.2f} |\n", t.name, t.landmarks,
+                     us(t.ns_f32), us(t.ns_f64), us(t.sc_f32), us(t.sc_f64), us(t.ns_mixed),
+                     t.sc_f64 / t.ns_f32);
   }
-  s += fmt::format("| **all** | | {} | {} | {} | {} | **{:.2f}** |\n\n",
+  s += fmt::format("| **all** | | {} | {} | {} | {} | {} | **{:.2f}** |\n\n",
                    us(sum(r.windows, &WindowTimes::ns_f32)),
                    us(sum(r.windows, &WindowTimes::ns_f64)),
                    us(sum(r.windows, &WindowTimes::sc_f32)),
-                   us(sum(r.windows, &WindowTimes::sc_f64)), r.speedup_ns_f32_over_sc_f64);
+                   us(sum(r.windows, &WindowTimes::sc_f64)),
+                   us(sum(r.windows, &WindowTimes::ns_mixed)), r.speedup_ns_f32_over_sc_f64);
   s += "ns = ns-qr-sqrt (nullspace projection), sc = sc-sc-sq (Schur complement, Hessian "
-       "prior).\n\n";
+       "prior), ns-mixed = ns-qr-sqrt-mixed (landmarks eliminated in f32, the rest in f64).\n\n";
   s += "## To convergence, f64, the window's LM settings: marglab ns-qr-sqrt-f64 vs Ceres\n\n";
   s += "| window | marglab it | ms | µs/it | DENSE_SCHUR it | ms | µs/it | SPARSE_SCHUR it | ms | "
        "µs/it | dense/marglab per it | final cost marglab / dense / sparse |\n"
@@ -397,10 +401,12 @@ std::string benchJson(const BenchReport& r) {
     }
     if (run.dataset == "kitti/00") rtf_kitti = run.realtime_factor;
   }
-  double it_ns32 = 0, it_sc64 = 0;
+  double it_ns32 = 0, it_sc64 = 0, it_ns64 = 0, it_mixed = 0;
   for (const auto& t : r.windows) {
     it_ns32 += t.ns_f32;
     it_sc64 += t.sc_f64;
+    it_ns64 += t.ns_f64;
+    it_mixed += t.ns_mixed;
   }
   return fmt::format(
       "{{\"speedup_ns_f32_over_sc_f64\": {}, \"speedup_over_ceres_dense_schur\": {}, "
@@ -409,7 +415,7 @@ std::string benchJson(const BenchReport& r) {
       "\"peak_gflops_f64\": {}, \"peak_isa\": \"{}\", \"realtime_factor_euroc_mh01\": {}, "
       "\"realtime_factor_kitti00\": {}, \"peak_rss_mb_euroc_mh01\": {}, \"run_frames\": {}, "
       "\"run_frames_note\": \"{}\", \"lm_iteration_us_ns_f32\": {}, \"lm_iteration_us_sc_f64\": "
-      "{}, "
+      "{}, \"lm_iteration_us_ns_f64\": {}, \"lm_iteration_us_ns_mixed\": {}, "
       "\"windows\": {}, \"rounds\": {}, \"load_before\": \"{}\", \"load_after\": \"{}\", "
       "\"git\": \"{}\", \"date\": \"{}\"}}",
       num(r.speedup_ns_f32_over_sc_f64), num(r.speedup_over_ceres_dense_schur),
@@ -420,7 +426,8 @@ std::string benchJson(const BenchReport& r) {
           ? "no whole runs"
           : (r.run_frames > 0 ? fmt::format("whole-run RTFs over the first {} frames", r.run_frames)
                               : std::string("whole sequences")),
-      num(it_ns32 * 1e6), num(it_sc64 * 1e6), r.windows.size(), r.rounds, r.load_before,
+      num(it_ns32 * 1e6), num(it_sc64 * 1e6), num(it_ns64 * 1e6), num(it_mixed * 1e6),
+      r.windows.size(), r.rounds, r.load_before,
       r.load_after, r.git_sha, r.date_utc);
 }
 

@@ -26,7 +26,7 @@ struct WindowTimes {
   std::string name;
   int landmarks = 0;
   // LM iteration (linearize + eliminate + solve), seconds.
-  double ns_f32 = 0, ns_f64 = 0, sc_f32 = 0, sc_f64 = 0;
+  double ns_f32 = 0, ns_f64 = 0, sc_f32 = 0, sc_f64 = 0, ns_mixed = 0;
   // To convergence with the window's LM settings, f64 (FEJ as captured).
   int marglab_iterations = 0, dense_iterations = 0, sparse_iterations = 0;
   double marglab_s = 0, dense_s = 0, sparse_s = 0;

@@ -397,6 +397,9 @@ std::vector<std::string> expandVariantEntry(const std::string& entry) {
     for (const Variant& v : paperVariants()) out.push_back(v.name());
   } else if (entry == "headline") {
     out = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64", "sc-sc-sq-f32"};
+  } else if (entry == "precision") {
+    // The square-root method in every precision, mixed included (not a paper column).
+    out = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "ns-qr-sqrt-mixed"};
   } else if (entry == "ablation") {
     for (const char* method : {"ns-qr-sqrt", "sc-qr-sqrt", "ns-sc-sqrt", "sc-sc-sqrt"}) {
       for (const char* precision : {"f64", "f32"}) {
@@ -407,7 +410,7 @@ std::vector<std::string> expandVariantEntry(const std::string& entry) {
     try {
       out.push_back(Variant::parse(entry).name());
     } catch (const UsageError& e) {
-      throw UsageError(fmt::format("{} (or a set: paper, headline, ablation)", e.what()));
+      throw UsageError(fmt::format("{} (or a set: paper, headline, ablation, precision)", e.what()));
     }
   }
   return out;

@@ -207,7 +207,7 @@ class Runner {
       row.set("variant", run.variant);
       const Variant v = Variant::parse(run.variant);
       row.set("method", v.method());
-      row.set("precision", v.precision == Precision::kF32 ? "f32" : "f64");
+      row.set("precision", v.precisionName());
       row.set("seed", std::to_string(run.seed));
       row.set("frames", std::to_string(run.frames));
       row.set("override", run.override_name);

@@ -3,14 +3,16 @@
 // read by eigdump / tables / plots through ResultsReader, and from Python with h5py or pandas
 // (tools/scripts/check_results.py validates a file independently).
 //
-// Schema, schema_version = 1 (all times in seconds unless the name ends in _ns; t_ns are int64
-// nanoseconds of the dataset clock; positions in metres, world frame of the estimate / GT):
+// Schema, schema_version = 2 (all times in seconds unless the name ends in _ns; t_ns are int64
+// nanoseconds of the dataset clock; positions in metres, world frame of the estimate / GT).
+// Version 2 added /sparsify, the marg_strategy attribute and precision "mixed"; files of version 1
+// are read as runs with marg_strategy discard and no /sparsify rows.
 //
 // /  attributes
-//   schema_version  int64   1
+//   schema_version  int64   2
 //   marglab_version str     MARGLAB_VERSION_STRING;  git_sha str  MARGLAB_GIT_SHA (build time)
 //   created_utc     str     ISO-8601, e.g. "2024-05-01T12:34:56Z"
-//   dataset, sequence, variant, precision ("f32"|"f64"), mode ("vo"|"vio")   str
+//   dataset, sequence, variant, precision ("f32"|"f64"|"mixed"), mode ("vo"|"vio")   str
 //   seed            int64   simulation seed (bit pattern of the uint64)
 //   config_toml     str     the full effective estimator config (TOML)
 //   qr_threshold_mode str ("absolute"|"relative"|""), qr_threshold f64 (the value used, NaN: n/a)
@@ -85,13 +87,13 @@
 
 namespace marglab {
 
-inline constexpr int kResultsSchemaVersion = 1;
+inline constexpr int kResultsSchemaVersion = 2;
 
 struct RunMetadata {
   std::string dataset;    // "euroc"
   std::string sequence;   // "MH_01_easy"
   std::string variant;    // "ns-qr-sqrt-f32"
-  std::string precision;  // "f32" | "f64"
+  std::string precision;  // "f32" | "f64" | "mixed"
   std::string mode;       // "vo" | "vio"
   std::uint64_t seed = 0;
   std::string config_toml;
