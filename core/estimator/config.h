@@ -1,7 +1,7 @@
 #pragma once
-// Every number of the estimator (DESIGN §3), in one struct, readable from and writable to TOML.
-// Precedence: defaults < config file < command line. The full effective config is written into
-// every results file (attribute config_toml), so a run can be repeated from its file.
+// Every number of the estimator (docs/design.md §3), in one struct, readable from and writable to
+// TOML. Precedence: defaults < config file < command line. The full effective config is written
+// into every results file (attribute config_toml), so a run can be repeated from its file.
 //
 // TOML layout (all keys optional; unknown keys are errors):
 //   [window]        max_kfs, max_states
