@@ -1,5 +1,5 @@
 // `marglab eigdump RUN.h5 [--marg K | --all] [--csv] [--matrix]`: the spectrum of the
-// marginalization priors stored in a results file (DESIGN §6, /marg and /marg/eigenvalues).
+// marginalization priors stored in a results file (docs/design.md §6, /marg and /marg/eigenvalues).
 //
 // Default event: the last one (the prior the run ended with). K counts from 0; a negative K counts
 // from the end (−1 = last). --csv prints "marg_index,eig_index,value" rows (full precision);

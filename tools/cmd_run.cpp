@@ -14,6 +14,7 @@
 #include "core/data/sequence.h"
 #include "core/pipeline/run.h"
 #include "tools/command.h"
+#include "tools/option_checks.h"
 
 namespace marglab {
 namespace {
@@ -63,20 +64,41 @@ int runRun(const RunArgs& args) {
   options.inject_nan_frame = args.inject_nan_frame;
   options.dump_windows = args.dump_windows;
   options.dump_dir = args.dump_dir;
+  // Defaults < --config < options; each option records itself as the origin of its key, so that
+  // validate() names the option (usage error) or the file and line (input error).
+  EstimatorConfig& config = options.config;
+  if (!args.config_file.empty()) config.loadToml(args.config_file);
+  if (!args.qr_threshold_mode.empty()) {
+    if (!parseRankThresholdMode(args.qr_threshold_mode, &config.qr_threshold_mode)) {
+      throw UsageError("--qr-threshold-mode must be absolute or relative");
+    }
+    config.setOrigin("marginalization.qr_threshold_mode", "--qr-threshold-mode");
+  }
+  if (args.qr_threshold) {
+    config.qr_threshold = *args.qr_threshold;
+    config.setOrigin("marginalization.qr_threshold", "--qr-threshold");
+  }
+  if (args.no_diagnostics) {
+    config.diagnostics = false;
+    config.setOrigin("diagnostics.enabled", "--no-diagnostics");
+  }
+  if (args.store_prior_every) {
+    config.store_prior_every = *args.store_prior_every;
+    config.setOrigin("diagnostics.store_prior_every", "--store-prior-every");
+  }
+  if (args.threads) {
+    config.lm_threads = *args.threads;
+    config.setOrigin("lm.threads", "--threads");
+  }
+  if (!args.marg_strategy.empty()) {
+    if (!parseMargStrategy(args.marg_strategy, &config.marg_strategy)) {
+      throw UsageError("--marg-strategy must be discard, dense or nfr");
+    }
+    config.setOrigin("marginalization.strategy", "--marg-strategy");
+  }
+  // A meaningless setting is refused here, never reported as a numerical failure of the run.
+  config.validate();
   if (!options.dump_windows.empty()) std::filesystem::create_directories(options.dump_dir);
-  if (!args.config_file.empty()) options.config.loadToml(args.config_file);
-  if (!args.qr_threshold_mode.empty() &&
-      !parseRankThresholdMode(args.qr_threshold_mode, &options.config.qr_threshold_mode)) {
-    throw UsageError("--qr-threshold-mode must be absolute or relative");
-  }
-  if (args.qr_threshold) options.config.qr_threshold = *args.qr_threshold;
-  if (args.no_diagnostics) options.config.diagnostics = false;
-  if (args.store_prior_every) options.config.store_prior_every = *args.store_prior_every;
-  if (args.threads) options.config.lm_threads = *args.threads;
-  if (!args.marg_strategy.empty() &&
-      !parseMargStrategy(args.marg_strategy, &options.config.marg_strategy)) {
-    throw UsageError("--marg-strategy must be discard, dense or nfr");
-  }
 
   const auto start = std::chrono::steady_clock::now();
   const bool terminal = cli::stderrIsTerminal();
@@ -139,20 +161,25 @@ const bool kRegistered = cli::registerCommand(
            ->capture_default_str();
        sub.add_option("--frames", args->frames, "Process only the first N frames (0: all)")
            ->capture_default_str()
-           ->check(CLI::NonNegativeNumber);
-       sub.add_option("--seed", args->seed, "Seed of the simulated world, tracks and noise")
-           ->capture_default_str();
+           ->check(cli::nonNegativeInt("the number of frames (0: all)"));
+       sub.add_option("--seed", args->seed,
+                      "Seed of the simulated world, tracks and noise, in [0, 2^64 - 1]")
+           ->capture_default_str()
+           ->check(cli::seedRange());
        sub.add_option("--config", args->config_file, "Estimator config (TOML), see README")
            ->check(CLI::ExistingFile);
        sub.add_option("-o,--output", args->output, "Results file (HDF5)")->required();
        sub.add_option("--qr-threshold-mode", args->qr_threshold_mode,
-                      "Flat-QR rank threshold: absolute (default) or relative");
+                      "Flat-QR rank threshold: absolute (default) or relative")
+           ->check(CLI::IsMember({"absolute", "relative"}));
        sub.add_option("--qr-threshold", args->qr_threshold,
-                      "Flat-QR rank threshold value (default: sqrt(eps) of the precision)");
+                      "Flat-QR rank threshold value, >= 0, below 1 when relative (default -1: "
+                      "sqrt(eps) of the precision)")
+           ->check(cli::configKeyRange("marginalization.qr_threshold"));
        sub.add_option("--threads", args->threads,
-                      "Threads of the LM loop over landmark blocks (default 1 = lm.threads: "
-                      "timings comparable between variants)")
-           ->check(CLI::PositiveNumber);
+                      "Threads of the LM loop over landmark blocks, 1 to 256 (default 1 = "
+                      "lm.threads: timings comparable between variants)")
+           ->check(cli::configKeyRange("lm.threads"));
        sub.add_option("--marg-strategy", args->marg_strategy,
                       "Keyframe marginalization (VIO): discard (default, OKVIS/VINS-Mono), dense "
                       "(landmarks stay, dense prior) or nfr (dense prior sparsified by nonlinear "
@@ -162,7 +189,8 @@ const bool kRegistered = cli::registerCommand(
                     "Skip the shadow prior and its eigenvalues");
        sub.add_option("--store-prior-every", args->store_prior_every,
                       "Store the full prior of every k-th marginalization (0: none; default 25) "
-                      "for `eigdump --matrix`");
+                      "for `eigdump --matrix`")
+           ->check(cli::configKeyRange("diagnostics.store_prior_every"));
        sub.add_option(
               "--dump-windows", args->dump_windows,
               "Capture the windows of these frames (comma-separated 0-based indices) before "

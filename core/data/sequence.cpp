@@ -38,7 +38,7 @@ namespace {
 constexpr const char* kDatasetFolders[] = {"euroc", "tumvi", "kitti"};
 constexpr double kNominalImuRateHz = 200.0;
 constexpr double kImuRateTolerance = 0.1;
-// ATE association skips frames whose neighbouring GT samples are further apart (DESIGN §4).
+// ATE association skips frames whose neighbouring GT samples are further apart (docs/design.md §4).
 constexpr double kGtGapNoteS = 0.11;
 
 bool isDir(const fs::path& p) {

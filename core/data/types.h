@@ -84,7 +84,7 @@ struct StereoCalib {
 enum class DatasetKind { kEuroc, kTumvi, kKitti };
 const char* datasetKindName(DatasetKind kind);  // "euroc", "tumvi", "kitti"
 
-// Estimator defaults that depend on the dataset (DESIGN §3–5).
+// Estimator defaults that depend on the dataset (docs/design.md §3–5).
 struct DatasetDefaults {
   double grid_cell_px;          // feature detection grid: 50 px EuRoC/TUM-VI, 30 px KITTI
   double max_position_error_m;  // failure bound on position error: 5 m indoor, 100 m KITTI

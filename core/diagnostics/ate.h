@@ -1,6 +1,6 @@
 #pragma once
-// Absolute trajectory error (DESIGN §4): association with ground truth, rigid alignment without
-// scale, RMSE, and TUM-format export.
+// Absolute trajectory error (docs/design.md §4): association with ground truth, rigid alignment
+// without scale, RMSE, and TUM-format export.
 //
 // Association. Each estimated position (t, p) is paired with the ground-truth position at t,
 // linearly interpolated between the GT samples t_k ≤ t ≤ t_{k+1}:

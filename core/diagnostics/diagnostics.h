@@ -1,5 +1,5 @@
 #pragma once
-// All per-marginalization diagnostics of DESIGN §4 in one call: the spectrum of H_m
+// All per-marginalization diagnostics of docs/design.md §4 in one call: the spectrum of H_m
 // (prior_analysis.h) and ΔE_m along the 7 gauge test directions (gauge.h, eq. 27), in double.
 // The estimator converts its prior to double first: squared storage passes (H_m, b_m) as stored,
 // square-root storage passes (J_m, r_m) and H_m = J_mᵀJ_m, b_m = J_mᵀr_m are formed here.

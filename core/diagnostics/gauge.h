@@ -1,13 +1,13 @@
 #pragma once
 // Gauge test directions of a marginalization prior and the prior cost change along them
-// (DESIGN §4, paper §5.2 eq. 27).
+// (docs/design.md §4, paper §5.2 eq. 27).
 //
 // Why these directions. Visual and inertial residuals do not change when the whole window is moved
 // by a rigid transform of the world frame: reprojections depend on relative poses only, so VO has
 // a 6-dof gauge (translation, rotation); with an IMU gravity g_w fixes roll and pitch, leaving the
 // 4-dof gauge x, y, z, yaw (yaw = rotation about the gravity axis z). A prior marginalized from
-// such residuals (without the initial gauge prior, i.e. the "shadow" prior of DESIGN §3) must
-// therefore have these directions in its nullspace: ΔE_m ≈ 0 along them. A squared f32 prior
+// such residuals (without the initial gauge prior, i.e. the "shadow" prior of docs/design.md §3)
+// must therefore have these directions in its nullspace: ΔE_m ≈ 0 along them. A squared f32 prior
 // loses this (paper Figs. 4–6): ΔE_m grows along the gauge directions.
 //
 // Layout. The prior's columns are blocks (PriorVariable): a pose δ = [δt; δφ] (6, the ⊞ increment

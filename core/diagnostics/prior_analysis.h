@@ -1,5 +1,5 @@
 #pragma once
-// Spectrum of a marginalization prior (DESIGN §4, paper §5.2, Figs. 1, 4–6).
+// Spectrum of a marginalization prior (docs/design.md §4, paper §5.2, Figs. 1, 4–6).
 //
 // The prior of the sliding window is E_m(x⁰ + Δx) = const + b_mᵀΔx + ½ ΔxᵀH_mΔx with
 //   squared storage      (H_m, b_m) as stored (eq. 3),

@@ -1,18 +1,84 @@
 #include "core/estimator/config.h"
 
 #include <fmt/core.h>
+#include <fmt/format.h>
 
 #include <toml++/toml.h>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <initializer_list>
 #include <limits>
+#include <optional>
 #include <sstream>
+#include <stdexcept>
 
 #include "core/common/error.h"
 
 namespace marglab {
 namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// The accepted values of a numeric key: a finite number in [lo, hi] (either end open or
+// unbounded), or exactly `sentinel` (e.g. −1 for "dataset default").
+struct Rule {
+  double lo = -kInf;
+  double hi = kInf;
+  bool lo_open = false;
+  bool hi_open = false;
+  bool has_sentinel = false;
+  double sentinel = 0;
+  const char* sentinel_meaning = nullptr;
+};
+
+Rule atLeast(double lo) { return Rule{lo}; }
+Rule above(double lo) { return Rule{lo, kInf, true}; }
+Rule between(double lo, double hi) { return Rule{lo, hi}; }
+Rule orSentinel(Rule rule, double sentinel, const char* meaning) {
+  rule.has_sentinel = true;
+  rule.sentinel = sentinel;
+  rule.sentinel_meaning = meaning;
+  return rule;
+}
+
+bool accepts(const Rule& rule, double v) {
+  if (rule.has_sentinel && v == rule.sentinel) return true;
+  if (!std::isfinite(v)) return false;
+  if (rule.lo_open ? v <= rule.lo : v < rule.lo) return false;
+  if (rule.hi_open ? v >= rule.hi : v > rule.hi) return false;
+  return true;
+}
+
+std::string number(double v, bool integer) {
+  if (integer && std::isfinite(v) && std::abs(v) < 9.2e18) {
+    return std::to_string(static_cast<std::int64_t>(v));
+  }
+  return fmt::format("{}", v);
+}
+
+// "an integer in [1, 1000]", "a finite number > 0", "-1 (dataset default) or ...".
+std::string describe(const Rule& rule, bool integer) {
+  const std::string kind = integer ? "an integer" : "a finite number";
+  std::string text;
+  if (std::isfinite(rule.lo) && std::isfinite(rule.hi)) {
+    text = fmt::format("{} in {}{}, {}{}", kind, rule.lo_open ? "(" : "[", number(rule.lo, integer),
+                       number(rule.hi, integer), rule.hi_open ? ")" : "]");
+  } else if (std::isfinite(rule.lo)) {
+    text = fmt::format("{} {} {}", kind, rule.lo_open ? ">" : ">=", number(rule.lo, integer));
+  } else if (std::isfinite(rule.hi)) {
+    text = fmt::format("{} {} {}", kind, rule.hi_open ? "<" : "<=", number(rule.hi, integer));
+  } else {
+    text = kind;
+  }
+  if (rule.has_sentinel) {
+    text =
+        fmt::format("{} ({}) or {}", number(rule.sentinel, integer), rule.sentinel_meaning, text);
+  }
+  return text;
+}
 
 // One TOML key bound to a config field.
 struct Binding {
@@ -22,11 +88,21 @@ struct Binding {
   int* i = nullptr;
   bool* b = nullptr;
   std::uint64_t* u = nullptr;
-  int min_i = std::numeric_limits<int>::min();  // smallest accepted value of an int key
+  Rule rule = Rule{};  // numeric keys (d, i, u)
   // A key with a fixed set of names (an enum field): parse (false for an unknown name), print.
   std::function<bool(const std::string&)> parse_choice = nullptr;
   std::function<std::string()> print_choice = nullptr;
   const char* choices = nullptr;  // for messages: "\"a\" or \"b\""
+
+  std::string name() const { return std::string(section) + "." + key; }
+  bool numeric() const { return d != nullptr || i != nullptr || u != nullptr; }
+  bool integer() const { return i != nullptr || u != nullptr; }
+  double value() const { return d != nullptr ? *d : i != nullptr ? *i : static_cast<double>(*u); }
+  // "lm.threads = 0: expected an integer in [1, 256]"
+  std::string problem(double v) const {
+    return fmt::format("{} = {}: expected {}", name(), number(v, integer()),
+                       describe(rule, integer()));
+  }
 };
 
 // Binds an enum field with toString(E) / a parser bool(const std::string&, E*).
@@ -39,46 +115,77 @@ Binding choice(const char* section, const char* key, E* field, Parse parse, cons
   return binding;
 }
 
+// The keys and their ranges (docs/design.md §9). The ranges follow what the estimator does with
+// each value: e.g. max_kfs = 0 ended the run in "map::at", λ = 0 never grows (λ ← λν), a zero σ
+// makes the cost non-finite, max_iterations = 0 skips the optimization, and the estimator silently
+// raised max_states < 2 to 2. Upper bounds keep integers from overflowing and the window sane.
 std::vector<Binding> bindings(EstimatorConfig& c) {
   std::vector<Binding> list;
-  auto D = [&](const char* s, const char* k, double* v) { list.push_back({s, k, v}); };
-  auto I = [&](const char* s, const char* k, int* v, int min = std::numeric_limits<int>::min()) {
-    Binding binding{s, k, nullptr, v};
-    binding.min_i = min;
+  auto D = [&](const char* s, const char* k, double* v, Rule rule) {
+    Binding binding{s, k, v};
+    binding.rule = rule;
     list.push_back(binding);
   };
-  D("residuals", "obs_std_px", &c.obs_std_px);
-  I("window", "max_kfs", &c.max_kfs);
-  I("window", "max_states", &c.max_states);
-  D("residuals", "huber_px", &c.huber_px);
-  D("gauge", "prior_weight", &c.gauge_prior_weight);
-  D("gauge", "prior_bias_gyro", &c.gauge_prior_bias_gyro);
-  D("gauge", "prior_bias_accel", &c.gauge_prior_bias_accel);
-  D("keyframes", "connected_ratio", &c.kf_connected_ratio);
-  I("keyframes", "min_frames_after_kf", &c.min_frames_after_kf);
-  D("keyframes", "min_baseline_m", &c.min_baseline_m);
-  D("keyframes", "marg_connected_share", &c.marg_connected_share);
-  I("lm", "max_iterations", &c.lm_max_iterations);
-  D("lm", "lambda_init", &c.lambda_init);
-  D("lm", "lambda_min", &c.lambda_min);
-  D("lm", "lambda_max", &c.lambda_max);
-  D("lm", "stop_relative_cost", &c.stop_relative_cost);
-  D("lm", "stop_max_step", &c.stop_max_step);
-  I("lm", "max_failed_solves", &c.max_failed_solves);
+  auto I = [&](const char* s, const char* k, int* v, Rule rule) {
+    Binding binding{s, k, nullptr, v};
+    binding.rule = rule;
+    list.push_back(binding);
+  };
+  constexpr double kMaxWindow = 1000000;
+  D("residuals", "obs_std_px", &c.obs_std_px, above(0));
+  I("window", "max_kfs", &c.max_kfs, between(1, kMaxWindow));
+  I("window", "max_states", &c.max_states, between(2, kMaxWindow));
+  D("residuals", "huber_px", &c.huber_px, above(0));
+  D("gauge", "prior_weight", &c.gauge_prior_weight, atLeast(0));
+  D("gauge", "prior_bias_gyro", &c.gauge_prior_bias_gyro, atLeast(0));
+  D("gauge", "prior_bias_accel", &c.gauge_prior_bias_accel, atLeast(0));
+  D("keyframes", "connected_ratio", &c.kf_connected_ratio, Rule{0, 1, true});
+  I("keyframes", "min_frames_after_kf", &c.min_frames_after_kf,
+    orSentinel(between(1, kMaxWindow), -1, "dataset default"));
+  D("keyframes", "min_baseline_m", &c.min_baseline_m, atLeast(0));
+  D("keyframes", "marg_connected_share", &c.marg_connected_share, between(0, 1));
+  I("lm", "max_iterations", &c.lm_max_iterations, between(1, 1000));
+  D("lm", "lambda_init", &c.lambda_init, above(0));
+  D("lm", "lambda_min", &c.lambda_min, above(0));
+  D("lm", "lambda_max", &c.lambda_max, above(0));
+  D("lm", "stop_relative_cost", &c.stop_relative_cost, atLeast(0));
+  D("lm", "stop_max_step", &c.stop_max_step, atLeast(0));
+  I("lm", "max_failed_solves", &c.max_failed_solves, between(1, 1000));
   list.push_back({"lm", "landmark_damping", nullptr, nullptr, &c.lm_landmark_damping});
-  I("lm", "threads", &c.lm_threads, 1);
+  I("lm", "threads", &c.lm_threads, between(1, kMaxLmThreads));
   list.push_back(choice("marginalization", "qr_threshold_mode", &c.qr_threshold_mode,
                         parseRankThresholdMode, "\"absolute\" or \"relative\""));
-  D("marginalization", "qr_threshold", &c.qr_threshold);
+  D("marginalization", "qr_threshold", &c.qr_threshold,
+    orSentinel(atLeast(0), -1, "sqrt(eps) of the precision"));
   list.push_back(choice("marginalization", "strategy", &c.marg_strategy, parseMargStrategy,
                         "\"discard\", \"dense\" or \"nfr\""));
   list.push_back(choice("marginalization", "nfr_topology", &c.nfr_topology, parseSparsifyTopology,
                         "\"paper\" or \"joint-states\""));
-  D("failure", "max_position_error_m", &c.max_position_error_m);
+  D("failure", "max_position_error_m", &c.max_position_error_m,
+    orSentinel(above(0), -1, "dataset default"));
   list.push_back({"diagnostics", "enabled", nullptr, nullptr, &c.diagnostics});
-  I("diagnostics", "store_prior_every", &c.store_prior_every);
-  list.push_back({"diagnostics", "seed", nullptr, nullptr, nullptr, &c.diagnostics_seed});
+  I("diagnostics", "store_prior_every", &c.store_prior_every,
+    between(0, std::numeric_limits<int>::max()));
+  Binding seed{"diagnostics", "seed", nullptr, nullptr, nullptr, &c.diagnostics_seed};
+  seed.rule = atLeast(0);  // and a TOML integer, i.e. at most 2^63 − 1
+  list.push_back(seed);
   return list;
+}
+
+// An integer TOML value: exact integers, and floats with an integral value (1e3), as int64.
+std::optional<std::int64_t> integerValue(const toml::node& node, bool* out_of_range) {
+  *out_of_range = false;
+  if (node.is_integer()) return node.value<std::int64_t>();
+  if (const auto f = node.value_exact<double>()) {
+    if (std::isfinite(*f) && std::floor(*f) == *f) {
+      if (std::abs(*f) >= 9.2e18) {
+        *out_of_range = true;
+        return std::nullopt;
+      }
+      return static_cast<std::int64_t>(*f);
+    }
+  }
+  return std::nullopt;
 }
 
 void apply(EstimatorConfig& config, const toml::table& root, const std::string& name) {
@@ -99,30 +206,41 @@ void apply(EstimatorConfig& config, const toml::table& root, const std::string& 
       if (it->d != nullptr) {
         auto v = node.value<double>();
         if (!v) throw error(node, fmt::format("expected a number for {}.{}", section, key));
+        if (!accepts(it->rule, *v)) throw error(node, it->problem(*v));
         *it->d = *v;
-      } else if (it->i != nullptr) {
-        auto v = node.value<int64_t>();
-        if (!v) throw error(node, fmt::format("expected an integer for {}.{}", section, key));
-        if (*v < it->min_i) {
-          throw error(node, fmt::format("expected {}.{} >= {}", section, key, it->min_i));
+      } else if (it->integer()) {
+        bool out_of_range = false;
+        const auto v = integerValue(node, &out_of_range);
+        if (out_of_range) {
+          throw error(node, fmt::format("{} = {}: expected {}", it->name(), *node.value<double>(),
+                                        describe(it->rule, true)));
         }
-        *it->i = static_cast<int>(*v);
+        if (!v) {
+          throw error(node,
+                      fmt::format("expected {} for {}", describe(it->rule, true), it->name()));
+        }
+        // Checked as int64, before narrowing: a value outside the range never wraps.
+        if (!accepts(it->rule, static_cast<double>(*v))) {
+          throw error(
+              node, fmt::format("{} = {}: expected {}", it->name(), *v, describe(it->rule, true)));
+        }
+        if (it->i != nullptr) {
+          *it->i = static_cast<int>(*v);
+        } else {
+          *it->u = static_cast<std::uint64_t>(*v);
+        }
       } else if (it->b != nullptr) {
         auto v = node.value<bool>();
         if (!v) throw error(node, fmt::format("expected true or false for {}.{}", section, key));
         *it->b = *v;
-      } else if (it->u != nullptr) {
-        auto v = node.value<int64_t>();
-        if (!v || *v < 0) {
-          throw error(node, fmt::format("expected a non-negative integer for {}.{}", section, key));
-        }
-        *it->u = static_cast<std::uint64_t>(*v);
       } else {
         auto v = node.value<std::string>();
         if (!v || !it->parse_choice(*v)) {
           throw error(node, fmt::format("expected {} for {}.{}", it->choices, section, key));
         }
       }
+      config.origins[it->name()] =
+          ConfigOrigin{name, static_cast<int>(node.source().begin.line), ""};
     }
   }
 }
@@ -203,6 +321,100 @@ std::string EstimatorConfig::toToml() const {
   std::ostringstream out;
   out << root;
   return out.str();
+}
+
+std::string ConfigOrigin::describe() const {
+  if (!option.empty()) return option;
+  if (file.empty()) return "";
+  return line > 0 ? fmt::format("{}:{}", file, line) : file;
+}
+
+void EstimatorConfig::setOrigin(const std::string& key, const std::string& option) {
+  origins[key] = ConfigOrigin{"", 0, option};
+}
+
+std::vector<ConfigProblem> EstimatorConfig::problems() const {
+  EstimatorConfig copy = *this;
+  std::vector<ConfigProblem> out;
+  for (const Binding& b : bindings(copy)) {
+    if (b.numeric() && !accepts(b.rule, b.value())) out.push_back({b.name(), b.problem(b.value())});
+  }
+  // Relations between keys, when each key is valid on its own.
+  auto valid = [&out](const char* key) {
+    return std::none_of(out.begin(), out.end(),
+                        [key](const ConfigProblem& p) { return p.key == key; });
+  };
+  // The key a relation's message is about: `preferred`, unless only another one was set.
+  auto pick = [this](const std::string& preferred, std::initializer_list<const char*> keys) {
+    if (origins.count(preferred) != 0) return preferred;
+    for (const char* k : keys) {
+      if (origins.count(k) != 0) return std::string(k);
+    }
+    return preferred;
+  };
+  if (valid("lm.lambda_min") && valid("lm.lambda_init") && valid("lm.lambda_max") &&
+      !(lambda_min <= lambda_init && lambda_init <= lambda_max)) {
+    const std::initializer_list<const char*> keys = {"lm.lambda_min", "lm.lambda_init",
+                                                     "lm.lambda_max"};
+    out.push_back({pick(lambda_min > lambda_max ? "lm.lambda_min" : "lm.lambda_init", keys),
+                   fmt::format("lm.lambda_min = {}, lm.lambda_init = {}, lm.lambda_max = {}: "
+                               "expected lambda_min <= lambda_init <= lambda_max",
+                               lambda_min, lambda_init, lambda_max),
+                   {keys.begin(), keys.end()}});
+  }
+  if (valid("marginalization.qr_threshold") && qr_threshold_mode == RankThresholdMode::kRelative &&
+      qr_threshold >= 1) {
+    const std::initializer_list<const char*> keys = {"marginalization.qr_threshold",
+                                                     "marginalization.qr_threshold_mode"};
+    out.push_back({pick("marginalization.qr_threshold", keys),
+                   fmt::format("marginalization.qr_threshold = {} with qr_threshold_mode = "
+                               "\"relative\": expected a relative threshold in [0, 1) (a column "
+                               "counts as dependent when its remaining norm is at most the "
+                               "threshold times its norm, so 1 or more drops every column)",
+                               qr_threshold),
+                   {keys.begin(), keys.end()}});
+  }
+  return out;
+}
+
+void EstimatorConfig::validate() const {
+  const std::vector<ConfigProblem> list = problems();
+  if (list.empty()) return;
+  const ConfigProblem& first = list.front();
+  std::string message = first.message;
+  if (!first.related.empty()) {
+    std::vector<std::string> where;
+    for (const std::string& key : first.related) {
+      const auto it = origins.find(key);
+      where.push_back(key + " from " +
+                      (it == origins.end() ? "the default" : it->second.describe()));
+    }
+    message += fmt::format(" ({})", fmt::join(where, ", "));
+  }
+  const auto it = origins.find(first.key);
+  if (it == origins.end()) throw InputError("config", 0, message);
+  if (!it->second.option.empty())
+    throw UsageError(fmt::format("{}: {}", it->second.option, message));
+  throw InputError(it->second.file, it->second.line, message);
+}
+
+std::string EstimatorConfig::checkValueText(const std::string& key, const std::string& text) {
+  EstimatorConfig probe;
+  for (const Binding& b : bindings(probe)) {
+    if (b.name() != key) continue;
+    if (!b.numeric()) throw std::logic_error("checkValueText: " + key + " is not numeric");
+    const char* begin = text.c_str();
+    char* end = nullptr;
+    const double v = std::strtod(begin, &end);
+    if (text.empty() || end != begin + text.size()) {
+      return fmt::format("{} = {}: expected {}", key, text, describe(b.rule, b.integer()));
+    }
+    if (b.integer() && std::isfinite(v) && std::floor(v) != v) {
+      return fmt::format("{} = {}: expected {}", key, text, describe(b.rule, true));
+    }
+    return accepts(b.rule, v) ? std::string() : b.problem(v);
+  }
+  throw std::logic_error("checkValueText: unknown config key " + key);
 }
 
 }  // namespace marglab

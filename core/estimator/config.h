@@ -1,7 +1,7 @@
 #pragma once
-// Every number of the estimator (DESIGN §3), in one struct, readable from and writable to TOML.
-// Precedence: defaults < config file < command line. The full effective config is written into
-// every results file (attribute config_toml), so a run can be repeated from its file.
+// Every number of the estimator (docs/design.md §3), in one struct, readable from and writable to
+// TOML. Precedence: defaults < config file < command line. The full effective config is written
+// into every results file (attribute config_toml), so a run can be repeated from its file.
 //
 // TOML layout (all keys optional; unknown keys are errors):
 //   [window]        max_kfs, max_states
@@ -18,9 +18,19 @@
 //                   SparsifyTopology)
 //   [failure]       max_position_error_m (−1: dataset default)
 //   [diagnostics]   enabled, store_prior_every (0: never; k: every k-th event, default 25), seed
+//
+// Validation (docs/design.md §9): every key has a range; a value outside it, a non-finite number
+// or a violated relation between keys (lambda_min ≤ lambda_init ≤ lambda_max; a relative
+// qr_threshold below 1) is an input error, never a numerical failure of the estimator. loadToml
+// checks each value it reads against its key's range (integers before they are narrowed, so 1e12
+// is an error and never wraps); validate() checks the whole effective config after the command
+// line has been applied. Messages name the key, the value, the allowed range and where the value
+// came from (FILE:LINE of a TOML file, or the command-line option).
 
 #include <cstdint>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "core/linalg/flat_qr.h"
 
@@ -51,6 +61,26 @@ bool parseMargStrategy(const std::string& text, MargStrategy* strategy);
 enum class SparsifyTopology { kPaper, kJointStates };
 const char* toString(SparsifyTopology topology);
 bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology);
+
+// Upper bound of lm.threads (and --threads): more threads than landmark chunks only thrash.
+inline constexpr int kMaxLmThreads = 256;
+
+// Where a config value came from: a TOML file and line, or a command-line option ("--threads").
+struct ConfigOrigin {
+  std::string file;
+  int line = 0;
+  std::string option;
+  std::string describe() const;  // "cfg.toml:3", "--threads", "" (default)
+};
+
+// One invalid value or relation of a config; `message` names the key(s), value(s) and the allowed
+// range, without the location (see EstimatorConfig::origins).
+struct ConfigProblem {
+  std::string key;  // "lm.max_iterations"; for a relation, the key the message is about
+  std::string message;
+  // A relation's keys, whose origins validate() names.
+  std::vector<std::string> related = {};
+};
 
 struct EstimatorConfig {
   // window
@@ -96,12 +126,32 @@ struct EstimatorConfig {
   int store_prior_every = 25;
   std::uint64_t diagnostics_seed = 7;
 
+  // Where each key ("section.key") was last set by loadToml or setOrigin; absent: the default.
+  // Not part of the TOML; used for messages only.
+  std::map<std::string, ConfigOrigin> origins;
+
   // Overrides the fields present in a TOML file; throws InputError(file, line, what) on syntax
-  // errors, unknown keys and wrong types.
+  // errors, unknown keys, wrong types and values outside their key's range.
   void loadToml(const std::string& path);
   // The same from a string (name used in messages).
   void loadTomlString(const std::string& text, const std::string& name);
   std::string toToml() const;
+
+  // Records that `key` ("lm.threads") was set by a command-line option.
+  void setOrigin(const std::string& key, const std::string& option);
+  // Every invalid value (range, finiteness) and violated relation of the whole config; empty when
+  // it is valid.
+  std::vector<ConfigProblem> problems() const;
+  // Throws for the first problem: UsageError when the offending value came from a command-line
+  // option, else InputError naming the TOML file and line it came from (line 0, file "config",
+  // for a default or a value set in code).
+  void validate() const;
+
+  // A command-line value for `key` checked against the key's range; "" when it is accepted, else
+  // the reason ("lm.threads = 0: expected an integer in [1, 256]"). Throws std::logic_error for
+  // an unknown key. For CLI11 validators, so that `marglab run` and sweep validation reject a bad
+  // option value while parsing.
+  static std::string checkValueText(const std::string& key, const std::string& text);
 };
 
 }  // namespace marglab

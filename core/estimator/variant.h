@@ -1,5 +1,5 @@
 #pragma once
-// The ablation of DESIGN §2: a variant is `opt-marg-storage-precision`.
+// The ablation of docs/design.md §2: a variant is `opt-marg-storage-precision`.
 //   opt      ns | sc    landmark elimination inside each LM iteration: nullspace projection
 //                       (in-place Householder QR of [J_p J_l r], keep the Q2ᵀ rows) or Schur
 //                       complement on 3×3 landmark blocks;
@@ -43,7 +43,7 @@ struct Variant {
   bool operator==(const Variant& other) const;
 };
 
-// The 10 variants of the paper's tables (DESIGN §2), in table order.
+// The 10 variants of the paper's tables (docs/design.md §2), in table order.
 std::vector<Variant> paperVariants();
 
 }  // namespace marglab

@@ -1,7 +1,7 @@
 #pragma once
 // The paper's figures from sweep results: tools/scripts/plot_paper.py (matplotlib, h5py, numpy)
 // run by a Python 3 found among $MARGLAB_PYTHON, /usr/bin/python3 and python3 on PATH — the first
-// python3 on PATH may lack the packages while the system one has them (DESIGN §7).
+// python3 on PATH may lack the packages while the system one has them (docs/design.md §7).
 
 #include <string>
 #include <vector>

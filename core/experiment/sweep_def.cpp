@@ -217,6 +217,19 @@ class Parser {
     return *config;
   }
 
+  // The merged config of one run (config_file, [group.config], the override): each value was
+  // checked against its range where it was read; here the relations between keys
+  // (docs/design.md §9), reported at the line of the group or override.
+  void checkMergedConfig(const std::string& config_toml, int line, const std::string& where) const {
+    if (config_toml.empty()) return;
+    EstimatorConfig probe;
+    probe.loadTomlString(config_toml, "config");
+    const std::vector<ConfigProblem> problems = probe.problems();
+    if (!problems.empty()) {
+      throw InputError(name_, line, where + ": config: " + problems.front().message);
+    }
+  }
+
   std::string resolveDataset(const toml::node& node) const {
     if (!node.is_string()) throw error(node, "datasets must hold strings");
     const std::string dataset = **node.as_string();
@@ -310,6 +323,7 @@ class Parser {
       std::string name;
       std::vector<std::string> args;
       toml::table config;
+      int line = 0;
     };
     std::vector<Override> overrides;
     if (const toml::node* node = group.get("override")) {
@@ -321,7 +335,8 @@ class Parser {
         const toml::table& table = *item.as_table();
         checkKeys(table, {"name", "args", "config"}, "a [[group.override]]");
         Override o;
-        o.name = requiredString(table, "name", "a [[group.override]]", lineOf(table));
+        o.line = lineOf(table);
+        o.name = requiredString(table, "name", "a [[group.override]]", o.line);
         if (!validName(o.name)) {
           throw error(*table.get("name"),
                       "override name must use only letters, digits, '_', '-', '.'");
@@ -356,6 +371,10 @@ class Parser {
             toml::table config = group_config;
             mergeInto(config, o.config);
             run.config_toml = toTomlText(config);
+            checkMergedConfig(run.config_toml, o.name.empty() ? line : o.line,
+                              o.name.empty()
+                                  ? fmt::format("group '{}'", group_name)
+                                  : fmt::format("group '{}', override '{}'", group_name, o.name));
             run.line = line;
             run.id = fmt::format("{}__{}__{}__s{}", group_name, slug(dataset), variant, seed);
             if (!o.name.empty()) run.id += "__" + o.name;

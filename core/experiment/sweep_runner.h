@@ -4,7 +4,7 @@
 //
 //   <out>/index.csv          one row per planned run (sweep_index.h), rewritten atomically
 //   <out>/sweep.toml         a copy of the sweep file that was run
-//   <out>/runs/<id>.h5       results file (DESIGN §6; atomic: absent unless complete) + <id>.tum
+//   <out>/runs/<id>.h5       results file (docs/design.md §6; absent unless complete) + <id>.tum
 //   <out>/runs/<id>.cmd      the run's fingerprint: its command line and config overrides
 //   <out>/configs/<id>.toml  config overrides of the run (only when it has some)
 //   <out>/logs/<id>.log      stdout and stderr of the run

@@ -78,7 +78,7 @@ struct PinholeCamera {
 
 template <typename Scalar>
 struct TriangulationOptions {
-  Scalar min_baseline = Scalar(0.05);  // metres (DESIGN §3)
+  Scalar min_baseline = Scalar(0.05);  // metres (docs/design.md §3)
   Scalar min_parallax = Scalar(1e-3);  // radians between the two rays
 };
 

@@ -24,8 +24,8 @@
 // not shrink with θ, so C, E, F are evaluated by their Taylor series (to double precision) for
 // θ < 1 instead of the cancelling closed forms.
 //
-// Estimator increment (DESIGN §3): δ = [δt; δφ], translation additive, rotation left-multiplied
-// (perturbation in the world frame, not the SE(3) exponential):
+// Estimator increment (docs/design.md §3): δ = [δt; δφ], translation additive, rotation
+// left-multiplied (perturbation in the world frame, not the SE(3) exponential):
 //   T ⊞ δ = ( exp(δφ) R, t + δt ),      T_a ⊟ T_b = [ t_a − t_b ; log(R_a R_bᵀ) ],
 // so that T_b ⊞ (T_a ⊟ T_b) = T_a. Every pose Jacobian in the project is w.r.t. this δ.
 //

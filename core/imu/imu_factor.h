@@ -1,5 +1,5 @@
 #pragma once
-// IMU residuals between two VIO states i and j (DESIGN §3), their Jacobians w.r.t. the ⊞
+// IMU residuals between two VIO states i and j (docs/design.md §3), their Jacobians w.r.t. the ⊞
 // increments of imu_state.h, and state prediction.
 //
 // Preintegration residual (9 rows, order [r_p; r_R; r_v] as the preintegration error of

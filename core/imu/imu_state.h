@@ -1,5 +1,5 @@
 #pragma once
-// The 15-dof VIO state of one frame and its increment (DESIGN §3).
+// The 15-dof VIO state of one frame and its increment (docs/design.md §3).
 //
 //   state  x = (T_w_i, v_w, b_g, b_a): pose of the IMU/body frame i in the world, velocity of the
 //          body origin in the world frame, gyro bias [rad/s], accel bias [m/s²].

@@ -1,5 +1,5 @@
 #pragma once
-// HDF5 I/O for results files (DESIGN.md §6): a small RAII wrapper over the HDF5 C API.
+// HDF5 I/O for results files (docs/design.md §6): a small RAII wrapper over the HDF5 C API.
 //
 // What maps to which HDF5 construct:
 //   h5::File            an HDF5 file; a File is also its root group "/" (attributes on the file are

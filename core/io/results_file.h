@@ -1,7 +1,7 @@
 #pragma once
-// The results file of one run (DESIGN §6): HDF5, written by the estimator through ResultsWriter,
-// read by eigdump / tables / plots through ResultsReader, and from Python with h5py or pandas
-// (tools/scripts/check_results.py validates a file independently).
+// The results file of one run (docs/design.md §6): HDF5, written by the estimator through
+// ResultsWriter, read by eigdump / tables / plots through ResultsReader, and from Python with h5py
+// or pandas (tools/scripts/check_results.py validates a file independently).
 //
 // Schema, schema_version = 2 (all times in seconds unless the name ends in _ns; t_ns are int64
 // nanoseconds of the dataset clock; positions in metres, world frame of the estimate / GT).

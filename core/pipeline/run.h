@@ -1,13 +1,13 @@
 #pragma once
 // One run of the harness: a real sequence (its ground truth drives the simulated stereo tracks),
-// one variant, one seed → one HDF5 results file (DESIGN §6) and a TUM trajectory next to it.
+// one variant, one seed → one HDF5 results file (docs/design.md §6) and its TUM trajectory.
 //
 //   sequence → TrajectorySpline → world + simulated tracks (seeded) → VoEstimator<Scalar>
 //            → per frame: FrameRecord; per marginalization: diagnostics of the shadow prior
 //            → ResultsWriter::finish (ATE after SE(3) alignment) → atomic rename.
 //
-// The state is the left camera T_w_c0 (DESIGN §3, VO); it starts at the true first camera pose
-// (the same for every variant), and the ATE compares camera positions with the ground truth
+// The state is the left camera T_w_c0 (docs/design.md §3, VO); it starts at the true first camera
+// pose (the same for every variant), and the ATE compares camera positions with the ground truth
 // expressed for cam0 (T_w_b T_b_c0). A run fails — status "failed" in the file, never a crash or
 // a missing file — when the estimator reports a numerical failure (non-finite cost or state,
 // repeated solve failure) or when the position error exceeds the dataset's bound.

@@ -1,5 +1,5 @@
 #pragma once
-// Simulated stereo feature tracking on a grid, as a KLT front-end would produce (DESIGN §5).
+// Simulated stereo feature tracking on a grid, like a KLT front-end (docs/design.md §5).
 //
 // Cameras. At each cam0 timestamp t inside the trajectory span, with T_w_b(t) from the
 //   trajectory and the extrinsics T_b_c of the calibration (KITTI: body = cam0):

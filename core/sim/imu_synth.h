@@ -1,5 +1,5 @@
 #pragma once
-// Synthetic IMU measurements along a trajectory (DESIGN §5), and the real IMU of a sequence
+// Synthetic IMU measurements along a trajectory (docs/design.md §5), and the real IMU of a sequence
 // clipped to the trajectory span.
 //
 // Model (body frame b = IMU frame; world w with gravity g_w), at t_k = t_start + k Δt:

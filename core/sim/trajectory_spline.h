@@ -1,6 +1,6 @@
 #pragma once
 // C²-continuous trajectory through ground-truth poses, with analytic derivatives, for simulating
-// IMU and camera measurements along a real trajectory (DESIGN §5).
+// IMU and camera measurements along a real trajectory (docs/design.md §5).
 //
 // Spline. Two uniform cubic B-splines, each on its own knot grid t_i = t_0 + i Δ (t_0 = first GT
 // time; Δ_p for position, Δ_R for rotation), segment i = [t_i, t_{i+1}), u = (t − t_i)/Δ ∈ [0, 1),

@@ -1,6 +1,7 @@
 #pragma once
-// Simulated 3-D world: points on the surfaces around a trajectory (DESIGN §5), deterministic for
-// a seed, and a chunked spatial index for the per-frame visibility query of the tracker.
+// Simulated 3-D world: points on the surfaces around a trajectory (docs/design.md §5),
+// deterministic for a seed, and a chunked spatial index for the per-frame visibility query of the
+// tracker.
 //
 // Indoor (EuRoC machine hall / Vicon room, TUM-VI): the axis-aligned box B = bbox(path) grown
 //   by a horizontal margin, floor_margin below and ceiling_margin above (world z is up, the

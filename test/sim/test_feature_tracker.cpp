@@ -209,7 +209,7 @@ TEST(TrackStatistics, Distribution) {
   EXPECT_DOUBLE_EQ(d.max, 10);
 }
 
-// The real EuRoC MH_01 trajectory (GT spline), first 300 frames: the DESIGN §5 targets.
+// The real EuRoC MH_01 trajectory (GT spline), first 300 frames: the docs/design.md §5 targets.
 TEST(SimulateSequence, EurocMh01PrefixStatistics) {
   const Sequence seq = loadSequence("euroc/MH_01_easy", LoadOptions{false});
   const TrajectorySpline spline = TrajectorySpline::fromSequence(seq);

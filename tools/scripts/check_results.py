@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Independent check of a marglab results file (schema_version 1, DESIGN.md section 6).
+"""Independent check of a marglab results file (schema_version 1, docs/design.md §6).
 
 Usage: check_results.py RUN.h5
 

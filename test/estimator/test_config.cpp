@@ -1,0 +1,221 @@
+// EstimatorConfig validation (docs/design.md §9, issue #18 items 5, 6, 11): every value outside
+// its key's range, every non-finite number and every violated relation between keys is an input
+// error naming the key, the value, the allowed range and where the value came from — never a
+// wrapped integer, never a run that "succeeds" without optimizing or fails numerically.
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "core/common/error.h"
+#include "core/estimator/config.h"
+
+namespace marglab {
+namespace {
+
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(ConfigValidation, DefaultsAndTheirRoundTripAreValid) {
+  EstimatorConfig config;
+  EXPECT_TRUE(config.problems().empty());
+  EXPECT_NO_THROW(config.validate());
+  EstimatorConfig round_trip;
+  EXPECT_NO_THROW(round_trip.loadTomlString(config.toToml(), "defaults.toml"));
+  EXPECT_NO_THROW(round_trip.validate());
+}
+
+struct BadValue {
+  const char* name;
+  const char* toml;     // line 1 is the section, line 2 the key
+  const char* message;  // part of the message: key, value and range
+};
+
+class BadConfigValue : public ::testing::TestWithParam<BadValue> {};
+
+TEST_P(BadConfigValue, IsAnInputErrorNamingFileLineKeyValueAndRange) {
+  const BadValue& bad = GetParam();
+  EstimatorConfig config;
+  try {
+    config.loadTomlString(bad.toml, "cfg.toml");
+    FAIL() << "accepted:\n" << bad.toml;
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), "cfg.toml");
+    EXPECT_EQ(e.line(), 2) << e.what();
+    EXPECT_TRUE(contains(e.what(), bad.message)) << e.what() << "\nexpected: " << bad.message;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Issue18, BadConfigValue,
+    ::testing::Values(
+        // Item 5: integers are range-checked before they are narrowed (1e12 used to wrap to
+        // −727379968), and 0 iterations used to give status ok without any optimization.
+        BadValue{"MaxIterations1e12", "[lm]\nmax_iterations = 1e12\n",
+                 "lm.max_iterations = 1000000000000: expected an integer in [1, 1000]"},
+        BadValue{"MaxIterationsAboveInt", "[lm]\nmax_iterations = 3000000000\n",
+                 "lm.max_iterations = 3000000000: expected an integer in [1, 1000]"},
+        BadValue{"MaxIterationsHuge", "[lm]\nmax_iterations = 1e300\n",
+                 "lm.max_iterations = 1e+300: expected an integer in [1, 1000]"},
+        BadValue{"MaxIterationsZero", "[lm]\nmax_iterations = 0\n",
+                 "lm.max_iterations = 0: expected an integer in [1, 1000]"},
+        BadValue{"MaxIterationsFraction", "[lm]\nmax_iterations = 7.5\n",
+                 "expected an integer in [1, 1000] for lm.max_iterations"},
+        BadValue{"HuberZero", "[residuals]\nhuber_px = 0\n",
+                 "residuals.huber_px = 0: expected a finite number > 0"},
+        BadValue{"HuberNegative", "[residuals]\nhuber_px = -1\n",
+                 "residuals.huber_px = -1: expected a finite number > 0"},
+        BadValue{"ObsStdInf", "[residuals]\nobs_std_px = inf\n",
+                 "residuals.obs_std_px = inf: expected a finite number > 0"},
+        BadValue{"ObsStdZero", "[residuals]\nobs_std_px = 0\n",
+                 "residuals.obs_std_px = 0: expected a finite number > 0"},
+        BadValue{"ObsStdNan", "[residuals]\nobs_std_px = nan\n",
+                 "residuals.obs_std_px = nan: expected a finite number > 0"},
+        BadValue{"NegativeGaugeWeight", "[gauge]\nprior_weight = -1e8\n",
+                 "gauge.prior_weight = -100000000: expected a finite number >= 0"},
+        BadValue{"NegativeBiasWeight", "[gauge]\nprior_bias_accel = -1\n",
+                 "gauge.prior_bias_accel = -1: expected a finite number >= 0"},
+        BadValue{"ConnectedRatioFive", "[keyframes]\nconnected_ratio = 5\n",
+                 "keyframes.connected_ratio = 5: expected a finite number in (0, 1]"},
+        BadValue{"ConnectedRatioZero", "[keyframes]\nconnected_ratio = 0\n",
+                 "keyframes.connected_ratio = 0: expected a finite number in (0, 1]"},
+        BadValue{"MargShareAboveOne", "[keyframes]\nmarg_connected_share = 1.5\n",
+                 "keyframes.marg_connected_share = 1.5: expected a finite number in [0, 1]"},
+        BadValue{"MinFramesAfterKfZero", "[keyframes]\nmin_frames_after_kf = 0\n",
+                 "keyframes.min_frames_after_kf = 0: expected -1 (dataset default) or an integer "
+                 "in [1, 1000000]"},
+        BadValue{"NegativeBaseline", "[keyframes]\nmin_baseline_m = -0.1\n",
+                 "keyframes.min_baseline_m = -0.1: expected a finite number >= 0"},
+        // max_kfs = 0 used to end in "map::at"; max_states = 1 was silently raised to 2.
+        BadValue{"MaxKfsZero", "[window]\nmax_kfs = 0\n",
+                 "window.max_kfs = 0: expected an integer in [1, 1000000]"},
+        BadValue{"MaxStatesOne", "[window]\nmax_states = 1\n",
+                 "window.max_states = 1: expected an integer in [2, 1000000]"},
+        BadValue{"LambdaZero", "[lm]\nlambda_init = 0\n",
+                 "lm.lambda_init = 0: expected a finite number > 0"},
+        BadValue{"LambdaMaxInf", "[lm]\nlambda_max = inf\n",
+                 "lm.lambda_max = inf: expected a finite number > 0"},
+        BadValue{"NegativeStop", "[lm]\nstop_relative_cost = -1e-6\n",
+                 "lm.stop_relative_cost = -1e-06: expected a finite number >= 0"},
+        BadValue{"FailedSolvesZero", "[lm]\nmax_failed_solves = 0\n",
+                 "lm.max_failed_solves = 0: expected an integer in [1, 1000]"},
+        // Item 6: 10000 threads thrashed the machine.
+        BadValue{"Threads10000", "[lm]\nthreads = 10000\n",
+                 "lm.threads = 10000: expected an integer in [1, 256]"},
+        BadValue{"ThreadsZero", "[lm]\nthreads = 0\n",
+                 "lm.threads = 0: expected an integer in [1, 256]"},
+        // Item 11: NaN silently became the default threshold.
+        BadValue{"QrThresholdNan", "[marginalization]\nqr_threshold = nan\n",
+                 "marginalization.qr_threshold = nan: expected -1 (sqrt(eps) of the precision) or "
+                 "a finite number >= 0"},
+        BadValue{"QrThresholdMinusTwo", "[marginalization]\nqr_threshold = -2\n",
+                 "marginalization.qr_threshold = -2: expected -1"},
+        BadValue{"PositionBoundZero", "[failure]\nmax_position_error_m = 0\n",
+                 "failure.max_position_error_m = 0: expected -1 (dataset default) or a finite "
+                 "number > 0"},
+        BadValue{"StorePriorEveryNegative", "[diagnostics]\nstore_prior_every = -5\n",
+                 "diagnostics.store_prior_every = -5: expected an integer in [0, 2147483647]"},
+        BadValue{"NegativeSeed", "[diagnostics]\nseed = -1\n",
+                 "diagnostics.seed = -1: expected an integer >= 0"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(ConfigValidation, ValuesAtTheEdgesOfTheirRangesAreAccepted) {
+  EstimatorConfig config;
+  config.loadTomlString(
+      "[window]\nmax_kfs = 1\nmax_states = 2\n"
+      "[keyframes]\nconnected_ratio = 1\nmin_frames_after_kf = -1\nmarg_connected_share = 0\n"
+      "[lm]\nmax_iterations = 1e3\nthreads = 256\nlambda_min = 1e-4\nlambda_init = 1e-4\n"
+      "[marginalization]\nqr_threshold = 0\n"
+      "[gauge]\nprior_weight = 0\n"
+      "[diagnostics]\nstore_prior_every = 0\n",
+      "edges.toml");
+  EXPECT_EQ(config.lm_max_iterations, 1000);
+  EXPECT_TRUE(config.problems().empty());
+  EXPECT_NO_THROW(config.validate());
+}
+
+// Relations between keys are checked on the whole effective config, and the message names every
+// key involved with the place it came from.
+TEST(ConfigValidation, LambdaOrderIsARelationNamingTheFileLine) {
+  EstimatorConfig config;
+  config.loadTomlString("[lm]\nmax_iterations = 5\nlambda_min = 10\nlambda_max = 1\n", "cfg.toml");
+  ASSERT_EQ(config.problems().size(), 1u);
+  try {
+    config.validate();
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), "cfg.toml");
+    EXPECT_EQ(e.line(), 3) << e.what();
+    EXPECT_TRUE(
+        contains(e.what(), "lm.lambda_min = 10, lm.lambda_init = 0.0001, lm.lambda_max = 1"))
+        << e.what();
+    EXPECT_TRUE(contains(e.what(),
+                         "(lm.lambda_min from cfg.toml:3, lm.lambda_init from the "
+                         "default, lm.lambda_max from cfg.toml:4)"))
+        << e.what();
+    EXPECT_TRUE(contains(e.what(), "expected lambda_min <= lambda_init <= lambda_max")) << e.what();
+  }
+  EstimatorConfig above_max;
+  above_max.loadTomlString("[lm]\nlambda_init = 1e3\n", "init.toml");
+  try {
+    above_max.validate();
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 2) << e.what();
+  }
+}
+
+TEST(ConfigValidation, RelativeQrThresholdMustBeBelowOne) {
+  EstimatorConfig config;
+  config.loadTomlString("[marginalization]\nqr_threshold_mode = \"relative\"\nqr_threshold = 1\n",
+                        "qr.toml");
+  try {
+    config.validate();
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 3) << e.what();
+    EXPECT_TRUE(contains(e.what(), "expected a relative threshold in [0, 1)")) << e.what();
+  }
+  config.qr_threshold_mode = RankThresholdMode::kAbsolute;  // an absolute 1 is a valid threshold
+  EXPECT_NO_THROW(config.validate());
+}
+
+// A value set from the command line is a usage error naming the option (exit code 2).
+TEST(ConfigValidation, CommandLineValuesNameTheOption) {
+  EstimatorConfig config;
+  config.lm_threads = 10000;
+  config.setOrigin("lm.threads", "--threads");
+  try {
+    config.validate();
+    FAIL();
+  } catch (const UsageError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "--threads: lm.threads = 10000: expected an integer in [1, 256]");
+  }
+  // A value set in code (no origin) is still refused, as input.
+  EstimatorConfig in_code;
+  in_code.obs_std_px = 0;
+  EXPECT_THROW(in_code.validate(), InputError);
+}
+
+TEST(ConfigValidation, CheckValueTextForCommandLineOptions) {
+  EXPECT_EQ(EstimatorConfig::checkValueText("lm.threads", "4"), "");
+  EXPECT_EQ(EstimatorConfig::checkValueText("lm.threads", "0"),
+            "lm.threads = 0: expected an integer in [1, 256]");
+  EXPECT_EQ(EstimatorConfig::checkValueText("lm.threads", "2.5"),
+            "lm.threads = 2.5: expected an integer in [1, 256]");
+  EXPECT_EQ(EstimatorConfig::checkValueText("marginalization.qr_threshold", "nan"),
+            "marginalization.qr_threshold = nan: expected -1 (sqrt(eps) of the precision) or a "
+            "finite number >= 0");
+  EXPECT_EQ(EstimatorConfig::checkValueText("marginalization.qr_threshold", "-1"), "");
+  EXPECT_EQ(EstimatorConfig::checkValueText("diagnostics.store_prior_every", "-5"),
+            "diagnostics.store_prior_every = -5: expected an integer in [0, 2147483647]");
+  EXPECT_EQ(EstimatorConfig::checkValueText("lm.max_iterations", "1e12"),
+            "lm.max_iterations = 1000000000000: expected an integer in [1, 1000]");
+  EXPECT_NE(EstimatorConfig::checkValueText("lm.threads", "four"), "");
+  EXPECT_THROW(EstimatorConfig::checkValueText("lm.no_such_key", "1"), std::logic_error);
+}
+
+}  // namespace
+}  // namespace marglab
