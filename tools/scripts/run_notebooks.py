@@ -76,13 +76,18 @@ def execute(task):
     inject(nb, params)
     client = NotebookClient(nb, timeout=timeout, kernel_name="python3",
                             resources={"metadata": {"path": os.path.dirname(notebook)}})
+    log = open(os.devnull, "w")
     try:
-        client.execute()
+        # The kernel's own stderr (debugger warnings) is noise here; cell errors come back
+        # through the protocol and are reported below.
+        client.execute(stderr=log)
         entry["ok"] = True
     except CellExecutionError as e:
         entry["error"] = str(e)
     except Exception as e:  # kernel died, timeout: still write what ran
         entry["error"] = "%s: %s" % (type(e).__name__, e)
+    finally:
+        log.close()
     os.makedirs(os.path.dirname(out_base), exist_ok=True)
     nbformat.write(nb, out_base + ".ipynb")
     body, _ = html_exporter().from_notebook_node(nb)
@@ -124,6 +129,7 @@ def main():
     os.environ.setdefault("IPYTHONDIR", os.path.join(state, "ipython"))
     os.environ.setdefault("MPLCONFIGDIR", os.path.join(state, "matplotlib"))
     os.environ["MARGLAB_TOOLS"] = HERE
+    os.environ["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"
 
     nb = lambda name: os.path.join(os.path.abspath(args.notebooks), name + ".ipynb")
     tasks = [(nb("sweep"), os.path.join(out, "sweep"), {"SWEEP": sweep}, args.timeout),
