@@ -93,6 +93,41 @@ TEST_F(AnalysisTest, TablesPythonReaderAndCheckResultsAgreeOnEveryRun) {
   EXPECT_NE(agree.output.find("AGREE 4 runs"), std::string::npos) << agree.output;
 }
 
+// schema_version 2: the optional /frontend group (per-frame counts and time) and the root
+// attribute `frontend`; both readers accept it, and check_results.py rejects a wrong shape.
+TEST_F(AnalysisTest, FrontendGroupOfSchemaVersion2) {
+  const std::string run = (fs::path(sweep_) / "runs" / "vo__kitti-10__ns-qr-sqrt-f64__s1.h5").string();
+  const std::string v2 = (dir_ / "v2.h5").string();
+  fs::copy_file(run, v2);
+  const std::string scripts = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts";
+  const auto add = runShell(python_ + " -c \"import h5py, numpy as np; f = h5py.File('" + v2 +
+                            "', 'r+'); n = f['frames/t_ns'].shape[0]; f.attrs['schema_version'] = 2; "
+                            "f.attrs['frontend'] = 'tracks'; g = f.create_group('frontend'); "
+                            "[g.create_dataset(c, data=np.arange(n, dtype=np.int64)) for c in "
+                            "('n_features', 'n_tracked', 'n_new', 'n_stereo')]; "
+                            "g['t_frontend_s'] = np.full(n, 1e-3); f.close()\"");
+  ASSERT_EQ(add.exit_code, 0) << add.output;
+  const auto check = runShell(python_ + " '" + scripts + "/check_results.py' '" + v2 + "'");
+  EXPECT_EQ(check.exit_code, 0) << check.output;
+  EXPECT_NE(check.output.find("schema_version 2"), std::string::npos) << check.output;
+  const auto read = runShell(python_ + " -c \"import sys; sys.path.insert(0, '" + scripts +
+                             "'); import marglab_results as mr; r = mr.read_run('" + v2 +
+                             "'); print(r.attrs['frontend'], r.frontend.shape[0] == len(r.frames), "
+                             "list(r.frontend.columns))\"");
+  EXPECT_EQ(read.exit_code, 0) << read.output;
+  EXPECT_NE(read.output.find("tracks True ['n_features', 'n_tracked', 'n_new', 'n_stereo', "
+                             "'t_frontend_s']"),
+            std::string::npos)
+      << read.output;
+  const auto cut = runShell(python_ + " -c \"import h5py; f = h5py.File('" + v2 +
+                            "', 'r+'); d = f['frontend/n_new'][:]; del f['frontend/n_new']; "
+                            "f['frontend/n_new'] = d[:-1]; f.close()\"");
+  ASSERT_EQ(cut.exit_code, 0) << cut.output;
+  const auto bad = runShell(python_ + " '" + scripts + "/check_results.py' '" + v2 + "'");
+  EXPECT_EQ(bad.exit_code, 1) << bad.output;
+  EXPECT_NE(bad.output.find("/frontend/n_new has shape"), std::string::npos) << bad.output;
+}
+
 TEST_F(AnalysisTest, NotebooksExecuteOnTheSweep) {
   if (pythonWith("nbformat, nbclient, nbconvert, ipykernel, matplotlib").empty()) {
     GTEST_SKIP() << "Jupyter missing: install the Debian packages jupyter-nbconvert "
