@@ -62,6 +62,7 @@ table.data th { background: #f2f5f8; } table.data td:first-child, table.data th:
   { text-align: left; }
 td.ok { background: #dff2df; } td.failed { background: #f7d4d4; font-weight: 600; }
 td.none { background: #fafafa; color: #9aa4ae; }
+table.data td.t { text-align: left; }
 pre { background: #f6f8fa; border: 1px solid #e3e7ec; padding: 10px; overflow-x: auto;
       font-size: 12px; }
 .note { color: #5a6673; font-size: 12.5px; margin: 2px 0; }
@@ -81,6 +82,7 @@ def inline_md(text):
     out = esc(text)
     out = re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", out)
     out = re.sub(r"`([^`]+)`", r"<code>\1</code>", out)
+    out = re.sub(r"^_(.+)_$", r"<i>\1</i>", out)
     return out
 
 
@@ -187,7 +189,7 @@ def runs_html(sweep, notebooks, out):
             link = '<a href="%s">notebook</a>%s' % (esc(nb["html"]),
                                                    "" if nb["ok"] else " (failed)")
         cls = "ok" if r["state"] == "ok" else ("failed" if r["state"] == "failed" else "none")
-        rows.append("<tr><td>%s</td><td>%s</td><td>%s</td><td class='%s'>%s</td><td>%s</td>"
+        rows.append("<tr><td>%s</td><td class='t'>%s</td><td class='t'>%s</td><td class='%s'>%s</td><td>%s</td>"
                     "<td>%s</td><td>%s</td><td>%s</td></tr>"
                     % (esc(r["id"]), esc(r["dataset"]), esc(r["variant"]), cls, esc(r["state"]),
                        fmt(r.get("n_frames"), 0), fmt(r.get("ate_rmse")),

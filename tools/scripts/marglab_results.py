@@ -300,8 +300,11 @@ def read_index(sweep_dir):
     _need_pandas()
     index = _index_path(sweep_dir)
     sweep_dir = os.path.dirname(index)
+    # round_trip: the C++ writers print doubles with 17 digits; pandas' default parser may be off
+    # by an ulp.
     df = pd.read_csv(index, dtype={"override": str, "results": str, "reason": str,
-                                   "failure_kind": str, "group": str})
+                                   "failure_kind": str, "group": str},
+                     float_precision="round_trip")
     for col in ("override", "results", "reason", "failure_kind"):
         if col in df:
             df[col] = df[col].fillna("")
@@ -359,7 +362,7 @@ def read_tables(sweep_dir):
     if not os.path.isfile(path):
         return None
     return pd.read_csv(path, dtype={"override": str, "frames": str}, keep_default_na=False,
-                       na_values=[""])
+                       na_values=[""], float_precision="round_trip")
 
 
 def failure_matrix(sweep):
@@ -391,7 +394,8 @@ def failure_matrix(sweep):
 
 def precision_pairs(sweep):
     """f32 and f64 runs of the same method, dataset, seed and override: one row per pair with
-    both summaries (columns *_f32, *_f64) and the ATE difference f32 - f64."""
+    both summaries (columns *_f32, *_f64) and the ATE difference f32 - f64 (NaN unless both
+    runs finished)."""
     _need_pandas()
     keys = ["dataset", "method", "seed", "override"]
     cols = keys + ["id", "state", "ate_rmse", "t_opt_total_s", "t_marg_total_s", "path",
@@ -399,5 +403,6 @@ def precision_pairs(sweep):
     a = sweep[sweep["precision"] == "f32"][cols]
     b = sweep[sweep["precision"] == "f64"][cols]
     pairs = a.merge(b, on=keys, suffixes=("_f32", "_f64"))
-    pairs["ate_f32_minus_f64"] = pairs["ate_rmse_f32"] - pairs["ate_rmse_f64"]
+    both_ok = (pairs["state_f32"] == "ok") & (pairs["state_f64"] == "ok")
+    pairs["ate_f32_minus_f64"] = (pairs["ate_rmse_f32"] - pairs["ate_rmse_f64"]).where(both_ok)
     return pairs.sort_values(keys).reset_index(drop=True)
