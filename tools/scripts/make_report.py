@@ -66,7 +66,8 @@ table.data td.t { text-align: left; }
 pre { background: #f6f8fa; border: 1px solid #e3e7ec; padding: 10px; overflow-x: auto;
       font-size: 12px; }
 .note { color: #5a6673; font-size: 12.5px; margin: 2px 0; }
-figure { margin: 18px 0 28px; } figure img { max-width: 100%; border: 1px solid #e3e7ec; }
+figure { margin: 18px 0 28px; }
+figure img { max-width: 100%; max-height: 760px; border: 1px solid #e3e7ec; }
 figcaption { color: #3d4650; font-size: 13px; margin-top: 4px; }
 nav a { margin-right: 14px; } a { color: #0b62c4; }
 .tables-grid { overflow-x: auto; }
@@ -166,7 +167,8 @@ def failed_runs_html(sweep):
                                esc("" if frame is None or frame != frame else int(frame)),
                                esc(reason)))
     return ('<table class="data"><thead><tr><th>run</th><th>kind</th><th>frame</th>'
-            "<th>reason</th></tr></thead><tbody>%s</tbody></table>" % "".join(rows))
+            "<th style='text-align:left'>reason</th></tr></thead><tbody>%s</tbody></table>"
+            % "".join(rows))
 
 
 def fmt(value, digits=4):
