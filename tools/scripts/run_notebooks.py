@@ -20,6 +20,7 @@ import argparse
 import concurrent.futures
 import json
 import os
+import re
 import sys
 import tempfile
 import time
@@ -160,8 +161,8 @@ def main():
             entries.append(entry)
             print("  %-4s %6.1f s  %s" % ("ok" if entry["ok"] else "FAIL", entry["seconds"],
                                            os.path.relpath(entry["html"], out)), flush=True)
-            if not entry["ok"]:
-                print(entry["error"][-3000:], file=sys.stderr)
+            if not entry["ok"]:  # without the terminal colours of IPython's traceback
+                print(re.sub(r"\x1b\[[0-9;]*m", "", entry["error"])[-3000:], file=sys.stderr)
     total = time.monotonic() - start
     failed = [e for e in entries if not e["ok"]]
     manifest = {"sweep": sweep, "seconds": round(total, 1), "notebooks": [
