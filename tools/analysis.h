@@ -32,10 +32,10 @@ int runNotebooks(const NotebooksRequest& request);
 
 struct ReportRequest {
   enum class Check { kNo, kIfAvailable, kYes };
-  std::string dir;         // sweep folder
-  std::string out;         // default notebooks-out/<sweep name>; report.html goes there
-  std::string tables;      // folder of tables*.md (default <dir>/tables, written when absent)
-  std::string figures;     // folder of the figures (default `out`, drawn when it has none)
+  std::string dir;      // sweep folder
+  std::string out;      // default notebooks-out/<sweep name>; report.html goes there
+  std::string tables;   // folder of tables*.md (default <dir>/tables, written when absent)
+  std::string figures;  // folder of the figures (default `out`, drawn when it has none)
   Check check = Check::kNo;
   std::string screenshot;  // default <out>/report.png when checking
 };

@@ -102,9 +102,9 @@ int runNotebooks(const NotebooksRequest& request) {
     experiment::writeTables(tables, nullptr);
   }
   const std::string out = request.out.empty() ? defaultAnalysisOut(request.dir) : request.out;
-  const int code = runCommand({python, script, "--sweep", request.dir, "--out", out,
-                               "--notebooks", source + "/notebooks", "--runs", request.runs,
-                               "--jobs", std::to_string(request.jobs)});
+  const int code = runCommand({python, script, "--sweep", request.dir, "--out", out, "--notebooks",
+                               source + "/notebooks", "--runs", request.runs, "--jobs",
+                               std::to_string(request.jobs)});
   if (code == 2) throw UsageError("marglab notebooks: see the message above");
   if (code != 0) {
     fmt::print(stderr, "marglab notebooks: {} failed (exit {})\n", script, code);
@@ -134,9 +134,9 @@ const bool kRegistered = registerCommand(
        return [request] {
          const auto start = std::chrono::steady_clock::now();
          const int code = runNotebooks(*request);
-         fmt::print("notebooks: {:.1f} s\n",
-                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
-                        .count());
+         fmt::print(
+             "notebooks: {:.1f} s\n",
+             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
          return code;
        };
      }});

@@ -100,18 +100,17 @@ int runReport(const ReportRequest& request) {
   if (request.check == ReportRequest::Check::kNo) return 0;
   const bool have_browser = chromiumAvailable() && !findPythonWith({"websocket"}).empty();
   if (!have_browser && request.check == ReportRequest::Check::kIfAvailable) {
-    fmt::print("report: not checked in a browser (install the Debian packages chromium "
-               "python3-websocket)\n");
+    fmt::print(
+        "report: not checked in a browser (install the Debian packages chromium "
+        "python3-websocket)\n");
     return 0;
   }
   const std::string browser_python = findPythonWith({"websocket"});
-  const std::string screenshot = request.screenshot.empty()
-                                     ? (fs::path(out) / "report.png").string()
-                                     : request.screenshot;
-  const int code =
-      runCommand({browser_python.empty() ? python : browser_python, scripts + "/check_report.py",
-                  page, "--report", "--min-tables", "2", "--min-figures", "1", "--screenshot",
-                  screenshot});
+  const std::string screenshot =
+      request.screenshot.empty() ? (fs::path(out) / "report.png").string() : request.screenshot;
+  const int code = runCommand({browser_python.empty() ? python : browser_python,
+                               scripts + "/check_report.py", page, "--report", "--min-tables", "2",
+                               "--min-figures", "1", "--screenshot", screenshot});
   if (code == 3) {
     fmt::print(stderr,
                "marglab report: cannot check the page in a browser: install the Debian packages\n"
@@ -152,9 +151,9 @@ const bool kRegistered = registerCommand(
          if (check->count() > 0 || !r.screenshot.empty()) r.check = ReportRequest::Check::kYes;
          const int code = runReport(r);
          if (code == 0) {
-           fmt::print("report: {}\n", (fs::path(r.out.empty() ? defaultAnalysisOut(r.dir) : r.out) /
-                                       "report.html")
-                                          .string());
+           fmt::print("report: {}\n",
+                      (fs::path(r.out.empty() ? defaultAnalysisOut(r.dir) : r.out) / "report.html")
+                          .string());
          }
          return code;
        };

@@ -110,8 +110,7 @@ int runReproduce(const ReproduceArgs& args) {
   std::vector<std::string> reports, notebook_dirs;
   for (const std::string& dir : !args.no_analysis ? dirs : std::vector<std::string>{}) {
     const std::string out =
-        dirs.size() == 1 ? plot.out
-                         : (fs::path(args.figures) / fs::path(dir).filename()).string();
+        dirs.size() == 1 ? plot.out : (fs::path(args.figures) / fs::path(dir).filename()).string();
     cli::NotebooksRequest notebooks;
     notebooks.dir = dir;
     notebooks.out = out;
@@ -147,7 +146,7 @@ int runReproduce(const ReproduceArgs& args) {
                                      : fmt::format("{}", fmt::join(notebook_dirs, ", ")),
                "sweep.html, precision.html, runs/<id>.html and .ipynb", notebook_seconds);
     fmt::print("  report   {}\n", reports.empty() ? std::string("NOT written, see above")
-                                                   : fmt::format("{}", fmt::join(reports, ", ")));
+                                                  : fmt::format("{}", fmt::join(reports, ", ")));
   }
   return std::max({worst, plot_code, analysis_code});
 }
@@ -171,8 +170,7 @@ const bool kRegistered = cli::registerCommand(
            ->check(CLI::ExistingDirectory);
        sub.add_option("--results", args->results, "Folder for the sweep results and tables")
            ->capture_default_str();
-       sub.add_option("--figures", args->figures,
-                      "Folder for the figures, notebooks and report")
+       sub.add_option("--figures", args->figures, "Folder for the figures, notebooks and report")
            ->capture_default_str();
        sub.add_flag("--no-analysis", args->no_analysis,
                     "Skip the notebooks and the report (`marglab notebooks`, `marglab report`)");

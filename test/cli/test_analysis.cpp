@@ -87,8 +87,8 @@ frames = 40
 };
 
 TEST_F(AnalysisTest, TablesPythonReaderAndCheckResultsAgreeOnEveryRun) {
-  const auto agree = runShell(python_ + " '" + MARGLAB_SOURCE_DIR + "/test/cli/readers_agree.py' '" +
-                              sweep_ + "'");
+  const auto agree = runShell(python_ + " '" + MARGLAB_SOURCE_DIR +
+                              "/test/cli/readers_agree.py' '" + sweep_ + "'");
   EXPECT_EQ(agree.exit_code, 0) << agree.output;
   EXPECT_NE(agree.output.find("AGREE 4 runs"), std::string::npos) << agree.output;
 }
@@ -96,16 +96,18 @@ TEST_F(AnalysisTest, TablesPythonReaderAndCheckResultsAgreeOnEveryRun) {
 // schema_version 2: the optional /frontend group (per-frame counts and time) and the root
 // attribute `frontend`; both readers accept it, and check_results.py rejects a wrong shape.
 TEST_F(AnalysisTest, FrontendGroupOfSchemaVersion2) {
-  const std::string run = (fs::path(sweep_) / "runs" / "vo__kitti-10__ns-qr-sqrt-f64__s1.h5").string();
+  const std::string run =
+      (fs::path(sweep_) / "runs" / "vo__kitti-10__ns-qr-sqrt-f64__s1.h5").string();
   const std::string v2 = (dir_ / "v2.h5").string();
   fs::copy_file(run, v2);
   const std::string scripts = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts";
-  const auto add = runShell(python_ + " -c \"import h5py, numpy as np; f = h5py.File('" + v2 +
-                            "', 'r+'); n = f['frames/t_ns'].shape[0]; f.attrs['schema_version'] = 2; "
-                            "f.attrs['frontend'] = 'tracks'; g = f.create_group('frontend'); "
-                            "[g.create_dataset(c, data=np.arange(n, dtype=np.int64)) for c in "
-                            "('n_features', 'n_tracked', 'n_new', 'n_stereo')]; "
-                            "g['t_frontend_s'] = np.full(n, 1e-3); f.close()\"");
+  const auto add =
+      runShell(python_ + " -c \"import h5py, numpy as np; f = h5py.File('" + v2 +
+               "', 'r+'); n = f['frames/t_ns'].shape[0]; f.attrs['schema_version'] = 2; "
+               "f.attrs['frontend'] = 'tracks'; g = f.create_group('frontend'); "
+               "[g.create_dataset(c, data=np.arange(n, dtype=np.int64)) for c in "
+               "('n_features', 'n_tracked', 'n_new', 'n_stereo')]; "
+               "g['t_frontend_s'] = np.full(n, 1e-3); f.close()\"");
   ASSERT_EQ(add.exit_code, 0) << add.output;
   const auto check = runShell(python_ + " '" + scripts + "/check_results.py' '" + v2 + "'");
   EXPECT_EQ(check.exit_code, 0) << check.output;
@@ -175,9 +177,9 @@ TEST_F(AnalysisTest, ReportOpensInHeadlessChromium) {
   broken.insert(broken.find("</main>"),
                 "<img alt=\"gone\" src=\"gone.png\"><script>console.error('broken')</script>");
   std::ofstream(out / "broken.html") << broken;
-  const auto check = runShell(std::string(pythonWith("websocket")) + " '" + MARGLAB_SOURCE_DIR +
-                              "/tools/scripts/check_report.py' '" + (out / "broken.html").string() +
-                              "' --report");
+  const auto check =
+      runShell(std::string(pythonWith("websocket")) + " '" + MARGLAB_SOURCE_DIR +
+               "/tools/scripts/check_report.py' '" + (out / "broken.html").string() + "' --report");
   EXPECT_EQ(check.exit_code, 1) << check.output;
   EXPECT_NE(check.output.find("console.error: broken"), std::string::npos) << check.output;
   EXPECT_NE(check.output.find("gone"), std::string::npos) << check.output;
@@ -189,8 +191,7 @@ TEST(AnalysisCli, BadInputNamesTheFile) {
   for (const std::string verb : {"notebooks", "report"}) {
     const auto result = runCli(verb + " '" + dir.string() + "'");
     EXPECT_EQ(result.exit_code, 1) << result.output;
-    EXPECT_NE(result.output.find((dir / "index.csv").string()), std::string::npos)
-        << result.output;
+    EXPECT_NE(result.output.find((dir / "index.csv").string()), std::string::npos) << result.output;
   }
 }
 
