@@ -153,6 +153,13 @@ TEST_F(AnalysisTest, NotebooksExecuteOnTheSweep) {
   // The sweep notebook shows the failure matrix with VIO-32's failure frame.
   EXPECT_NE(readFile(out / "sweep.html").find("failed @"), std::string::npos);
   EXPECT_TRUE(fs::is_regular_file(out / "notebooks.json"));
+  // The committed notebooks carry no outputs (only the executed copies do).
+  const auto clean = runShell(
+      python_ + " -c \"import json, glob, sys; cells = [c for p in glob.glob('" +
+      MARGLAB_SOURCE_DIR +
+      "/notebooks/*.ipynb') for c in json.load(open(p))['cells'] if c['cell_type'] == 'code']; "
+      "sys.exit(any(c['outputs'] or c['execution_count'] for c in cells) or not cells)\"");
+  EXPECT_EQ(clean.exit_code, 0) << "notebooks/*.ipynb committed with outputs\n" << clean.output;
 }
 
 TEST_F(AnalysisTest, ReportOpensInHeadlessChromium) {
