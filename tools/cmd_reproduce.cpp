@@ -1,13 +1,16 @@
 // `marglab reproduce [--quick]`: the paper on the shipped data in one command — the sweep(s), the
-// tables beside the paper's values, and the figures.
-//   --quick  experiments/quick.toml → results/quick, tables in results/quick/tables, figures in
-//            notebooks-out/quick (< 10 min on 2 cores)
+// tables beside the paper's values, the figures, the executed notebooks and the report.
+//   --quick  experiments/quick.toml → results/quick, tables in results/quick/tables, figures,
+//            notebooks (`marglab notebooks`) and report.html (`marglab report`, checked in
+//            headless Chromium when it is installed) in notebooks-out/quick (< 10 min on 2 cores)
 //   full     experiments/paper_vo.toml → results/paper_vo and paper_vio.toml → results/paper_vio;
-//            tables of both in results/paper/tables, figures in notebooks-out/paper
+//            tables of both in results/paper/tables, figures in notebooks-out/paper, notebooks and
+//            report of each sweep in notebooks-out/paper_vo, notebooks-out/paper_vio
 
 #include <fmt/core.h>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <memory>
@@ -17,6 +20,7 @@
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_runner.h"
 #include "core/experiment/tables.h"
+#include "tools/analysis.h"
 #include "tools/command.h"
 
 namespace marglab {
@@ -35,6 +39,7 @@ struct ReproduceArgs {
   bool quick = false;
   int jobs = 0;
   bool resume = false;
+  bool no_analysis = false;  // skip the notebooks and the report
   std::string experiments = std::string(MARGLAB_SOURCE_DIR) + "/experiments";
   std::string results = "results";
   std::string figures = "notebooks-out";
@@ -99,6 +104,33 @@ int runReproduce(const ReproduceArgs& args) {
   plot.out = (fs::path(args.figures) / name).string();
   const int plot_code = experiment::runPlot(plot);
 
+  // The notebooks and the report of each sweep (issue #20).
+  int analysis_code = 0;
+  double notebook_seconds = 0;
+  std::vector<std::string> reports, notebook_dirs;
+  for (const std::string& dir : !args.no_analysis ? dirs : std::vector<std::string>{}) {
+    const std::string out =
+        dirs.size() == 1 ? plot.out : (fs::path(args.figures) / fs::path(dir).filename()).string();
+    cli::NotebooksRequest notebooks;
+    notebooks.dir = dir;
+    notebooks.out = out;
+    notebooks.jobs = args.jobs;
+    const auto nb_start = std::chrono::steady_clock::now();
+    const int nb_code = cli::runNotebooks(notebooks);
+    notebook_seconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - nb_start).count();
+    if (nb_code == 0) notebook_dirs.push_back(out);
+    cli::ReportRequest report;
+    report.dir = dir;
+    report.out = out;
+    report.tables = tables.out;
+    report.figures = plot.out;
+    report.check = cli::ReportRequest::Check::kIfAvailable;
+    const int report_code = cli::runReport(report);
+    if (report_code == 0) reports.push_back((fs::path(out) / "report.html").string());
+    analysis_code = std::max({analysis_code, nb_code, report_code});
+  }
+
   const double minutes =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 60.0;
   fmt::print("\n{}\n{}", extractTable(markdown, "Table 2:"), extractTable(markdown, "Table 1:"));
@@ -108,7 +140,15 @@ int runReproduce(const ReproduceArgs& args) {
   fmt::print("  tables   {}\n", fmt::join(table_files, ", "));
   fmt::print("  figures  {}{}\n", plot.out,
              plot_code == 0 ? "  (fig1, fig4-fig7 as PNG and PDF)" : "  (NOT drawn, see above)");
-  return std::max(worst, plot_code);
+  if (!args.no_analysis) {
+    fmt::print("  notebooks {}  ({}; executed in {:.0f} s)\n",
+               notebook_dirs.empty() ? std::string("NOT executed, see above")
+                                     : fmt::format("{}", fmt::join(notebook_dirs, ", ")),
+               "sweep.html, precision.html, runs/<id>.html and .ipynb", notebook_seconds);
+    fmt::print("  report   {}\n", reports.empty() ? std::string("NOT written, see above")
+                                                  : fmt::format("{}", fmt::join(reports, ", ")));
+  }
+  return std::max({worst, plot_code, analysis_code});
 }
 
 const bool kRegistered = cli::registerCommand(
@@ -130,7 +170,10 @@ const bool kRegistered = cli::registerCommand(
            ->check(CLI::ExistingDirectory);
        sub.add_option("--results", args->results, "Folder for the sweep results and tables")
            ->capture_default_str();
-       sub.add_option("--figures", args->figures, "Folder for the figures")->capture_default_str();
+       sub.add_option("--figures", args->figures, "Folder for the figures, notebooks and report")
+           ->capture_default_str();
+       sub.add_flag("--no-analysis", args->no_analysis,
+                    "Skip the notebooks and the report (`marglab notebooks`, `marglab report`)");
        return [args] { return runReproduce(*args); };
      }});
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Independent check of a marglab results file (schema_version 1, docs/design.md §6).
+"""Independent check of a marglab results file (schema_version 1 or 2, docs/design.md §6).
 
 Usage: check_results.py RUN.h5
 
@@ -10,27 +10,25 @@ frame_index within /frames, nnz_sparse <= nnz_dense and KLD >= 0 where the prior
 KLD NaN where it was kept dense), and recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
 Umeyama/Kabsch alignment without scale (reflection fix diag(1, 1, det(U V^T))), comparing it with
 /summary ate_rmse and /frames/ate_error. Prints "OK ..." and exits 0, or lists every problem and
-exits 1 (2 for usage errors). Needs only numpy and h5py.
+exits 1 (2 for usage errors). A /frontend group (schema_version 2, optional) must hold per-frame
+columns (one row per /frames row) and agree with the root attribute `frontend`.
+
+The schema's names come from marglab_results.py (the one place they are listed on the Python
+side); the checks themselves read the file with h5py directly and recompute everything they
+compare, independently of the C++ writer and of that reader. Needs only numpy and h5py.
 """
+import os
 import sys
 
 import h5py
 import numpy as np
 
-ROOT_ATTRS = ["schema_version", "marglab_version", "git_sha", "created_utc", "dataset",
-              "sequence", "variant", "precision", "seed", "config_toml", "status",
-              "failure_frame", "failure_reason"]
-FRAME_1D = ["t_ns", "is_keyframe", "n_landmarks", "n_observations", "lm_iterations",
-            "cost_initial", "cost_final", "t_opt_s", "t_marg_s", "ate_error"]
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from marglab_results import (FRAME_1D, FRONTEND_1D, FRONTEND_KINDS, MARG_1D,  # noqa: E402
+                             MARG_STRATEGIES, ROOT_ATTRS, SCHEMA_VERSIONS, SPARSIFY_1D,
+                             SUMMARY_ATTRS, decode)
+
 FRAME_2D = {"p_est": 3, "q_est": 4, "p_gt": 3}
-MARG_1D = ["frame_index", "t_ns", "prior_cols", "prior_rows", "rank", "sigma_min", "sigma_max",
-           "n_negative"]
-SPARSIFY_1D = ["frame_index", "t_ns", "blanket_cols", "n_blanket_poses", "n_blanket_landmarks",
-               "nnz_dense", "nnz_sparse", "kld", "recovered", "t_schur_s", "t_recovery_s",
-               "t_insert_s"]
-MARG_STRATEGIES = ("discard", "dense", "nfr")
-SUMMARY_ATTRS = ["ate_rmse", "n_frames", "duration_s", "t_opt_total_s", "t_marg_total_s",
-                 "realtime_factor"]
 
 
 def umeyama_rmse(src, dst):
@@ -55,7 +53,7 @@ def check_sparsify(f, n_frames):
     strategy = f.attrs.get("marg_strategy")
     if strategy is None:
         return problems if "sparsify" not in f else ["/sparsify without a marg_strategy attribute"]
-    strategy = strategy.decode() if isinstance(strategy, bytes) else str(strategy)
+    strategy = str(decode(strategy))
     if strategy not in MARG_STRATEGIES:
         return [f"marg_strategy {strategy!r} is not one of {', '.join(MARG_STRATEGIES)}"]
     if "sparsify" not in f:
@@ -88,21 +86,51 @@ def check_sparsify(f, n_frames):
     return problems
 
 
-def check(path):
+def check_frontend(f, n_frames):
+    """/frontend (optional, schema_version 2): per-frame int64 counts and f64 t_frontend_s, one row
+    per /frames row; the root attribute `frontend` names where the measurements came from."""
+    kind = f.attrs.get("frontend")
+    if "frontend" not in f:
+        return []
     problems = []
+    if kind is not None and str(decode(kind)) not in FRONTEND_KINDS:
+        problems.append(f"frontend attribute {decode(kind)!r} is not one of "
+                        f"{', '.join(FRONTEND_KINDS)}")
+    fe = f["frontend"]
+    for name in FRONTEND_1D:
+        if name not in fe:
+            problems.append(f"missing /frontend/{name}")
+        elif fe[name].shape != (n_frames,):
+            problems.append(f"/frontend/{name} has shape {fe[name].shape}, expected ({n_frames},)")
+        elif name.startswith("n_") and np.any(fe[name][:] < 0):
+            problems.append(f"/frontend/{name} has negative counts")
+    return problems
+
+
+def check(path):
+    return check_file(path)[0]
+
+
+def check_file(path):
+    """(problems, values): the list of problems and what was recomputed (`ate_numpy`, the RMSE of
+    the numpy alignment, NaN without pairs; `ate_file`, /summary ate_rmse; `n_pairs`)."""
+    problems = []
+    values = {}
     with h5py.File(path, "r") as f:
         for name in ROOT_ATTRS:
             if name not in f.attrs:
                 problems.append(f"missing root attribute {name}")
-        if f.attrs.get("schema_version") != 1:
-            problems.append(f"schema_version {f.attrs.get('schema_version')} != 1")
-        if f.attrs.get("status") not in ("ok", "failed"):
+        version = decode(f.attrs.get("schema_version"))
+        if version not in SCHEMA_VERSIONS:
+            problems.append(f"schema_version {version} is not one of "
+                            f"{', '.join(map(str, SCHEMA_VERSIONS))}")
+        if decode(f.attrs.get("status")) not in ("ok", "failed"):
             problems.append(f"status {f.attrs.get('status')!r} is neither ok nor failed")
         for group in ["frames", "marg", "marg/eigenvalues", "summary"]:
             if group not in f:
                 problems.append(f"missing group /{group}")
         if problems:
-            return problems
+            return problems, values
 
         fr = f["frames"]
         n = fr["t_ns"].shape[0] if "t_ns" in fr else -1
@@ -148,13 +176,14 @@ def check(path):
                             problems.append(f"sigma_min/max of event {k} differ from its eigenvalues")
 
         problems += check_sparsify(f, n)
+        problems += check_frontend(f, n)
 
         summary = f["summary"].attrs
         for name in SUMMARY_ATTRS:
             if name not in summary:
                 problems.append(f"missing /summary attribute {name}")
         if problems:
-            return problems
+            return problems, values
         if summary["n_frames"] != n:
             problems.append(f"/summary n_frames {summary['n_frames']} != {n} rows")
 
@@ -174,10 +203,11 @@ def check(path):
                 problems.append("per-frame /frames/ate_error differs from the numpy alignment")
             if not np.all(np.isnan(ate_error[~ok])):
                 problems.append("/frames/ate_error is not NaN where there is no GT pair")
-        print(f"ATE (numpy Umeyama, {int(ok.sum())} pairs): "
-              f"{umeyama_rmse(p_est[ok], p_gt[ok])[0] if ok.any() else float('nan'):.9g} m, "
+        values = {"ate_numpy": umeyama_rmse(p_est[ok], p_gt[ok])[0] if ok.any() else float("nan"),
+                  "ate_file": stored_rmse, "n_pairs": int(ok.sum()), "schema_version": version}
+        print(f"ATE (numpy Umeyama, {values['n_pairs']} pairs): {values['ate_numpy']:.9g} m, "
               f"file: {stored_rmse:.9g} m")
-    return problems
+    return problems, values
 
 
 def main(argv):
@@ -193,7 +223,9 @@ def main(argv):
         for p in problems:
             print(f"{argv[1]}: {p}", file=sys.stderr)
         return 1
-    print(f"OK {argv[1]}: schema_version 1, all datasets present, ATE consistent")
+    with h5py.File(argv[1], "r") as f:
+        version = decode(f.attrs.get("schema_version"))
+    print(f"OK {argv[1]}: schema_version {version}, all datasets present, ATE consistent")
     return 0
 
 

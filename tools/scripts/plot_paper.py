@@ -30,18 +30,19 @@ the estimator actually ran. A run that failed is drawn up to its failure and mar
 Needs matplotlib, h5py and numpy (Debian: python3-matplotlib python3-h5py python3-numpy).
 """
 import argparse
-import csv
 import os
 import sys
 
-import h5py
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-HEADLINE = ["ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64", "sc-sc-sq-f32"]
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import marglab_results as mr  # noqa: E402  (the results schema on the Python side)
+from marglab_results import HEADLINE, slug  # noqa: E402
+
 STYLE = {
     "ns-qr-sqrt-f64": dict(color="tab:blue", ls="-", lw=1.6),
     "ns-qr-sqrt-f32": dict(color="tab:green", ls="--", lw=1.4),
@@ -54,55 +55,41 @@ DIRECTION_COLORS = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purpl
 LINTHRESH = 1e-8
 
 
-def slug(dataset):
-    return "".join(c if (c.isalnum() or c in "_.-") else "-" for c in dataset).lstrip("-")
-
-
 def label(variant, mode):
-    family = "VIO" if mode == "vio" else "VO"
-    bits = variant[-2:]
-    if variant.startswith("ns-qr-sqrt"):
+    """The paper's name of a variant, with matplotlib's square root."""
+    name = mr.label(variant, mode)
+    if name.startswith("\u221a"):
+        family, bits = name[1:].split("-")
         return r"$\sqrt{\mathrm{%s}}$-%s" % (family, bits)
-    if variant.startswith("sc-sc-sq-"):
-        return "%s-%s" % (family, bits)
-    return variant
+    return name
 
 
 class Run:
-    """One results file, read once."""
+    """One results file (marglab_results.Run) with the index row it came from."""
 
     def __init__(self, path, row):
+        run = mr.read_run(path)
         self.path = path
         self.row = row
-        with h5py.File(path, "r") as f:
-            attr = lambda k: f.attrs[k].decode() if isinstance(f.attrs[k], bytes) else f.attrs[k]
-            self.variant = str(attr("variant"))
-            self.mode = str(attr("mode"))
-            self.status = str(attr("status"))
-            self.failure_frame = int(f.attrs["failure_frame"])
-            self.t_ns = f["frames/t_ns"][:]
-            self.p_est = f["frames/p_est"][:]
-            self.p_gt = f["frames/p_gt"][:]
-            s = f["summary"].attrs
-            self.R = np.asarray(s["R_gt_est"], dtype=float).reshape(3, 3)
-            self.t = np.asarray(s["t_gt_est"], dtype=float).reshape(3)
-            self.ate = float(s["ate_rmse"])
-            self.marg_t_ns = f["marg/t_ns"][:]
-            self.sigma_min = f["marg/sigma_min"][:]
-            self.dEm = f["marg/dEm"][:]
-        self.t0 = self.t_ns[0] if len(self.t_ns) else 0
-
-    def time(self, t_ns):
-        return (np.asarray(t_ns, dtype=np.int64) - self.t0) * 1e-9
+        self.variant = run.variant
+        self.mode = run.mode
+        self.status = run.status
+        self.failure_frame = run.failure_frame
+        self.ate = float(run.summary["ate_rmse"])
+        self.t_ns = np.asarray(run.frames["t_ns"])
+        self.p_gt = run.positions("p_gt")
+        self.p_est_aligned = run.aligned()
+        self.marg_t = np.asarray(run.marg["t_s"])
+        self.sigma_min = np.asarray(run.marg["sigma_min"])
+        self.dEm = np.column_stack([np.asarray(run.marg["dEm_" + d]) for d in mr.DEM_DIRECTIONS]) \
+            if len(self.marg_t) else np.zeros((0, 7))
+        self.fail_t = run.failure_time()
 
     def failure_time(self):
-        if self.status != "failed" or len(self.t_ns) == 0:
-            return None
-        k = min(max(self.failure_frame, 0), len(self.t_ns) - 1)
-        return self.time(self.t_ns[k])
+        return self.fail_t
 
     def aligned(self):
-        return self.p_est @ self.R.T + self.t
+        return self.p_est_aligned
 
     def name(self):
         return label(self.variant, self.mode)
@@ -111,12 +98,9 @@ class Run:
 def read_rows(dirs):
     rows = []
     for d in dirs:
-        index = d if d.endswith(".csv") else os.path.join(d, "index.csv")
-        base = os.path.dirname(index)
-        with open(index, newline="") as f:
-            for row in csv.DictReader(f):
-                row["_path"] = os.path.join(base, row["results"])
-                rows.append(row)
+        for row in mr.read_index_rows(d):
+            row["_path"] = row["path"]
+            rows.append(row)
     return rows
 
 
@@ -142,14 +126,9 @@ def select(rows, dataset):
         if v in best:
             try:
                 runs.append(Run(best[v][1]["_path"], best[v][1]))
-            except (OSError, KeyError) as e:
+            except (OSError, KeyError, mr.SchemaError) as e:
                 print("warning: cannot read %s: %s" % (best[v][1]["_path"], e), file=sys.stderr)
     return runs
-
-
-def attribute(f, name, default):
-    value = f.attrs.get(name, default)
-    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def nfr_runs(rows):
@@ -159,10 +138,9 @@ def nfr_runs(rows):
         if r.get("status") != "ok" or not os.path.isfile(r["_path"]):
             continue
         try:
-            with h5py.File(r["_path"], "r") as f:
-                if attribute(f, "marg_strategy", "discard") != "nfr" or "sparsify" not in f:
-                    continue
-        except OSError as e:
+            if mr.run_summary(r["_path"])["marg_strategy"] != "nfr":
+                continue
+        except (OSError, KeyError) as e:
             print("warning: cannot read %s: %s" % (r["_path"], e), file=sys.stderr)
             continue
         rank = (-int(r["seed"]), int(r["frames"] or 0) or 10 ** 12)
@@ -172,19 +150,19 @@ def nfr_runs(rows):
 
 
 def read_timing(path):
-    with h5py.File(path, "r") as f:
-        fr, sp = f["frames"], f["sparsify"]
-        t_ns = fr["t_ns"][:]
-        keyframe = fr["is_keyframe"][:].astype(bool)
-        event_frames = sp["frame_index"][:]
-        recovered = sp["recovered"][:].astype(bool)
-        return dict(
-            t_opt=fr["t_opt_s"][:], t_marg=fr["t_marg_s"][:], keyframe=keyframe,
-            marg_kf=fr["t_marg_s"][:][event_frames],
-            schur=sp["t_schur_s"][:], recovery=sp["t_recovery_s"][:][recovered],
-            insert=sp["t_insert_s"][:][recovered],
-            kld_t=(sp["t_ns"][:][recovered] - (t_ns[0] if len(t_ns) else 0)) * 1e-9,
-            kld=sp["kld"][:][recovered])
+    run = mr.read_run(path)
+    fr, sp = run.frames, run.sparsify
+    col = lambda table, name: np.asarray(table[name])
+    keyframe = col(fr, "is_keyframe").astype(bool)
+    event_frames = col(sp, "frame_index").astype(np.int64)
+    recovered = col(sp, "recovered").astype(bool)
+    return dict(
+        t_opt=col(fr, "t_opt_s"), t_marg=col(fr, "t_marg_s"), keyframe=keyframe,
+        marg_kf=col(fr, "t_marg_s")[event_frames],
+        schur=col(sp, "t_schur_s"), recovery=col(sp, "t_recovery_s")[recovered],
+        insert=col(sp, "t_insert_s")[recovered],
+        kld_t=(col(sp, "t_ns").astype(np.int64) - run.t0_ns)[recovered] * 1e-9,
+        kld=col(sp, "kld")[recovered])
 
 
 def plot_sparsify(runs, out, written):
@@ -284,12 +262,12 @@ def plot_trajectories(ax, runs, title):
 
 def plot_sigma_min(ax, runs, title):
     for run in runs:
-        ax.plot(run.time(run.marg_t_ns), run.sigma_min, label=run.name(), **STYLE[run.variant])
+        ax.plot(run.marg_t, run.sigma_min, label=run.name(), **STYLE[run.variant])
         ft = run.failure_time()
         if ft is not None:
             ax.axvline(ft, color=STYLE[run.variant]["color"], ls=":", lw=1)
             if len(run.sigma_min):
-                ax.plot(run.time(run.marg_t_ns[-1]), run.sigma_min[-1], "x",
+                ax.plot(run.marg_t[-1], run.sigma_min[-1], "x",
                         color=STYLE[run.variant]["color"], ms=9, mew=2)
     ax.set_yscale("symlog", linthresh=LINTHRESH)
     ax.axhspan(-LINTHRESH, LINTHRESH, color="0.92", zorder=0)
@@ -304,7 +282,7 @@ def plot_sigma_min(ax, runs, title):
 def plot_dEm(fig, runs, title):
     axes = fig.subplots(2, 2, sharex=True, sharey=True).ravel()
     for ax, run in zip(axes, runs):
-        t = run.time(run.marg_t_ns)
+        t = run.marg_t
         for j, (d, c) in enumerate(zip(DIRECTIONS, DIRECTION_COLORS)):
             ax.plot(t, run.dEm[:, j], color=c, lw=1.0, label=d, ls=":" if d == "random" else "-")
         ft = run.failure_time()

@@ -1,0 +1,206 @@
+// Issue #20, on a tiny sweep generated here (KITTI 10 √VO-64/√VO-32 and EuRoC MH_01 VIO-64/VIO-32,
+// a few dozen frames each; VIO-32 fails at its first marginalizations):
+//   - `marglab tables` (tables.cpp), the Python reader (tools/scripts/marglab_results.py) and the
+//     independent checker (check_results.py) agree on every run (test/cli/readers_agree.py);
+//   - `marglab notebooks` executes the three notebooks (one per run, the sweep, f32 vs f64);
+//   - `marglab report --check` writes report.html and opens it in headless Chromium: screenshot,
+//     no console errors, its tables and figures present; a broken page is caught.
+// Skipped, with the Debian packages to install, when Python's Jupyter / pandas or Chromium are
+// missing.
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "common/cli_runner.h"
+
+namespace marglab {
+namespace {
+
+namespace fs = std::filesystem;
+using test::runCli;
+using test::runShell;
+
+std::string pythonWith(const std::string& modules) {
+  for (const std::string candidate : {"/usr/bin/python3", "python3"}) {
+    if (std::system((candidate + " -c 'import " + modules + "' > /dev/null 2>&1").c_str()) == 0) {
+      return candidate;
+    }
+  }
+  return {};
+}
+
+bool haveChromium() {
+  return std::system("command -v chromium > /dev/null 2>&1") == 0 ||
+         std::system("command -v chromium-browser > /dev/null 2>&1") == 0;
+}
+
+std::string readFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+class AnalysisTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    python_ = pythonWith("h5py, numpy, pandas");
+    if (python_.empty()) {
+      GTEST_SKIP() << "no python3 with h5py, numpy and pandas: install the Debian packages "
+                      "python3-h5py python3-numpy python3-pandas";
+    }
+    dir_ = fs::path(MARGLAB_BINARY_DIR) / "test_analysis" /
+           ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    std::ofstream(dir_ / "tiny.toml") << R"(name = "tiny"
+description = "test_analysis: two short VO and two short VIO runs"
+[[group]]
+name = "vo"
+datasets = ["kitti/10"]
+variants = ["ns-qr-sqrt-f64", "ns-qr-sqrt-f32"]
+frames = 40
+[[group]]
+name = "vio"
+datasets = ["euroc/MH_01_easy"]
+variants = ["sc-sc-sq-f64", "sc-sc-sq-f32"]
+frames = 40
+)";
+    sweep_ = (dir_ / "tiny").string();
+    const auto sweep =
+        runCli("sweep '" + (dir_ / "tiny.toml").string() + "' --jobs 2 --out '" + sweep_ + "'");
+    // VIO-32 fails numerically (a result, not an error); the sweep itself must complete.
+    ASSERT_TRUE(fs::is_regular_file(fs::path(sweep_) / "index.csv")) << sweep.output;
+    const auto tables = runCli("tables '" + sweep_ + "'");
+    ASSERT_EQ(tables.exit_code, 0) << tables.output;
+    ASSERT_TRUE(fs::is_regular_file(fs::path(sweep_) / "tables" / "tables.csv"));
+  }
+
+  std::string python_;
+  fs::path dir_;
+  std::string sweep_;
+};
+
+TEST_F(AnalysisTest, TablesPythonReaderAndCheckResultsAgreeOnEveryRun) {
+  const auto agree = runShell(python_ + " '" + MARGLAB_SOURCE_DIR +
+                              "/test/cli/readers_agree.py' '" + sweep_ + "'");
+  EXPECT_EQ(agree.exit_code, 0) << agree.output;
+  EXPECT_NE(agree.output.find("AGREE 4 runs"), std::string::npos) << agree.output;
+}
+
+// schema_version 2: the optional /frontend group (per-frame counts and time) and the root
+// attribute `frontend`; both readers accept it, and check_results.py rejects a wrong shape.
+TEST_F(AnalysisTest, FrontendGroupOfSchemaVersion2) {
+  const std::string run =
+      (fs::path(sweep_) / "runs" / "vo__kitti-10__ns-qr-sqrt-f64__s1.h5").string();
+  const std::string v2 = (dir_ / "v2.h5").string();
+  fs::copy_file(run, v2);
+  const std::string scripts = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts";
+  const auto add =
+      runShell(python_ + " -c \"import h5py, numpy as np; f = h5py.File('" + v2 +
+               "', 'r+'); n = f['frames/t_ns'].shape[0]; f.attrs['schema_version'] = 2; "
+               "f.attrs['frontend'] = 'tracks'; g = f.create_group('frontend'); "
+               "[g.create_dataset(c, data=np.arange(n, dtype=np.int64)) for c in "
+               "('n_features', 'n_tracked', 'n_new', 'n_stereo')]; "
+               "g['t_frontend_s'] = np.full(n, 1e-3); f.close()\"");
+  ASSERT_EQ(add.exit_code, 0) << add.output;
+  const auto check = runShell(python_ + " '" + scripts + "/check_results.py' '" + v2 + "'");
+  EXPECT_EQ(check.exit_code, 0) << check.output;
+  EXPECT_NE(check.output.find("schema_version 2"), std::string::npos) << check.output;
+  const auto read = runShell(python_ + " -c \"import sys; sys.path.insert(0, '" + scripts +
+                             "'); import marglab_results as mr; r = mr.read_run('" + v2 +
+                             "'); print(r.attrs['frontend'], r.frontend.shape[0] == len(r.frames), "
+                             "list(r.frontend.columns))\"");
+  EXPECT_EQ(read.exit_code, 0) << read.output;
+  EXPECT_NE(read.output.find("tracks True ['n_features', 'n_tracked', 'n_new', 'n_stereo', "
+                             "'t_frontend_s']"),
+            std::string::npos)
+      << read.output;
+  const auto cut = runShell(python_ + " -c \"import h5py; f = h5py.File('" + v2 +
+                            "', 'r+'); d = f['frontend/n_new'][:]; del f['frontend/n_new']; "
+                            "f['frontend/n_new'] = d[:-1]; f.close()\"");
+  ASSERT_EQ(cut.exit_code, 0) << cut.output;
+  const auto bad = runShell(python_ + " '" + scripts + "/check_results.py' '" + v2 + "'");
+  EXPECT_EQ(bad.exit_code, 1) << bad.output;
+  EXPECT_NE(bad.output.find("/frontend/n_new has shape"), std::string::npos) << bad.output;
+}
+
+TEST_F(AnalysisTest, NotebooksExecuteOnTheSweep) {
+  if (pythonWith("nbformat, nbclient, nbconvert, ipykernel, matplotlib").empty()) {
+    GTEST_SKIP() << "Jupyter missing: install the Debian packages jupyter-nbconvert "
+                    "python3-ipykernel python3-matplotlib";
+  }
+  const fs::path out = dir_ / "out";
+  const auto result = runCli("notebooks '" + sweep_ + "' --out '" + out.string() + "' --jobs 2");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  for (const std::string name :
+       {"sweep", "precision", "runs/vo__kitti-10__ns-qr-sqrt-f32__s1",
+        "runs/vo__kitti-10__ns-qr-sqrt-f64__s1", "runs/vio__euroc-MH_01_easy__sc-sc-sq-f32__s1",
+        "runs/vio__euroc-MH_01_easy__sc-sc-sq-f64__s1"}) {
+    SCOPED_TRACE(name);
+    ASSERT_TRUE(fs::is_regular_file(out / (name + ".html")));
+    ASSERT_TRUE(fs::is_regular_file(out / (name + ".ipynb")));
+    const std::string html = readFile(out / (name + ".html"));
+    EXPECT_EQ(html.find("Traceback"), std::string::npos);
+    EXPECT_NE(html.find("data:image/png;base64"), std::string::npos) << "no figure";
+    EXPECT_EQ(html.find("https://cdn"), std::string::npos) << "loads from the network";
+  }
+  // The sweep notebook shows the failure matrix with VIO-32's failure frame.
+  EXPECT_NE(readFile(out / "sweep.html").find("failed @"), std::string::npos);
+  EXPECT_TRUE(fs::is_regular_file(out / "notebooks.json"));
+  // The committed notebooks carry no outputs (only the executed copies do).
+  const auto clean = runShell(
+      python_ + " -c \"import json, glob, sys; cells = [c for p in glob.glob('" +
+      MARGLAB_SOURCE_DIR +
+      "/notebooks/*.ipynb') for c in json.load(open(p))['cells'] if c['cell_type'] == 'code']; "
+      "sys.exit(any(c['outputs'] or c['execution_count'] for c in cells) or not cells)\"");
+  EXPECT_EQ(clean.exit_code, 0) << "notebooks/*.ipynb committed with outputs\n" << clean.output;
+}
+
+TEST_F(AnalysisTest, ReportOpensInHeadlessChromium) {
+  if (pythonWith("matplotlib, websocket").empty() || !haveChromium()) {
+    GTEST_SKIP() << "headless browser check skipped: install the Debian packages chromium "
+                    "python3-websocket python3-matplotlib";
+  }
+  const fs::path out = dir_ / "out";
+  const auto result = runCli("report '" + sweep_ + "' --out '" + out.string() + "' --check");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  const std::string html = readFile(out / "report.html");
+  for (const char* part : {"id=\"failure-matrix\"", "Table 1", "Table 2", "data:image/png;base64",
+                           "fig1_euroc-MH_01_easy", "fig7_trajectory_kitti-10", "failed @ 9"}) {
+    EXPECT_NE(html.find(part), std::string::npos) << part;
+  }
+  const std::string png = readFile(out / "report.png");
+  ASSERT_GT(png.size(), 10000u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+
+  // The check fails on a broken page: a console error and an image that does not load.
+  std::string broken = html;
+  broken.insert(broken.find("</main>"),
+                "<img alt=\"gone\" src=\"gone.png\"><script>console.error('broken')</script>");
+  std::ofstream(out / "broken.html") << broken;
+  const auto check =
+      runShell(std::string(pythonWith("websocket")) + " '" + MARGLAB_SOURCE_DIR +
+               "/tools/scripts/check_report.py' '" + (out / "broken.html").string() + "' --report");
+  EXPECT_EQ(check.exit_code, 1) << check.output;
+  EXPECT_NE(check.output.find("console.error: broken"), std::string::npos) << check.output;
+  EXPECT_NE(check.output.find("gone"), std::string::npos) << check.output;
+}
+
+TEST(AnalysisCli, BadInputNamesTheFile) {
+  const fs::path dir = fs::path(MARGLAB_BINARY_DIR) / "test_analysis" / "not_a_sweep";
+  fs::create_directories(dir);
+  for (const std::string verb : {"notebooks", "report"}) {
+    const auto result = runCli(verb + " '" + dir.string() + "'");
+    EXPECT_EQ(result.exit_code, 1) << result.output;
+    EXPECT_NE(result.output.find((dir / "index.csv").string()), std::string::npos) << result.output;
+  }
+}
+
+}  // namespace
+}  // namespace marglab

@@ -1,0 +1,408 @@
+"""The one Python reader of marglab's results (schema_version 1 and 2, core/io/results_file.h).
+
+A run (one HDF5 results file) as pandas DataFrames plus its attributes, and a sweep folder as its
+index.csv joined with the runs' /summary values. plot_paper.py, check_results.py, make_report.py,
+the notebooks (notebooks/*.ipynb) and the tests read the results through this module, so the
+schema lives in one place on the Python side.
+
+    import marglab_results as mr
+    run = mr.read_run("results/quick/runs/vo__kitti-10__ns-qr-sqrt-f32__s1.h5")
+    run.attrs["variant"], run.summary["ate_rmse"]
+    run.frames      # one row per frame: t_ns, t_s, is_keyframe, ..., p_est_x/y/z, q_est_x/y/z/w,
+                    #   p_gt_x/y/z, ate_error
+    run.marg        # one row per marginalization event: frame_index, t_ns, t_s, ..., dEm_x ...
+                    #   dEm_random; run.eigenvalues: one ascending array per event
+    run.sparsify    # one row per keyframe marginalization of a dense / nfr run (may be empty)
+    run.frontend    # per-frame front-end statistics when the file has /frontend, else None
+    sweep = mr.read_sweep("results/quick")   # index.csv + each run's summary (HDF5 values)
+
+Needs numpy, h5py and pandas (Debian: python3-numpy python3-h5py python3-pandas).
+"""
+import csv
+import os
+
+import h5py
+import numpy as np
+
+try:
+    import pandas as pd
+except ImportError:  # check_results.py and plot_paper.py need only numpy and h5py
+    pd = None
+
+# ---- the schema ---------------------------------------------------------------------------------
+
+SCHEMA_VERSIONS = (1, 2)  # 2: optional /frontend group and root attribute `frontend`
+ROOT_ATTRS = ["schema_version", "marglab_version", "git_sha", "created_utc", "dataset",
+              "sequence", "variant", "precision", "seed", "config_toml", "status",
+              "failure_frame", "failure_reason"]
+FRAME_1D = ["t_ns", "is_keyframe", "n_landmarks", "n_observations", "lm_iterations",
+            "cost_initial", "cost_final", "t_opt_s", "t_marg_s", "ate_error"]
+FRAME_2D = {"p_est": "xyz", "q_est": "xyzw", "p_gt": "xyz"}
+MARG_1D = ["frame_index", "t_ns", "prior_cols", "prior_rows", "rank", "sigma_min", "sigma_max",
+           "n_negative"]
+MARG_OPTIONAL_1D = ["eig_tolerance"]
+DEM_DIRECTIONS = ["x", "y", "z", "roll", "pitch", "yaw", "random"]
+SPARSIFY_1D = ["frame_index", "t_ns", "blanket_cols", "n_blanket_poses", "n_blanket_landmarks",
+               "nnz_dense", "nnz_sparse", "kld", "recovered", "t_schur_s", "t_recovery_s",
+               "t_insert_s"]
+FRONTEND_1D = ["n_features", "n_tracked", "n_new", "n_stereo", "t_frontend_s"]
+FRONTEND_KINDS = ("images", "simulated", "tracks")
+MARG_STRATEGIES = ("discard", "dense", "nfr")
+SUMMARY_ATTRS = ["ate_rmse", "n_frames", "duration_s", "t_opt_total_s", "t_marg_total_s",
+                 "realtime_factor"]
+# The /summary values copied into a sweep table (read_sweep), as tables.cpp reads them.
+SUMMARY_COLUMNS = ["ate_rmse", "n_ate_pairs", "n_frames", "n_marg", "duration_s",
+                   "t_opt_total_s", "t_marg_total_s", "wall_time_s", "realtime_factor"]
+
+# Variants as the paper names them (Demmel et al., Tables 1-3).
+HEADLINE = ["ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64", "sc-sc-sq-f32"]
+
+
+class SchemaError(Exception):
+    """A file that is not a readable marglab results file (message names the file)."""
+
+
+def decode(value):
+    """An HDF5 attribute as a Python value: bytes -> str, numpy scalars -> int / float."""
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.ndarray) and value.shape == ():
+        value = value[()]
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return float(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def attributes(obj):
+    """All attributes of an h5py object, decoded."""
+    return {k: decode(v) for k, v in obj.attrs.items()}
+
+
+def label(variant, mode):
+    """The paper's name of a headline variant (sqrt-VIO-64, VO-32, ...); else the variant."""
+    family = "VIO" if mode == "vio" else "VO"
+    bits = variant[-2:]
+    if variant.startswith("ns-qr-sqrt"):
+        return "\u221a%s-%s" % (family, bits)
+    if variant.startswith("sc-sc-sq-"):
+        return "%s-%s" % (family, bits)
+    return variant
+
+
+def slug(dataset):
+    """kitti/10 -> kitti-10 (file names of figures)."""
+    return "".join(c if (c.isalnum() or c in "_.-") else "-" for c in dataset).lstrip("-")
+
+
+# ---- one run ------------------------------------------------------------------------------------
+
+def _columns(group, names, n, where, optional=False):
+    out = {}
+    for name in names:
+        if name not in group:
+            if optional:
+                continue
+            raise SchemaError("%s: missing %s/%s" % (group.file.filename, where, name))
+        data = group[name][:]
+        if data.shape != (n,):
+            raise SchemaError("%s: %s/%s has shape %s, expected (%d,)"
+                              % (group.file.filename, where, name, data.shape, n))
+        out[name] = data
+    return out
+
+
+class Run:
+    """One results file read into memory (the full priors of /marg/priors stay on disk: prior(k)).
+
+    attrs      root attributes (decoded), with marg_strategy defaulting to "discard" and frontend
+               to "" when absent
+    summary    /summary attributes; R_gt_est as a 3x3 array, t_gt_est as a 3-vector
+    frames, marg, sparsify: DataFrames (numpy dicts when pandas is missing); frontend: DataFrame or
+    None; eigenvalues: list of ascending arrays, one per /marg row
+    """
+
+    def __init__(self, path):
+        self.path = path
+        try:
+            f = h5py.File(path, "r")
+        except OSError as e:
+            raise SchemaError("%s: cannot open: %s" % (path, e)) from e
+        with f:
+            self.attrs = attributes(f)
+            version = self.attrs.get("schema_version")
+            if version not in SCHEMA_VERSIONS:
+                raise SchemaError("%s: schema_version %r (this reader knows %s)"
+                                  % (path, version, ", ".join(map(str, SCHEMA_VERSIONS))))
+            self.attrs.setdefault("marg_strategy", "discard")
+            self.attrs.setdefault("frontend", "")
+            for group in ("frames", "marg", "summary"):
+                if group not in f:
+                    raise SchemaError("%s: missing group /%s" % (path, group))
+            self.summary = attributes(f["summary"])
+            if "R_gt_est" in self.summary:
+                self.summary["R_gt_est"] = np.asarray(self.summary["R_gt_est"], float).reshape(3, 3)
+            if "t_gt_est" in self.summary:
+                self.summary["t_gt_est"] = np.asarray(self.summary["t_gt_est"], float).reshape(3)
+
+            fr = f["frames"]
+            n = fr["t_ns"].shape[0] if "t_ns" in fr else 0
+            frames = _columns(fr, FRAME_1D, n, "/frames")
+            for name, axes in FRAME_2D.items():
+                if name not in fr or fr[name].shape != (n, len(axes)):
+                    raise SchemaError("%s: /frames/%s missing or not (%d, %d)"
+                                      % (path, name, n, len(axes)))
+                data = fr[name][:]
+                for j, a in enumerate(axes):
+                    frames["%s_%s" % (name, a)] = data[:, j]
+            self.t0_ns = int(frames["t_ns"][0]) if n else 0
+            frames["t_s"] = (frames["t_ns"].astype(np.int64) - self.t0_ns) * 1e-9
+            frames["is_keyframe"] = frames["is_keyframe"].astype(bool)
+
+            mg = f["marg"]
+            m = mg["frame_index"].shape[0] if "frame_index" in mg else 0
+            marg = _columns(mg, MARG_1D, m, "/marg")
+            marg.update(_columns(mg, MARG_OPTIONAL_1D, m, "/marg", optional=True))
+            if "dEm" not in mg or mg["dEm"].shape != (m, len(DEM_DIRECTIONS)):
+                raise SchemaError("%s: /marg/dEm missing or not (%d, 7)" % (path, m))
+            dem = mg["dEm"][:]
+            for j, d in enumerate(DEM_DIRECTIONS):
+                marg["dEm_" + d] = dem[:, j]
+            marg["t_s"] = (marg["t_ns"].astype(np.int64) - self.t0_ns) * 1e-9
+            self.eigenvalues = []
+            if "eigenvalues" in mg:
+                values = mg["eigenvalues/values"][:]
+                offsets = mg["eigenvalues/offsets"][:]
+                if offsets.shape != (m + 1,):
+                    raise SchemaError("%s: /marg/eigenvalues/offsets is not (%d,)" % (path, m + 1))
+                self.eigenvalues = [values[offsets[k]:offsets[k + 1]] for k in range(m)]
+            self.prior_events = sorted(int(k) for k in mg["priors"]) if "priors" in mg else []
+
+            sparsify = {name: np.zeros(0) for name in SPARSIFY_1D}
+            if "sparsify" in f and "frame_index" in f["sparsify"]:
+                sp = f["sparsify"]
+                sparsify = _columns(sp, SPARSIFY_1D, sp["frame_index"].shape[0], "/sparsify")
+                sparsify["recovered"] = sparsify["recovered"].astype(bool)
+
+            frontend = None
+            if "frontend" in f:
+                fe = f["frontend"]
+                frontend = _columns(fe, [c for c in FRONTEND_1D if c in fe], n, "/frontend")
+                for name in fe:  # columns added after this reader: kept when per-frame
+                    if name not in frontend and fe[name].shape == (n,):
+                        frontend[name] = fe[name][:]
+
+        self.frames = _frame(frames)
+        self.marg = _frame(marg)
+        self.sparsify = _frame(sparsify)
+        self.frontend = None if frontend is None else _frame(frontend)
+
+    # -- conveniences
+    @property
+    def variant(self):
+        return self.attrs["variant"]
+
+    @property
+    def mode(self):
+        return self.attrs.get("mode", "")
+
+    @property
+    def status(self):
+        return self.attrs["status"]
+
+    @property
+    def failure_frame(self):
+        return int(self.attrs.get("failure_frame", -1))
+
+    @property
+    def dataset_name(self):
+        """"kitti/10" as in the sweep index (dataset/sequence attributes)."""
+        return "%s/%s" % (self.attrs.get("dataset", ""), self.attrs.get("sequence", ""))
+
+    def name(self):
+        return label(self.variant, self.mode)
+
+    def positions(self, which="p_est"):
+        return np.column_stack([np.asarray(self.frames["%s_%s" % (which, a)]) for a in "xyz"])
+
+    def aligned(self):
+        """Estimated positions in the ground-truth frame (the file's SE(3) alignment)."""
+        R = self.summary.get("R_gt_est", np.eye(3))
+        t = self.summary.get("t_gt_est", np.zeros(3))
+        return self.positions("p_est") @ np.asarray(R).T + np.asarray(t)
+
+    def failure_time(self):
+        """Seconds since the first frame at which the run failed; None when it did not."""
+        n = len(self.frames["t_ns"])
+        if self.status != "failed" or n == 0:
+            return None
+        k = min(max(self.failure_frame, 0), n - 1)
+        return float(np.asarray(self.frames["t_s"])[k])
+
+    def eigenvalue_matrix(self):
+        """Events x max(prior_cols) matrix of the prior spectra, NaN-padded (for heat maps)."""
+        width = max((len(e) for e in self.eigenvalues), default=0)
+        out = np.full((len(self.eigenvalues), width), np.nan)
+        for k, e in enumerate(self.eigenvalues):
+            out[k, :len(e)] = e
+        return out
+
+    def prior(self, k):
+        """The full double prior of /marg row k (only every 25th event is stored): dict of arrays."""
+        with h5py.File(self.path, "r") as f:
+            g = f["marg/priors/%d" % k]
+            out = {name: g[name][:] for name in g}
+            out.update(attributes(g))
+            return out
+
+
+def _frame(columns):
+    if pd is None:
+        return columns
+    return pd.DataFrame(columns)
+
+
+def read_run(path):
+    """The results file at `path` as a Run; raises SchemaError naming the file."""
+    return Run(path)
+
+
+# ---- a sweep folder -----------------------------------------------------------------------------
+
+def _need_pandas():
+    if pd is None:
+        raise ImportError("reading a sweep needs pandas (Debian: python3-pandas)")
+
+
+def _index_path(sweep_dir):
+    index = sweep_dir if sweep_dir.endswith(".csv") else os.path.join(sweep_dir, "index.csv")
+    if not os.path.isfile(index):
+        raise SchemaError("%s: no such file (not a sweep folder; run `marglab sweep`)" % index)
+    return index
+
+
+def read_index_rows(sweep_dir):
+    """index.csv as a list of dicts of strings (no pandas needed), `path` = the results file."""
+    index = _index_path(sweep_dir)
+    base = os.path.dirname(index)
+    with open(index, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for row in rows:
+        row["path"] = os.path.join(base, row["results"]) if row.get("results") else ""
+    return rows
+
+
+def read_index(sweep_dir):
+    """index.csv of a sweep as a DataFrame, with `path` = the results file's path (or "")."""
+    _need_pandas()
+    index = _index_path(sweep_dir)
+    sweep_dir = os.path.dirname(index)
+    # round_trip: the C++ writers print doubles with 17 digits; pandas' default parser may be off
+    # by an ulp.
+    df = pd.read_csv(index, dtype={"override": str, "results": str, "reason": str,
+                                   "failure_kind": str, "group": str},
+                     float_precision="round_trip")
+    for col in ("override", "results", "reason", "failure_kind"):
+        if col in df:
+            df[col] = df[col].fillna("")
+    df["sweep"] = os.path.basename(os.path.normpath(sweep_dir))
+    df["path"] = [os.path.join(sweep_dir, r) if r else "" for r in df["results"]]
+    return df
+
+
+def run_summary(path):
+    """The root attributes and /summary values of one file, without reading its datasets."""
+    with h5py.File(path, "r") as f:
+        a = attributes(f)
+        s = attributes(f["summary"]) if "summary" in f else {}
+    out = {"state": a.get("status", "missing"), "mode": a.get("mode", ""),
+           "marg_strategy": a.get("marg_strategy", "discard"), "frontend": a.get("frontend", ""),
+           "schema_version": a.get("schema_version"), "git_sha": a.get("git_sha", ""),
+           "marglab_version": a.get("marglab_version", ""),
+           "h5_failure_frame": a.get("failure_frame", -1),
+           "failure_reason": a.get("failure_reason", "")}
+    for name in SUMMARY_COLUMNS:
+        out[name] = s.get(name, np.nan)
+    return out
+
+
+def read_sweep(sweep_dir):
+    """The sweep's index joined with each run's summary read from its HDF5 file.
+
+    The HDF5 values take the schema's names (ate_rmse, t_opt_total_s, ...; the index's copies get
+    the suffix _index). `state` is ok | failed (from the file, or the index when the process died
+    without one) | missing (no complete file, not failed) — as `marglab tables` counts them.
+    """
+    df = read_index(sweep_dir)
+    rows = []
+    for _, r in df.iterrows():
+        values = {}
+        if r["path"] and os.path.isfile(r["path"]):
+            try:
+                values = run_summary(r["path"])
+            except (OSError, KeyError) as e:
+                values = {"state": "missing", "read_error": str(e)}
+        else:
+            values = {"state": "failed" if r.get("status") == "failed" else "missing"}
+        rows.append(values)
+    h5 = pd.DataFrame(rows, index=df.index)
+    overlap = [c for c in h5.columns if c in df.columns]
+    df = df.rename(columns={c: c + "_index" for c in overlap})
+    return pd.concat([df, h5], axis=1)
+
+
+def read_tables(sweep_dir):
+    """<sweep>/tables/tables.csv (written by `marglab tables`): one row per cell, ours and the
+    paper's; None when the tables have not been written."""
+    _need_pandas()
+    path = os.path.join(sweep_dir, "tables", "tables.csv")
+    if not os.path.isfile(path):
+        return None
+    return pd.read_csv(path, dtype={"override": str, "frames": str}, keep_default_na=False,
+                       na_values=[""], float_precision="round_trip")
+
+
+def failure_matrix(sweep):
+    """Variants x datasets: 'ok', 'failed @ N' (failure frame), or '' (not run); cells with several
+    seeds or overrides join their states."""
+    _need_pandas()
+
+    def cell(group):
+        parts = []
+        for _, r in group.iterrows():
+            if r["state"] == "ok":
+                parts.append("ok")
+            elif r["state"] == "failed":
+                frame = r.get("h5_failure_frame")
+                if frame is None or (isinstance(frame, float) and np.isnan(frame)):
+                    frame = r.get("failure_frame")
+                frame = "" if frame is None or (isinstance(frame, float) and np.isnan(frame)) \
+                    else " @ %d" % int(frame)
+                parts.append("failed" + frame)
+            else:
+                parts.append(r["state"])
+        return ", ".join(parts)
+
+    table = sweep.groupby(["variant", "dataset"]).apply(cell).unstack("dataset").fillna("")
+    order = [v for v in HEADLINE if v in table.index] + \
+        sorted(v for v in table.index if v not in HEADLINE)
+    return table.loc[order]
+
+
+def precision_pairs(sweep):
+    """f32 and f64 runs of the same method, dataset, seed and override: one row per pair with
+    both summaries (columns *_f32, *_f64) and the ATE difference f32 - f64 (NaN unless both
+    runs finished)."""
+    _need_pandas()
+    keys = ["dataset", "method", "seed", "override"]
+    cols = keys + ["id", "state", "ate_rmse", "t_opt_total_s", "t_marg_total_s", "path",
+                   "h5_failure_frame"]
+    a = sweep[sweep["precision"] == "f32"][cols]
+    b = sweep[sweep["precision"] == "f64"][cols]
+    pairs = a.merge(b, on=keys, suffixes=("_f32", "_f64"))
+    both_ok = (pairs["state_f32"] == "ok") & (pairs["state_f64"] == "ok")
+    pairs["ate_f32_minus_f64"] = (pairs["ate_rmse_f32"] - pairs["ate_rmse_f64"]).where(both_ok)
+    return pairs.sort_values(keys).reset_index(drop=True)
