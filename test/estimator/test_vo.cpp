@@ -115,10 +115,12 @@ TEST(VoMixed, NoiseFreeTracksRecoverTheTruthToAMillimetre) {
   EXPECT_LT(maxPositionError<double>(scenario, Variant::parse("ns-qr-sqrt-mixed")), 1e-3);
 }
 
-// The same window's damped LM step with float landmark blocks in a double reduced system agrees
-// with the all-double step to κ(H_damped)·ε_f (the float rounding of the reduced system, amplified
-// by the solve), and is not the double step bit for bit (the elimination did run in float).
-TEST(VoMixed, StepMatchesDoubleToFloatAccuracy) {
+// The same window's damped LM step with float landmark blocks in a double reduced system solves
+// the double system with a backward error of float size: the float elimination perturbs the
+// reduced system by O(ε_f ‖H‖), so ‖(H + D) δ + b‖ ≤ c ε_f (‖H + D‖ ‖δ‖ + ‖b‖) with c a small
+// multiple of the rows per landmark, whatever κ(H) (1e6 here, from the gauge prior). The all-double
+// step's backward error is of double size, far below: the elimination did run in float.
+TEST(VoMixed, StepSolvesTheDoubleSystemToFloatBackwardError) {
   const Scenario scenario(40, true);
   SlidingWindowEstimator<double> estimator(testConfig(), Variant::parse("ns-qr-sqrt-f64"),
                                            rigFromCalib(scenario.calib), scenario.truth(0));
@@ -128,28 +130,32 @@ TEST(VoMixed, StepMatchesDoubleToFloatAccuracy) {
   const double lambda = 1e-4;
   Linearization<double>::Options options;
   options.lambda_min = testConfig().lambda_min;
-  auto step = [&](const char* name, MatXd* H) {
+  MatXd H;
+  VecXd b;
+  auto step = [&](const char* name) {
     auto lin = makeLinearization<double>(Variant::parse(name), options);
     lin->linearize(estimator.window());
     EXPECT_TRUE(lin->eliminate().ok());
-    if (H != nullptr) *H = lin->reducedHessian();
+    if (H.size() == 0) {
+      H = lin->reducedHessian();
+      b = lin->reducedGradient();
+    }
     LinearStep<double> s;
     EXPECT_TRUE(lin->solve(lambda, &s).ok());
     return s.delta;
   };
-  MatXd H;
-  const VecXd ref = step("ns-qr-sqrt-f64", &H);
-  const VecXd mixed = step("ns-qr-sqrt-mixed", nullptr);
+  const VecXd ref = step("ns-qr-sqrt-f64");
+  const VecXd mixed = step("ns-qr-sqrt-mixed");
   for (Eigen::Index i = 0; i < H.rows(); ++i) {
     H(i, i) += std::max(lambda * H(i, i), options.lambda_min);
   }
-  const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<MatXd>(H).eigenvalues();
-  const double kappa = ev.maxCoeff() / ev.minCoeff();
-  const double tol = 10 * kappa * std::numeric_limits<float>::epsilon();
-  ASSERT_LT(tol, 0.1) << "the window is too ill-conditioned for a meaningful bound";
-  const double diff = (mixed - ref).norm() / ref.norm();
-  EXPECT_LT(diff, tol);
-  EXPECT_GT(diff, 0.0);
+  auto backwardError = [&](const VecXd& delta) {
+    return (H * delta + b).norm() / (H.norm() * delta.norm() + b.norm());
+  };
+  const double eps_f = std::numeric_limits<float>::epsilon();
+  EXPECT_LT(backwardError(mixed), 100 * eps_f);
+  EXPECT_LT(backwardError(ref), 100 * std::numeric_limits<double>::epsilon());
+  EXPECT_GT(backwardError(mixed), 1e3 * backwardError(ref));
 }
 
 // Runs a few frames so that the window is full and has a prior, then compares.
