@@ -11,6 +11,7 @@ PACKAGES=(
   libeigen3-dev libsuitesparse-dev libceres-dev libcli11-dev libfmt-dev libhdf5-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtomlplusplus-dev
   python3 python3-matplotlib python3-h5py python3-numpy
+  slurm-wlm munge  # scripts/slurm_local.sh: a one-node Slurm cluster for `sweep --backend slurm`
 )
 
 missing=()

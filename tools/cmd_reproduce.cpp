@@ -38,6 +38,8 @@ struct ReproduceArgs {
   std::string experiments = std::string(MARGLAB_SOURCE_DIR) + "/experiments";
   std::string results = "results";
   std::string figures = "notebooks-out";
+  std::string backend = "local";
+  std::vector<std::string> slurm_args;
 };
 
 // The Markdown of one table out of the combined tables file, for the closing summary.
@@ -80,6 +82,9 @@ int runReproduce(const ReproduceArgs& args) {
     options.resume = args.resume;
     options.force = !args.resume;  // reproduce recomputes unless asked to continue
     options.status_line = cli::stderrIsTerminal();
+    options.backend = args.backend;
+    options.slurm.extra = args.slurm_args;
+    options.slurm.wait = true;  // the tables need the runs
     const int code = experiment::runSweepAndReport(
         plans[i], (fs::path(args.experiments) / files[i]).string(), options);
     if (code == 130) return code;
@@ -131,6 +136,12 @@ const bool kRegistered = cli::registerCommand(
        sub.add_option("--results", args->results, "Folder for the sweep results and tables")
            ->capture_default_str();
        sub.add_option("--figures", args->figures, "Folder for the figures")->capture_default_str();
+       sub.add_option("--backend", args->backend, "Sweep backend: local or slurm (see sweep)")
+           ->capture_default_str()
+           ->check(CLI::IsMember({"local", "slurm"}));
+       sub.add_option("--slurm-arg", args->slurm_args,
+                      "slurm: a further sbatch option, verbatim (repeatable)")
+           ->allow_extra_args(false);
        return [args] { return runReproduce(*args); };
      }});
 

@@ -1,0 +1,549 @@
+#include "core/experiment/slurm_backend.h"
+
+#include <fmt/core.h>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "core/common/error.h"
+#include "core/common/utc_time.h"
+#include "core/experiment/slurm_client.h"
+#include "core/experiment/sweep_common.h"
+#include "marglab/version.h"
+
+namespace marglab::experiment {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+volatile std::sig_atomic_t g_stop_signal = 0;
+extern "C" void onSlurmStopSignal(int signal) { g_stop_signal = signal; }
+
+bool isUnresolved(const IndexRow& row) {
+  const std::string& status = row.get("status");
+  return !row.get("slurm_job").empty() && (status == "pending" || status == "running");
+}
+
+std::string jobOf(const std::string& task) { return task.substr(0, task.find('_')); }
+
+std::set<std::string> unresolvedJobs(const std::vector<IndexRow>& rows) {
+  std::set<std::string> jobs;
+  for (const IndexRow& row : rows) {
+    if (isUnresolved(row)) jobs.insert(jobOf(row.get("slurm_job")));
+  }
+  return jobs;
+}
+
+std::string isoUtc(double epoch_s) {
+  const std::time_t t = static_cast<std::time_t>(epoch_s);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buffer[32];
+  std::strftime(buffer, sizeof(buffer), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buffer;
+}
+
+// The binary and git revision that planned the folder's Slurm submissions (slurm/binary.txt).
+struct Provenance {
+  std::string executable;
+  std::string revision;
+};
+
+Provenance readProvenance(const fs::path& out) {
+  std::istringstream in(detail::readTextFile((out / "slurm" / "binary.txt").string()));
+  Provenance p;
+  std::getline(in, p.executable);
+  std::getline(in, p.revision);
+  return p;
+}
+
+void writeProvenance(const fs::path& out, const Provenance& p) {
+  writeFileAtomically((out / "slurm" / "binary.txt").string(),
+                      p.executable + "\n" + p.revision + "\n");
+}
+
+// failure_kind and reason of a task that Slurm ended; empty kind when the task ended by itself.
+std::pair<std::string, std::string> slurmEnding(const std::string& state) {
+  if (state == "TIMEOUT" || state == "DEADLINE") return {"timeout", "Slurm's time limit reached"};
+  if (state == "CANCELLED") return {"interrupted", "cancelled in Slurm (scancel)"};
+  if (state == "PREEMPTED") return {"interrupted", "preempted by Slurm"};
+  if (state == "OUT_OF_MEMORY") return {"oom", "killed by Slurm: out of memory"};
+  if (state == "NODE_FAIL" || state == "BOOT_FAIL") return {"node", "node failure (" + state + ")"};
+  return {};
+}
+
+// A task that ended by itself without a complete results file: like a local run's exit.
+void setProcessFailure(const fs::path& out, const std::string& state, const TaskExit& exit,
+                       IndexRow* row) {
+  const std::string task = row->get("slurm_job");
+  const std::string log = (out / row->get("log")).string();
+  if (!exit.present) {
+    row->set("failure_kind", "exit");
+    row->set("reason", state.empty() ? "Slurm no longer knows task " + task +
+                                           " and it left no exit file (no accounting to ask)"
+                                     : "task " + task + " ended " + state +
+                                           " without an exit file: " +
+                                           detail::lastNonEmptyLine(log));
+  } else if (!exit.signal.empty() || exit.exit_code > 128) {
+    const int sig = exit.signal.empty() ? exit.exit_code - 128 : SIGTERM;
+    row->set("failure_kind", "signal");
+    row->set("signal", std::to_string(sig));
+    row->set("reason", "killed by " + detail::signalName(sig) + " (task " + task + ")");
+  } else {
+    row->set("failure_kind", "exit");
+    row->set("reason", fmt::format("exit code {} without a complete results file: {}",
+                                   exit.exit_code, detail::lastNonEmptyLine(log)));
+  }
+}
+
+}  // namespace
+
+bool applyTaskOutcome(const std::string& sweep_dir, const std::string& state, const TaskExit& exit,
+                      const std::string& revision, IndexRow* row) {
+  if (isActiveState(state)) {
+    row->set("status", isPendingState(state) ? "pending" : "running");
+    return false;
+  }
+  const fs::path out(sweep_dir);
+  detail::removeTemporaries(out / row->get("results"));  // a killed writer's leftovers
+  if (exit.present) {
+    row->setNumber("wall_s", exit.end - exit.start);
+    row->set("started_utc", isoUtc(exit.start));
+    if (exit.exit_code >= 0) row->set("exit_code", std::to_string(exit.exit_code));
+  }
+  // The results file first: a run that completed is a result whatever Slurm did afterwards.
+  if (detail::readCompleteResults((out / row->get("results")).string(), row, revision.c_str())) {
+    return true;
+  }
+  row->set("status", "failed");
+  const auto [kind, why] = slurmEnding(state);
+  if (kind.empty()) {
+    setProcessFailure(out, state, exit, row);
+  } else {
+    row->set("failure_kind", kind);
+    row->set("reason", why + " (task " + row->get("slurm_job") + ")");
+  }
+  return true;
+}
+
+namespace {
+
+// Brings the index's queued rows up to date with Slurm; one squeue per array.
+class Reconciler {
+ public:
+  Reconciler(fs::path out, std::string revision)
+      : out_(std::move(out)), revision_(std::move(revision)) {}
+
+  // Returns the rows that finished now.
+  std::vector<std::size_t> update(std::vector<IndexRow>* rows) const {
+    const std::set<std::string> jobs = unresolvedJobs(*rows);
+    if (jobs.empty()) return {};
+    bool query_failed = false;
+    const TaskStates states = client_.taskStates(jobs, &query_failed);
+    std::vector<std::size_t> finished;
+    for (std::size_t i = 0; i < rows->size(); ++i) {
+      IndexRow& row = (*rows)[i];
+      if (!isUnresolved(row)) continue;
+      const auto it = states.find(row.get("slurm_job"));
+      // Not listed because the controller did not answer is not "forgotten": ask again later.
+      if (it == states.end() && query_failed) continue;
+      const TaskExit exit = readTaskExit((out_ / "slurm" / "exit" / row.get("id")).string());
+      const std::string state = it == states.end() ? "" : it->second;
+      if (applyTaskOutcome(out_.string(), state, exit, revision_, &row)) finished.push_back(i);
+    }
+    return finished;
+  }
+
+ private:
+  fs::path out_;
+  std::string revision_;
+  SlurmClient client_;
+};
+
+std::string describeRow(const IndexRow& row) {
+  if (row.get("status") == "ok") return fmt::format("ATE {:.4f} m", row.number("ate_rmse"));
+  const std::string& frame = row.get("failure_frame");
+  return row.get("failure_kind") + (frame.empty() ? "" : " at frame " + frame) + ": " +
+         row.get("reason");
+}
+
+// Submits queued rows as job arrays, one per distinct time limit, longest runs first.
+class Submitter {
+ public:
+  Submitter(const SweepPlan& plan, const SweepOptions& options, fs::path out, Provenance binary)
+      : plan_(plan), options_(options), out_(std::move(out)), binary_(std::move(binary)) {}
+
+  // rows[i] belongs to plan.runs[i]. Throws InputError with sbatch's message; the rows of an
+  // array Slurm rejected stay pending without a job (--resume submits them again).
+  std::vector<std::string> submit(const std::vector<std::size_t>& queue,
+                                  std::vector<IndexRow>* rows) {
+    std::map<std::string, std::vector<std::size_t>> by_time;
+    for (std::size_t i : queue) by_time[timeOf(plan_.runs[i])].push_back(i);
+    std::vector<std::string> jobs;
+    for (const auto& [time, indices] : by_time) {
+      jobs.push_back(submitArray(time, indices, rows));
+    }
+    return jobs;
+  }
+
+  std::vector<std::string> scripts() const { return scripts_; }
+
+ private:
+  std::string timeOf(const PlannedRun& run) const {
+    return options_.slurm.time.empty() ? slurmTimeForTimeout(run.timeout_s) : options_.slurm.time;
+  }
+
+  SlurmArraySpec spec(const std::string& time) const {
+    SlurmArraySpec s;
+    s.sweep_name = plan_.name;
+    s.sweep_dir = out_.string();
+    s.executable = binary_.executable;
+    s.revision = binary_.revision;
+    s.time = time;
+    s.throttle = options_.jobs;
+    s.partition = options_.slurm.partition;
+    s.mem = options_.slurm.mem;
+    s.cpus = options_.slurm.cpus;
+    s.extra = options_.slurm.extra;
+    return s;
+  }
+
+  std::string nextScriptPath() const {
+    for (int n = 1;; ++n) {
+      const fs::path p = out_ / "slurm" / fmt::format("array-{}.sbatch", n);
+      if (!fs::exists(p)) return p.string();
+    }
+  }
+
+  std::string submitArray(const std::string& time, const std::vector<std::size_t>& indices,
+                          std::vector<IndexRow>* rows) {
+    SlurmArraySpec s = spec(time);
+    for (std::size_t i : indices) {
+      IndexRow& row = (*rows)[i];
+      detail::prepareRunFiles(out_, plan_.name, plan_.runs[i], &row);
+      row.set("status", "pending");
+      s.tasks.push_back({row.get("id"), runArguments(plan_.runs[i], row.get("results"),
+                                                     row.get("config"))});
+    }
+    const std::string script = nextScriptPath();
+    writeFileAtomically(script, sbatchScript(s));
+    scripts_.push_back(script);
+    const std::string job = SlurmClient().submit(script);  // throws with Slurm's message
+    for (std::size_t k = 0; k < indices.size(); ++k) {
+      (*rows)[indices[k]].set("slurm_job", fmt::format("{}_{}", job, k));
+    }
+    std::ofstream log(out_ / "slurm" / "submissions.log", std::ios::app);
+    log << utcNowIso8601() << " job " << job << " " << indices.size() << " task(s) "
+        << fs::path(script).filename().string() << " revision " << binary_.revision << "\n";
+    return job;
+  }
+
+  const SweepPlan& plan_;
+  const SweepOptions& options_;
+  fs::path out_;
+  Provenance binary_;
+  std::vector<std::string> scripts_;
+};
+
+// Follows the queued rows until none is left: a line per finished run, the status line, Ctrl-C
+// cancels the arrays.
+class Follower {
+ public:
+  Follower(std::string name, fs::path out, std::string revision, const SweepOptions& options)
+      : name_(std::move(name)),
+        out_(std::move(out)),
+        index_path_((out_ / "index.csv").string()),
+        reconciler_(out_, std::move(revision)),
+        options_(options) {}
+
+  // Returns true when interrupted.
+  bool run(std::vector<IndexRow>* rows) {
+    total_ = static_cast<int>(std::count_if(rows->begin(), rows->end(), isUnresolved));
+    installSignalHandlers();
+    const auto start = Clock::now();
+    auto stop_time = Clock::time_point::max();
+    while (true) {
+      if (g_stop_signal != 0 && stop_time == Clock::time_point::max()) {
+        cancelAll(*rows);
+        stop_time = Clock::now();
+      }
+      for (std::size_t i : reconciler_.update(rows)) announce((*rows)[i]);
+      writeIndex(index_path_, *rows);
+      if (unresolvedJobs(*rows).empty()) break;
+      // Cancelled tasks end within Slurm's KillWait; do not hang on a controller that is gone.
+      if (Clock::now() - stop_time > std::chrono::seconds(90)) break;
+      statusLine(*rows, start);
+      std::this_thread::sleep_for(std::chrono::duration<double>(options_.slurm.poll_s));
+    }
+    if (options_.status_line) fmt::print(stderr, "\r\033[K");
+    restoreSignalHandlers();
+    return g_stop_signal != 0;
+  }
+
+ private:
+  void cancelAll(const std::vector<IndexRow>& rows) {
+    const std::set<std::string> jobs = unresolvedJobs(rows);
+    std::string message;
+    if (!SlurmClient().cancel({jobs.begin(), jobs.end()}, &message)) {
+      fmt::print(stderr, "\nmarglab sweep: scancel failed: {}\n", message);
+    }
+  }
+
+  void announce(const IndexRow& row) {
+    ++finished_;
+    if (options_.status_line) fmt::print(stderr, "\r\033[K");
+    fmt::print(options_.out, "[{:>{}}/{}] {:<6} {:>7.1f} s  {}  {}\n", finished_,
+               std::to_string(total_).size(), total_, row.get("status"), row.number("wall_s"),
+               row.get("id"), describeRow(row));
+    std::fflush(options_.out);
+  }
+
+  void statusLine(const std::vector<IndexRow>& rows, Clock::time_point start) const {
+    if (!options_.status_line) return;
+    int running = 0, pending = 0, failed = 0;
+    double done_wall = 0;
+    for (const IndexRow& row : rows) {
+      if (row.get("slurm_job").empty()) continue;
+      running += row.get("status") == "running";
+      pending += row.get("status") == "pending";
+      failed += row.get("status") == "failed";
+      if (!isUnresolved(row) && std::isfinite(row.number("wall_s"))) done_wall += row.number("wall_s");
+    }
+    const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+    // ETA: mean wall time of the finished runs × the runs left, spread over those running.
+    const double eta = finished_ > 0 ? done_wall / finished_ * (running + pending) /
+                                           std::max(1, running)
+                                     : std::nan("");
+    fmt::print(stderr,
+               "\r\033[K  sweep {} (Slurm): {}/{} done, {} running, {} pending, {} failed  {} "
+               "elapsed  ETA {}",
+               name_, finished_, total_, running, pending, failed, detail::formatDuration(elapsed),
+               detail::formatDuration(eta));
+    std::fflush(stderr);
+  }
+
+  void installSignalHandlers() {
+    g_stop_signal = 0;
+    struct sigaction action {};
+    action.sa_handler = onSlurmStopSignal;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &old_int_);
+    sigaction(SIGTERM, &action, &old_term_);
+  }
+  void restoreSignalHandlers() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+
+  std::string name_;
+  fs::path out_;
+  std::string index_path_;
+  Reconciler reconciler_;
+  const SweepOptions& options_;
+  int total_ = 0;
+  int finished_ = 0;
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
+// The closing summary; the exit code of `sweep`.
+int report(const std::string& name, const std::vector<IndexRow>& rows, const fs::path& out,
+           double wall_s, bool interrupted, std::FILE* stream) {
+  int ok = 0, numerical = 0, process = 0, reused = 0, queued = 0, unsubmitted = 0;
+  std::map<std::string, int> kinds;
+  for (const IndexRow& row : rows) {
+    const std::string& status = row.get("status");
+    reused += !row.get("reused").empty();
+    if (status == "ok") {
+      ++ok;
+    } else if (status == "failed" && row.get("failure_kind") == "numerical") {
+      ++numerical;
+    } else if (status == "failed") {
+      ++process;
+      ++kinds[row.get("failure_kind")];
+    } else if (isUnresolved(row)) {
+      ++queued;
+    } else {
+      ++unsubmitted;
+    }
+  }
+  std::string kind_text;
+  for (const auto& [kind, n] : kinds) kind_text += fmt::format("{}{} {}", kind_text.empty() ? " (" : ", ", n, kind);
+  if (!kind_text.empty()) kind_text += ")";
+  fmt::print(stream, "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{}{}{} in {:.1f} s\n",
+             name, ok, numerical, process, kind_text,
+             reused ? fmt::format(" ({} kept from an earlier invocation)", reused) : "",
+             queued ? fmt::format(", {} still queued in Slurm", queued) : "",
+             unsubmitted ? fmt::format(", {} not submitted", unsubmitted) : "", wall_s);
+  fmt::print(stream, "  index {}\n", (out / "index.csv").string());
+  if (interrupted) {
+    fmt::print(stream, "  interrupted: the arrays were cancelled; continue with --resume\n");
+    return 130;
+  }
+  if (queued > 0) {
+    fmt::print(stream, "  follow: marglab sweep --status {} [--wait]\n", out.string());
+  }
+  return process > 0 || unsubmitted > 0 ? 1 : 0;
+}
+
+}  // namespace
+
+namespace {
+
+// --resume of a Slurm folder: the earlier index reconciled; rows whose task may still run are
+// kept as they are (not submitted twice) — only when the same revision planned them identically.
+std::map<std::string, IndexRow> stillQueued(const fs::path& out, const SweepPlan& plan) {
+  const fs::path index = out / "index.csv";
+  const Provenance earlier = readProvenance(out);
+  if (!fs::exists(index) || earlier.revision.empty()) return {};
+  std::vector<IndexRow> rows = readIndex(index.string());
+  Reconciler(out, earlier.revision).update(&rows);
+  writeIndex(index.string(), rows);
+  std::map<std::string, IndexRow> queued;
+  for (IndexRow& row : rows) {
+    if (isUnresolved(row)) queued[row.get("id")] = std::move(row);
+  }
+  if (queued.empty()) return queued;
+  std::set<std::string> jobs;
+  for (const auto& [id, row] : queued) jobs.insert(jobOf(row.get("slurm_job")));
+  const std::string job_list = fmt::format("{}", fmt::join(jobs, " "));
+  if (earlier.revision != MARGLAB_GIT_SHA) {
+    throw UsageError(fmt::format(
+        "{}: {} run(s) planned by git revision {} are still queued in Slurm (jobs {}); this is "
+        "revision {}. Wait for them (marglab sweep --status {} --wait) or cancel them (scancel "
+        "{}) before resuming, so that one folder never mixes revisions",
+        out.string(), queued.size(), earlier.revision, MARGLAB_GIT_SHA, out.string(), job_list,
+        job_list));
+  }
+  for (const PlannedRun& run : plan.runs) {
+    const bool same = detail::readTextFile((out / "runs" / (run.id + ".cmd")).string()) ==
+                      runFingerprint(run);
+    if (queued.count(run.id) && !same) {
+      throw UsageError(fmt::format("{}: run {} is still queued in Slurm (jobs {}) but planned "
+                                   "differently now: cancel it first (scancel {})",
+                                   out.string(), run.id, job_list, job_list));
+    }
+  }
+  return queued;
+}
+
+// The rows of the plan and the indices to submit.
+std::vector<std::size_t> planRows(const SweepPlan& plan, const fs::path& out, bool resume,
+                                  std::map<std::string, IndexRow> queued,
+                                  std::vector<IndexRow>* rows) {
+  detail::FrameEstimator frames;
+  std::vector<std::size_t> queue;
+  std::vector<double> weights;
+  for (const PlannedRun& run : plan.runs) {
+    IndexRow row = detail::plannedRow(run);
+    bool other_revision = false;
+    if (queued.count(run.id)) {
+      row = std::move(queued[run.id]);
+    } else if (!(resume && detail::keepEarlierResult(out, run, &row, &other_revision))) {
+      row.set("status", "pending");
+      queue.push_back(rows->size());
+    }
+    rows->push_back(std::move(row));
+    weights.push_back(frames(run));
+  }
+  // Longest first: array tasks start in index order.
+  std::stable_sort(queue.begin(), queue.end(),
+                   [&](std::size_t a, std::size_t b) { return weights[a] > weights[b]; });
+  return queue;
+}
+
+}  // namespace
+
+int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
+                           const SweepOptions& options) {
+  const auto start = Clock::now();
+  const fs::path out = fs::absolute(options.out_dir).lexically_normal();
+  std::string why;
+  if (!SlurmClient::available(&why)) {
+    throw UsageError("--backend slurm: no Slurm cluster answers here (" + why +
+                     "); to try it on this machine: scripts/slurm_local.sh start");
+  }
+  if (!options.resume && !options.force && fs::exists(out / "index.csv")) {
+    throw UsageError(fmt::format(
+        "{} already holds a sweep: continue it with --resume, or start over with --force",
+        out.string()));
+  }
+  std::map<std::string, IndexRow> queued = options.resume ? stillQueued(out, plan)
+                                                          : std::map<std::string, IndexRow>{};
+  detail::prepareSweepFolder(out, detail::readTextFile(sweep_file), options.resume, options.force);
+  for (const char* sub : {"slurm/exit", "slurm/out"}) fs::create_directories(out / sub);
+  std::vector<IndexRow> rows;
+  const std::vector<std::size_t> queue =
+      planRows(plan, out, options.resume, std::move(queued), &rows);
+  const Provenance binary{options.executable.empty()
+                              ? fs::read_symlink("/proc/self/exe").string()
+                              : fs::absolute(options.executable).string(),
+                          MARGLAB_GIT_SHA};
+  writeProvenance(out, binary);
+  const std::string index_path = (out / "index.csv").string();
+  writeIndex(index_path, rows);
+  fmt::print(options.out, "sweep {}: {} runs -> {} (Slurm; {} to submit)\n", plan.name,
+             plan.runs.size(), out.string(), queue.size());
+  Submitter submitter(plan, options, out, binary);
+  std::vector<std::string> jobs;
+  try {
+    jobs = submitter.submit(queue, &rows);
+  } catch (const InputError& e) {
+    writeIndex(index_path, rows);
+    fmt::print(stderr, "marglab sweep: {}\n", e.what());
+    fmt::print(options.out, "  nothing more was submitted; the folder is resumable: fix the "
+                            "Slurm options and run again with --resume\n");
+    return 1;
+  }
+  writeIndex(index_path, rows);
+  for (std::size_t k = 0; k < jobs.size(); ++k) {
+    fmt::print(options.out, "  submitted job array {} ({})\n", jobs[k], submitter.scripts()[k]);
+  }
+  std::fflush(options.out);
+  if (!options.slurm.wait) {
+    const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+    if (!jobs.empty()) fmt::print(options.out, "  cancel: scancel {}\n", fmt::join(jobs, " "));
+    return report(plan.name, rows, out, wall, false, options.out);
+  }
+  const bool interrupted = Follower(plan.name, out, binary.revision, options).run(&rows);
+  const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+  return report(plan.name, rows, out, wall, interrupted, options.out);
+}
+
+int slurmSweepStatus(const std::string& dir, const SweepOptions& options) {
+  const auto start = Clock::now();
+  const fs::path out = fs::absolute(dir).lexically_normal();
+  const std::string index_path = (out / "index.csv").string();
+  std::vector<IndexRow> rows = readIndex(index_path);
+  const Provenance binary = readProvenance(out);
+  const std::string name = out.filename().string();
+  bool interrupted = false;
+  if (!binary.revision.empty()) {
+    for (std::size_t i : Reconciler(out, binary.revision).update(&rows)) {
+      fmt::print(options.out, "  {:<6} {}  {}\n", rows[i].get("status"), rows[i].get("id"),
+                 describeRow(rows[i]));
+    }
+    writeIndex(index_path, rows);
+    if (options.slurm.wait) interrupted = Follower(name, out, binary.revision, options).run(&rows);
+  }
+  for (const IndexRow& row : rows) {
+    if (row.get("status") == "failed" && row.get("failure_kind") != "numerical") {
+      fmt::print(options.out, "  failed {}  {}\n", row.get("id"), describeRow(row));
+    }
+  }
+  const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+  return report(name, rows, out, wall, interrupted, options.out);
+}
+
+}  // namespace marglab::experiment
