@@ -90,11 +90,11 @@ void setProcessFailure(const fs::path& out, const std::string& state, const Task
   const std::string log = (out / row->get("log")).string();
   if (!exit.present) {
     row->set("failure_kind", "exit");
-    row->set("reason", state.empty() ? "Slurm no longer knows task " + task +
-                                           " and it left no exit file (no accounting to ask)"
-                                     : "task " + task + " ended " + state +
-                                           " without an exit file: " +
-                                           detail::lastNonEmptyLine(log));
+    row->set("reason", state.empty()
+                           ? "Slurm no longer knows task " + task +
+                                 " and it left no exit file (no accounting to ask)"
+                           : "task " + task + " ended " + state +
+                                 " without an exit file: " + detail::lastNonEmptyLine(log));
   } else if (!exit.signal.empty() || exit.exit_code > 128) {
     const int sig = exit.signal.empty() ? exit.exit_code - 128 : SIGTERM;
     row->set("failure_kind", "signal");
@@ -233,8 +233,8 @@ class Submitter {
       IndexRow& row = (*rows)[i];
       detail::prepareRunFiles(out_, plan_.name, plan_.runs[i], &row);
       row.set("status", "pending");
-      s.tasks.push_back({row.get("id"), runArguments(plan_.runs[i], row.get("results"),
-                                                     row.get("config"))});
+      s.tasks.push_back(
+          {row.get("id"), runArguments(plan_.runs[i], row.get("results"), row.get("config"))});
     }
     const std::string script = nextScriptPath();
     writeFileAtomically(script, sbatchScript(s));
@@ -318,13 +318,14 @@ class Follower {
       running += row.get("status") == "running";
       pending += row.get("status") == "pending";
       failed += row.get("status") == "failed";
-      if (!isUnresolved(row) && std::isfinite(row.number("wall_s"))) done_wall += row.number("wall_s");
+      if (!isUnresolved(row) && std::isfinite(row.number("wall_s")))
+        done_wall += row.number("wall_s");
     }
     const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
     // ETA: mean wall time of the finished runs × the runs left, spread over those running.
-    const double eta = finished_ > 0 ? done_wall / finished_ * (running + pending) /
-                                           std::max(1, running)
-                                     : std::nan("");
+    const double eta = finished_ > 0
+                           ? done_wall / finished_ * (running + pending) / std::max(1, running)
+                           : std::nan("");
     fmt::print(stderr,
                "\r\033[K  sweep {} (Slurm): {}/{} done, {} running, {} pending, {} failed  {} "
                "elapsed  ETA {}",
@@ -379,9 +380,11 @@ int report(const std::string& name, const std::vector<IndexRow>& rows, const fs:
     }
   }
   std::string kind_text;
-  for (const auto& [kind, n] : kinds) kind_text += fmt::format("{}{} {}", kind_text.empty() ? " (" : ", ", n, kind);
+  for (const auto& [kind, n] : kinds)
+    kind_text += fmt::format("{}{} {}", kind_text.empty() ? " (" : ", ", n, kind);
   if (!kind_text.empty()) kind_text += ")";
-  fmt::print(stream, "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{}{}{} in {:.1f} s\n",
+  fmt::print(stream,
+             "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{}{}{} in {:.1f} s\n",
              name, ok, numerical, process, kind_text,
              reused ? fmt::format(" ({} kept from an earlier invocation)", reused) : "",
              queued ? fmt::format(", {} still queued in Slurm", queued) : "",
@@ -427,12 +430,13 @@ std::map<std::string, IndexRow> stillQueued(const fs::path& out, const SweepPlan
         job_list));
   }
   for (const PlannedRun& run : plan.runs) {
-    const bool same = detail::readTextFile((out / "runs" / (run.id + ".cmd")).string()) ==
-                      runFingerprint(run);
+    const bool same =
+        detail::readTextFile((out / "runs" / (run.id + ".cmd")).string()) == runFingerprint(run);
     if (queued.count(run.id) && !same) {
-      throw UsageError(fmt::format("{}: run {} is still queued in Slurm (jobs {}) but planned "
-                                   "differently now: cancel it first (scancel {})",
-                                   out.string(), run.id, job_list, job_list));
+      throw UsageError(
+          fmt::format("{}: run {} is still queued in Slurm (jobs {}) but planned "
+                      "differently now: cancel it first (scancel {})",
+                      out.string(), run.id, job_list, job_list));
     }
   }
   return queued;
@@ -479,16 +483,15 @@ int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
         "{} already holds a sweep: continue it with --resume, or start over with --force",
         out.string()));
   }
-  std::map<std::string, IndexRow> queued = options.resume ? stillQueued(out, plan)
-                                                          : std::map<std::string, IndexRow>{};
+  std::map<std::string, IndexRow> queued =
+      options.resume ? stillQueued(out, plan) : std::map<std::string, IndexRow>{};
   detail::prepareSweepFolder(out, detail::readTextFile(sweep_file), options.resume, options.force);
   for (const char* sub : {"slurm/exit", "slurm/out"}) fs::create_directories(out / sub);
   std::vector<IndexRow> rows;
   const std::vector<std::size_t> queue =
       planRows(plan, out, options.resume, std::move(queued), &rows);
-  const Provenance binary{options.executable.empty()
-                              ? fs::read_symlink("/proc/self/exe").string()
-                              : fs::absolute(options.executable).string(),
+  const Provenance binary{options.executable.empty() ? fs::read_symlink("/proc/self/exe").string()
+                                                     : fs::absolute(options.executable).string(),
                           MARGLAB_GIT_SHA};
   writeProvenance(out, binary);
   const std::string index_path = (out / "index.csv").string();
@@ -502,8 +505,9 @@ int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
   } catch (const InputError& e) {
     writeIndex(index_path, rows);
     fmt::print(stderr, "marglab sweep: {}\n", e.what());
-    fmt::print(options.out, "  nothing more was submitted; the folder is resumable: fix the "
-                            "Slurm options and run again with --resume\n");
+    fmt::print(options.out,
+               "  nothing more was submitted; the folder is resumable: fix the "
+               "Slurm options and run again with --resume\n");
     return 1;
   }
   writeIndex(index_path, rows);

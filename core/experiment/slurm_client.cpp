@@ -108,8 +108,7 @@ std::string SlurmClient::submit(const std::string& script_path) const {
   return job;
 }
 
-TaskStates SlurmClient::taskStates(const std::set<std::string>& job_ids,
-                                   bool* query_failed) const {
+TaskStates SlurmClient::taskStates(const std::set<std::string>& job_ids, bool* query_failed) const {
   TaskStates states;
   for (const std::string& job : job_ids) {
     const CommandResult q =
@@ -121,8 +120,7 @@ TaskStates SlurmClient::taskStates(const std::set<std::string>& job_ids,
     // A purged job: "Invalid job id specified". Anything else is the controller's problem.
     if (q.err.find("Invalid job id") == std::string::npos) *query_failed = true;
     // Accounting knows what squeue has forgotten; without a slurmdbd sacct fails, which is fine.
-    const CommandResult a =
-        runCommand({"sacct", "-n", "-P", "-X", "-j", job, "-o", "JobID,State"});
+    const CommandResult a = runCommand({"sacct", "-n", "-P", "-X", "-j", job, "-o", "JobID,State"});
     if (a.exit_code == 0) parseStates(a.out, &states);
   }
   return states;

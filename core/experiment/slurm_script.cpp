@@ -34,15 +34,15 @@ std::string taskTable(const SlurmArraySpec& spec) {
   std::string text = "case \"$SLURM_ARRAY_TASK_ID\" in\n";
   for (std::size_t i = 0; i < spec.tasks.size(); ++i) {
     const SlurmTask& task = spec.tasks[i];
-    text += fmt::format("  {}) ID={}; set -- {} ;;\n", i, shellJoin({task.id}),
-                        shellJoin(task.args));
+    text +=
+        fmt::format("  {}) ID={}; set -- {} ;;\n", i, shellJoin({task.id}), shellJoin(task.args));
   }
   text += "  *) echo \"marglab: no run for array task $SLURM_ARRAY_TASK_ID\" >&2; exit 2 ;;\n";
   return text + "esac\n";
 }
 
 // The task body: why each step is there is in the header.
-const char* const kTaskBody = R"(
+const char* const kTaskBody = R"SH(
 LOG="logs/$ID.log"
 EXIT="slurm/exit/$ID"
 TASK="${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}"
@@ -64,7 +64,7 @@ esac
 CODE=$?
 record exit=$CODE
 exit $CODE
-)";
+)SH";
 
 }  // namespace
 

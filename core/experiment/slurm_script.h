@@ -16,19 +16,19 @@
 namespace marglab::experiment {
 
 struct SlurmTask {
-  std::string id;                  // run id
-  std::vector<std::string> args;   // `marglab run ...` arguments, without the program
+  std::string id;                 // run id
+  std::vector<std::string> args;  // `marglab run ...` arguments, without the program
 };
 
 struct SlurmArraySpec {
   std::string sweep_name;
-  std::string sweep_dir;    // absolute; the tasks start here
-  std::string executable;   // absolute path of the marglab binary
-  std::string revision;     // its git revision (MARGLAB_GIT_SHA)
-  std::string time;         // --time ("" : none, the partition's default)
-  int throttle = 0;         // --array=...%throttle, 0: none
-  std::string partition;    // "" : the default partition
-  std::string mem;          // "" : the default
+  std::string sweep_dir;   // absolute; the tasks start here
+  std::string executable;  // absolute path of the marglab binary
+  std::string revision;    // its git revision (MARGLAB_GIT_SHA)
+  std::string time;        // --time ("" : none, the partition's default)
+  int throttle = 0;        // --array=...%throttle, 0: none
+  std::string partition;   // "" : the default partition
+  std::string mem;         // "" : the default
   int cpus = 1;
   std::vector<std::string> extra;  // verbatim #SBATCH options
   std::vector<SlurmTask> tasks;
@@ -46,7 +46,7 @@ struct TaskExit {
   std::string signal;  // "TERM" when it did
   double start = 0;    // epoch seconds
   double end = 0;
-  std::string job;     // JOBID_TASK
+  std::string job;  // JOBID_TASK
 };
 
 // Parses slurm/exit/<id>; present = false when missing or unreadable.

@@ -187,8 +187,8 @@ void prepareRunFiles(const fs::path& out, const std::string& sweep_name, const P
   writeFileAtomically((out / "runs" / (run.id + ".cmd")).string(), runFingerprint(run));
   std::ofstream header(out / row->get("log"), std::ios::trunc);
   header << "# marglab sweep " << sweep_name << ": run " << run.id << "\n# started "
-         << utcNowIso8601() << " in " << fs::absolute(out).string() << "\n# "
-         << row->get("command") << "\n";
+         << utcNowIso8601() << " in " << fs::absolute(out).string() << "\n# " << row->get("command")
+         << "\n";
 }
 
 }  // namespace marglab::experiment::detail

@@ -31,13 +31,13 @@ namespace marglab::experiment {
 
 // Backend slurm (slurm_backend.h): the runs go to a Slurm job array instead of local children.
 struct SlurmOptions {
-  std::string partition;               // --partition; "" = the cluster's default
-  std::string time;                    // --time for every task; "" = from the group's timeout_s
-  std::string mem;                     // --mem, e.g. "4G"; "" = the cluster's default
-  int cpus = 1;                        // --cpus-per-task (a run is single-threaded)
-  std::vector<std::string> extra;      // further #SBATCH options, verbatim ("--qos=long")
-  bool wait = false;                   // follow the array until it ends
-  double poll_s = 2;                   // seconds between squeue polls while following
+  std::string partition;           // --partition; "" = the cluster's default
+  std::string time;                // --time for every task; "" = from the group's timeout_s
+  std::string mem;                 // --mem, e.g. "4G"; "" = the cluster's default
+  int cpus = 1;                    // --cpus-per-task (a run is single-threaded)
+  std::vector<std::string> extra;  // further #SBATCH options, verbatim ("--qos=long")
+  bool wait = false;               // follow the array until it ends
+  double poll_s = 2;               // seconds between squeue polls while following
 };
 
 struct SweepOptions {

@@ -29,14 +29,14 @@ namespace fs = std::filesystem;
 using test::runCli;
 using test::runShell;
 
-#define REQUIRE_SLURM()                                                                   \
-  do {                                                                                    \
-    std::string why;                                                                      \
-    if (!SlurmClient::available(&why)) {                                                  \
-      GTEST_SKIP() << "no Slurm cluster answers (" << why                                 \
-                   << "); start the one-node cluster with `bash scripts/slurm_local.sh "  \
-                      "start` (root, Debian slurm-wlm + munge)";                          \
-    }                                                                                     \
+#define REQUIRE_SLURM()                                                                  \
+  do {                                                                                   \
+    std::string why;                                                                     \
+    if (!SlurmClient::available(&why)) {                                                 \
+      GTEST_SKIP() << "no Slurm cluster answers (" << why                                \
+                   << "); start the one-node cluster with `bash scripts/slurm_local.sh " \
+                      "start` (root, Debian slurm-wlm + munge)";                         \
+    }                                                                                    \
   } while (0)
 
 std::string readText(const fs::path& path) {
@@ -56,8 +56,8 @@ const IndexRow* findRow(const std::vector<IndexRow>& rows, const std::string& id
 }
 
 fs::path freshDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("marglab_slurm_" + name + "_" +
-                                                    std::to_string(getpid()));
+  const fs::path dir =
+      fs::temp_directory_path() / ("marglab_slurm_" + name + "_" + std::to_string(getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
@@ -84,9 +84,10 @@ TEST(SlurmOutcome, SlurmStatesMapToFailureKinds) {
   const fs::path dir = freshDir("outcome");
   fs::create_directories(dir / "runs");
   const std::vector<std::pair<std::string, std::string>> cases = {
-      {"TIMEOUT", "timeout"},      {"DEADLINE", "timeout"}, {"CANCELLED", "interrupted"},
-      {"OUT_OF_MEMORY", "oom"},    {"NODE_FAIL", "node"},   {"PREEMPTED", "interrupted"},
-      {"FAILED", "exit"},          {"", "exit"}};
+      {"TIMEOUT", "timeout"},       {"DEADLINE", "timeout"},
+      {"CANCELLED", "interrupted"}, {"OUT_OF_MEMORY", "oom"},
+      {"NODE_FAIL", "node"},        {"PREEMPTED", "interrupted"},
+      {"FAILED", "exit"},           {"", "exit"}};
   for (const auto& [state, kind] : cases) {
     SCOPED_TRACE(state);
     IndexRow row;
@@ -139,8 +140,8 @@ variants = ["ns-qr-sqrt-f32"]
 frames = 30
 args = ["--inject-nan-frame", "12"]
 )";
-  const auto local = runCli("sweep " + quote(dir / "eq.toml") + " --jobs 2 --out " +
-                            quote(dir / "local"));
+  const auto local =
+      runCli("sweep " + quote(dir / "eq.toml") + " --jobs 2 --out " + quote(dir / "local"));
   ASSERT_EQ(local.exit_code, 0) << local.output;
   const auto slurm = runCli("sweep " + quote(dir / "eq.toml") +
                             " --backend slurm --wait --jobs 2 --out " + quote(dir / "slurm"));
@@ -229,8 +230,8 @@ frames = 20
   }
 
   // --resume submits the two failed runs and nothing else (then they are cancelled again).
-  const auto resume = runCli("sweep " + quote(dir / "c.toml") + " --backend slurm --resume --out " +
-                             quote(out));
+  const auto resume =
+      runCli("sweep " + quote(dir / "c.toml") + " --backend slurm --resume --out " + quote(out));
   ASSERT_EQ(resume.exit_code, 0) << resume.output;
   EXPECT_NE(resume.output.find("(Slurm; 2 to submit)"), std::string::npos) << resume.output;
   std::set<std::string> resubmitted;
@@ -264,9 +265,9 @@ variants = ["ns-qr-sqrt-f64", "sc-sc-sq-f64"]
 frames = 20
 )";
   const fs::path out = dir / "out";
-  const auto rejected = runCli("sweep " + quote(dir / "r.toml") +
-                               " --backend slurm --slurm-arg=--partition=no_such_partition --out " +
-                               quote(out));
+  const auto rejected =
+      runCli("sweep " + quote(dir / "r.toml") +
+             " --backend slurm --slurm-arg=--partition=no_such_partition --out " + quote(out));
   EXPECT_EQ(rejected.exit_code, 1) << rejected.output;
   EXPECT_NE(rejected.output.find("Invalid partition name specified"), std::string::npos)
       << rejected.output;
@@ -276,8 +277,8 @@ frames = 20
     EXPECT_EQ(row.get("status"), "pending");
     EXPECT_EQ(row.get("slurm_job"), "");
   }
-  const auto resume = runCli("sweep " + quote(dir / "r.toml") + " --backend slurm --resume --wait " +
-                             "--out " + quote(out));
+  const auto resume = runCli("sweep " + quote(dir / "r.toml") +
+                             " --backend slurm --resume --wait " + "--out " + quote(out));
   ASSERT_EQ(resume.exit_code, 0) << resume.output;
   rows = readIndex((out / "index.csv").string());
   for (const IndexRow& row : rows) EXPECT_EQ(row.get("status"), "ok") << row.get("id");
