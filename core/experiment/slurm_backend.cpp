@@ -303,9 +303,12 @@ class Follower {
   void announce(const IndexRow& row) {
     ++finished_;
     if (options_.status_line) fmt::print(stderr, "\r\033[K");
-    fmt::print(options_.out, "[{:>{}}/{}] {:<6} {:>7.1f} s  {}  {}\n", finished_,
-               std::to_string(total_).size(), total_, row.get("status"), row.number("wall_s"),
-               row.get("id"), describeRow(row));
+    // A task cancelled before it started has no wall time.
+    const double wall = row.number("wall_s");
+    const std::string wall_text = std::isfinite(wall) ? fmt::format("{:.1f}", wall) : "-";
+    fmt::print(options_.out, "[{:>{}}/{}] {:<6} {:>7} s  {}  {}\n", finished_,
+               std::to_string(total_).size(), total_, row.get("status"), wall_text, row.get("id"),
+               describeRow(row));
     std::fflush(options_.out);
   }
 
@@ -504,6 +507,7 @@ int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
     jobs = submitter.submit(queue, &rows);
   } catch (const InputError& e) {
     writeIndex(index_path, rows);
+    std::fflush(options.out);
     fmt::print(stderr, "marglab sweep: {}\n", e.what());
     fmt::print(options.out,
                "  nothing more was submitted; the folder is resumable: fix the "
