@@ -25,8 +25,9 @@ NODE="$(hostname -s)"
 
 log() { echo "slurm_local: $*"; }
 
-pid_alive() {  # pid file → 0 when its process is alive
-  [ -f "$1" ] && kill -0 "$(cat "$1")" 2>/dev/null
+pid_alive() {  # pid file → 0 when its process is alive (a zombie is not: PID 1 may not reap)
+  [ -f "$1" ] && kill -0 "$(cat "$1")" 2>/dev/null \
+    && ! ps -o stat= -p "$(cat "$1")" 2>/dev/null | grep -q '^Z'
 }
 
 ours_sys_conf() { [ -f "$SYS_CONF" ] && head -1 "$SYS_CONF" | grep -qF "$MARK"; }
@@ -164,7 +165,8 @@ cmd_stop() {
 }
 
 cmd_status() {
-  if pid_alive "$DIR/slurmctld.pid" && pid_alive "$DIR/slurmd.pid"; then
+  if pid_alive "$DIR/slurmctld.pid" && pid_alive "$DIR/slurmd.pid" \
+    && SLURM_CONF="$CONF" sinfo >/dev/null 2>&1; then
     log "running (config $CONF)"
     SLURM_CONF="$CONF" sinfo
     return 0
