@@ -407,9 +407,9 @@ int report(const std::string& name, const std::vector<IndexRow>& rows, const fs:
 
 namespace {
 
-// --resume of a Slurm folder: the earlier index reconciled; rows whose task may still run are
-// kept as they are (not submitted twice) — only when the same revision planned them identically.
-std::map<std::string, IndexRow> stillQueued(const fs::path& out, const SweepPlan& plan) {
+// The rows of an earlier submission into this folder whose task may still run (the earlier index
+// reconciled with Slurm first).
+std::map<std::string, IndexRow> queuedEarlier(const fs::path& out) {
   const fs::path index = out / "index.csv";
   const Provenance earlier = readProvenance(out);
   if (!fs::exists(index) || earlier.revision.empty()) return {};
@@ -420,29 +420,39 @@ std::map<std::string, IndexRow> stillQueued(const fs::path& out, const SweepPlan
   for (IndexRow& row : rows) {
     if (isUnresolved(row)) queued[row.get("id")] = std::move(row);
   }
-  if (queued.empty()) return queued;
+  return queued;
+}
+
+// Queued tasks stay (and are not submitted twice) only when --resume plans them identically with
+// the same revision; --force must not start a new sweep under tasks still writing into the folder.
+void checkQueuedMayStay(const fs::path& out, const SweepPlan& plan,
+                        const std::map<std::string, IndexRow>& queued, bool force) {
+  if (queued.empty()) return;
   std::set<std::string> jobs;
   for (const auto& [id, row] : queued) jobs.insert(jobOf(row.get("slurm_job")));
   const std::string job_list = fmt::format("{}", fmt::join(jobs, " "));
-  if (earlier.revision != MARGLAB_GIT_SHA) {
-    throw UsageError(fmt::format(
-        "{}: {} run(s) planned by git revision {} are still queued in Slurm (jobs {}); this is "
-        "revision {}. Wait for them (marglab sweep --status {} --wait) or cancel them (scancel "
-        "{}) before resuming, so that one folder never mixes revisions",
-        out.string(), queued.size(), earlier.revision, MARGLAB_GIT_SHA, out.string(), job_list,
-        job_list));
+  const std::string revision = readProvenance(out).revision;
+  const std::string what = fmt::format(
+      "{}: {} run(s) of revision {} are still queued in Slurm "
+      "(jobs {})",
+      out.string(), queued.size(), revision, job_list);
+  if (force) {
+    throw UsageError(what + ": cancel them first (scancel " + job_list +
+                     "), so that none of them writes into the new sweep");
+  }
+  if (revision != MARGLAB_GIT_SHA) {
+    throw UsageError(
+        fmt::format("{}; this is revision {}. Wait for them (marglab sweep --status {} "
+                    "--wait) or cancel them (scancel {}) before resuming, so that "
+                    "one folder never mixes revisions",
+                    what, MARGLAB_GIT_SHA, out.string(), job_list));
   }
   for (const PlannedRun& run : plan.runs) {
-    const bool same =
-        detail::readTextFile((out / "runs" / (run.id + ".cmd")).string()) == runFingerprint(run);
-    if (queued.count(run.id) && !same) {
-      throw UsageError(
-          fmt::format("{}: run {} is still queued in Slurm (jobs {}) but planned "
-                      "differently now: cancel it first (scancel {})",
-                      out.string(), run.id, job_list, job_list));
+    if (queued.count(run.id) &&
+        detail::readTextFile((out / "runs" / (run.id + ".cmd")).string()) != runFingerprint(run)) {
+      throw UsageError(what + ": run " + run.id + " is planned differently now; cancel it first");
     }
   }
-  return queued;
 }
 
 // The rows of the plan and the indices to submit.
@@ -486,8 +496,9 @@ int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
         "{} already holds a sweep: continue it with --resume, or start over with --force",
         out.string()));
   }
-  std::map<std::string, IndexRow> queued =
-      options.resume ? stillQueued(out, plan) : std::map<std::string, IndexRow>{};
+  std::map<std::string, IndexRow> queued;
+  if (options.resume || options.force) queued = queuedEarlier(out);
+  checkQueuedMayStay(out, plan, queued, options.force);
   detail::prepareSweepFolder(out, detail::readTextFile(sweep_file), options.resume, options.force);
   for (const char* sub : {"slurm/exit", "slurm/out"}) fs::create_directories(out / sub);
   std::vector<IndexRow> rows;

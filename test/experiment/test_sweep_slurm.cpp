@@ -6,6 +6,10 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <chrono>
 #include <cstring>
@@ -282,6 +286,75 @@ frames = 20
   ASSERT_EQ(resume.exit_code, 0) << resume.output;
   rows = readIndex((out / "index.csv").string());
   for (const IndexRow& row : rows) EXPECT_EQ(row.get("status"), "ok") << row.get("id");
+  fs::remove_all(dir);
+}
+
+// Starts the marglab CLI with stdout and stderr into log; returns its pid.
+pid_t startCli(const std::vector<std::string>& args, const fs::path& log) {
+  std::vector<std::string> argv = {MARGLAB_CLI};
+  argv.insert(argv.end(), args.begin(), args.end());
+  std::vector<char*> c_argv;
+  for (std::string& a : argv) c_argv.push_back(a.data());
+  c_argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, c_argv[0], &actions, nullptr, c_argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  return rc == 0 ? pid : -1;
+}
+
+TEST(SlurmSweep, CtrlCWhileFollowingCancelsTheArrayAndForceWaitsForIt) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("sigint");
+  std::ofstream(dir / "i.toml") << R"(name = "i"
+[[group]]
+name = "vo"
+datasets = ["kitti/10"]
+variants = ["headline"]
+frames = 600
+)";
+  const fs::path out = dir / "out";
+  const pid_t sweep = startCli({"sweep", (dir / "i.toml").string(), "--backend", "slurm", "--wait",
+                                "--jobs", "1", "--out", out.string()},
+                               dir / "sweep.log");
+  ASSERT_GT(sweep, 0);
+  std::string first_task;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    try {
+      first_task = readIndex((out / "index.csv").string()).front().get("slurm_job");
+    } catch (const std::exception&) {
+      continue;  // not written yet
+    }
+    if (!first_task.empty() && taskState(first_task) == "RUNNING") break;
+  }
+  ASSERT_EQ(taskState(first_task), "RUNNING") << readText(dir / "sweep.log");
+  // --force must not start a new sweep under tasks still running in the folder.
+  const auto force =
+      runCli("sweep " + quote(dir / "i.toml") + " --backend slurm --force --out " + quote(out));
+  EXPECT_EQ(force.exit_code, 2) << force.output;
+  EXPECT_NE(force.output.find("still queued in Slurm"), std::string::npos) << force.output;
+
+  ASSERT_EQ(kill(sweep, SIGINT), 0);
+  int status = 0;
+  ASSERT_EQ(waitpid(sweep, &status, 0), sweep);
+  const std::string log = readText(dir / "sweep.log");
+  ASSERT_TRUE(WIFEXITED(status)) << log;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << log;
+  int interrupted = 0;
+  for (const IndexRow& row : readIndex((out / "index.csv").string())) {
+    SCOPED_TRACE(row.get("id"));
+    EXPECT_TRUE(row.get("status") == "ok" || row.get("failure_kind") == "interrupted") << log;
+    interrupted += row.get("failure_kind") == "interrupted";
+    const std::string state = taskState(row.get("slurm_job"));
+    EXPECT_FALSE(isActiveState(state)) << state;
+  }
+  EXPECT_GE(interrupted, 3) << log;  // one task at a time: at most the first one finished
   fs::remove_all(dir);
 }
 
