@@ -7,7 +7,6 @@
 #include <chrono>
 #include <cmath>
 #include <csignal>
-#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -18,6 +17,7 @@
 #include "core/common/error.h"
 #include "core/common/utc_time.h"
 #include "core/experiment/slurm_client.h"
+#include "core/experiment/slurm_reconcile.h"
 #include "core/experiment/sweep_common.h"
 #include "marglab/version.h"
 
@@ -29,30 +29,6 @@ using Clock = std::chrono::steady_clock;
 
 volatile std::sig_atomic_t g_stop_signal = 0;
 extern "C" void onSlurmStopSignal(int signal) { g_stop_signal = signal; }
-
-bool isUnresolved(const IndexRow& row) {
-  const std::string& status = row.get("status");
-  return !row.get("slurm_job").empty() && (status == "pending" || status == "running");
-}
-
-std::string jobOf(const std::string& task) { return task.substr(0, task.find('_')); }
-
-std::set<std::string> unresolvedJobs(const std::vector<IndexRow>& rows) {
-  std::set<std::string> jobs;
-  for (const IndexRow& row : rows) {
-    if (isUnresolved(row)) jobs.insert(jobOf(row.get("slurm_job")));
-  }
-  return jobs;
-}
-
-std::string isoUtc(double epoch_s) {
-  const std::time_t t = static_cast<std::time_t>(epoch_s);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buffer[32];
-  std::strftime(buffer, sizeof(buffer), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buffer;
-}
 
 // The binary and git revision that planned the folder's Slurm submissions (slurm/binary.txt).
 struct Provenance {
@@ -73,103 +49,9 @@ void writeProvenance(const fs::path& out, const Provenance& p) {
                       p.executable + "\n" + p.revision + "\n");
 }
 
-// failure_kind and reason of a task that Slurm ended; empty kind when the task ended by itself.
-std::pair<std::string, std::string> slurmEnding(const std::string& state) {
-  if (state == "TIMEOUT" || state == "DEADLINE") return {"timeout", "Slurm's time limit reached"};
-  if (state == "CANCELLED") return {"interrupted", "cancelled in Slurm (scancel)"};
-  if (state == "PREEMPTED") return {"interrupted", "preempted by Slurm"};
-  if (state == "OUT_OF_MEMORY") return {"oom", "killed by Slurm: out of memory"};
-  if (state == "NODE_FAIL" || state == "BOOT_FAIL") return {"node", "node failure (" + state + ")"};
-  return {};
-}
-
-// A task that ended by itself without a complete results file: like a local run's exit.
-void setProcessFailure(const fs::path& out, const std::string& state, const TaskExit& exit,
-                       IndexRow* row) {
-  const std::string task = row->get("slurm_job");
-  const std::string log = (out / row->get("log")).string();
-  if (!exit.present) {
-    row->set("failure_kind", "exit");
-    row->set("reason", state.empty()
-                           ? "Slurm no longer knows task " + task +
-                                 " and it left no exit file (no accounting to ask)"
-                           : "task " + task + " ended " + state +
-                                 " without an exit file: " + detail::lastNonEmptyLine(log));
-  } else if (!exit.signal.empty() || exit.exit_code > 128) {
-    const int sig = exit.signal.empty() ? exit.exit_code - 128 : SIGTERM;
-    row->set("failure_kind", "signal");
-    row->set("signal", std::to_string(sig));
-    row->set("reason", "killed by " + detail::signalName(sig) + " (task " + task + ")");
-  } else {
-    row->set("failure_kind", "exit");
-    row->set("reason", fmt::format("exit code {} without a complete results file: {}",
-                                   exit.exit_code, detail::lastNonEmptyLine(log)));
-  }
-}
-
 }  // namespace
 
-bool applyTaskOutcome(const std::string& sweep_dir, const std::string& state, const TaskExit& exit,
-                      const std::string& revision, IndexRow* row) {
-  if (isActiveState(state)) {
-    row->set("status", isPendingState(state) ? "pending" : "running");
-    return false;
-  }
-  const fs::path out(sweep_dir);
-  detail::removeTemporaries(out / row->get("results"));  // a killed writer's leftovers
-  if (exit.present) {
-    row->setNumber("wall_s", exit.end - exit.start);
-    row->set("started_utc", isoUtc(exit.start));
-    if (exit.exit_code >= 0) row->set("exit_code", std::to_string(exit.exit_code));
-  }
-  // The results file first: a run that completed is a result whatever Slurm did afterwards.
-  if (detail::readCompleteResults((out / row->get("results")).string(), row, revision.c_str())) {
-    return true;
-  }
-  row->set("status", "failed");
-  const auto [kind, why] = slurmEnding(state);
-  if (kind.empty()) {
-    setProcessFailure(out, state, exit, row);
-  } else {
-    row->set("failure_kind", kind);
-    row->set("reason", why + " (task " + row->get("slurm_job") + ")");
-  }
-  return true;
-}
-
 namespace {
-
-// Brings the index's queued rows up to date with Slurm; one squeue per array.
-class Reconciler {
- public:
-  Reconciler(fs::path out, std::string revision)
-      : out_(std::move(out)), revision_(std::move(revision)) {}
-
-  // Returns the rows that finished now.
-  std::vector<std::size_t> update(std::vector<IndexRow>* rows) const {
-    const std::set<std::string> jobs = unresolvedJobs(*rows);
-    if (jobs.empty()) return {};
-    bool query_failed = false;
-    const TaskStates states = client_.taskStates(jobs, &query_failed);
-    std::vector<std::size_t> finished;
-    for (std::size_t i = 0; i < rows->size(); ++i) {
-      IndexRow& row = (*rows)[i];
-      if (!isUnresolved(row)) continue;
-      const auto it = states.find(row.get("slurm_job"));
-      // Not listed because the controller did not answer is not "forgotten": ask again later.
-      if (it == states.end() && query_failed) continue;
-      const TaskExit exit = readTaskExit((out_ / "slurm" / "exit" / row.get("id")).string());
-      const std::string state = it == states.end() ? "" : it->second;
-      if (applyTaskOutcome(out_.string(), state, exit, revision_, &row)) finished.push_back(i);
-    }
-    return finished;
-  }
-
- private:
-  fs::path out_;
-  std::string revision_;
-  SlurmClient client_;
-};
 
 std::string describeRow(const IndexRow& row) {
   if (row.get("status") == "ok") return fmt::format("ATE {:.4f} m", row.number("ate_rmse"));
@@ -269,7 +151,7 @@ class Follower {
 
   // Returns true when interrupted.
   bool run(std::vector<IndexRow>* rows) {
-    total_ = static_cast<int>(std::count_if(rows->begin(), rows->end(), isUnresolved));
+    total_ = static_cast<int>(std::count_if(rows->begin(), rows->end(), isUnresolvedTask));
     installSignalHandlers();
     const auto start = Clock::now();
     auto stop_time = Clock::time_point::max();
@@ -321,7 +203,7 @@ class Follower {
       running += row.get("status") == "running";
       pending += row.get("status") == "pending";
       failed += row.get("status") == "failed";
-      if (!isUnresolved(row) && std::isfinite(row.number("wall_s")))
+      if (!isUnresolvedTask(row) && std::isfinite(row.number("wall_s")))
         done_wall += row.number("wall_s");
     }
     const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
@@ -353,7 +235,7 @@ class Follower {
   std::string name_;
   fs::path out_;
   std::string index_path_;
-  Reconciler reconciler_;
+  SlurmReconciler reconciler_;
   const SweepOptions& options_;
   int total_ = 0;
   int finished_ = 0;
@@ -376,7 +258,7 @@ int report(const std::string& name, const std::vector<IndexRow>& rows, const fs:
     } else if (status == "failed") {
       ++process;
       ++kinds[row.get("failure_kind")];
-    } else if (isUnresolved(row)) {
+    } else if (isUnresolvedTask(row)) {
       ++queued;
     } else {
       ++unsubmitted;
@@ -414,11 +296,11 @@ std::map<std::string, IndexRow> queuedEarlier(const fs::path& out) {
   const Provenance earlier = readProvenance(out);
   if (!fs::exists(index) || earlier.revision.empty()) return {};
   std::vector<IndexRow> rows = readIndex(index.string());
-  Reconciler(out, earlier.revision).update(&rows);
+  SlurmReconciler(out, earlier.revision).update(&rows);
   writeIndex(index.string(), rows);
   std::map<std::string, IndexRow> queued;
   for (IndexRow& row : rows) {
-    if (isUnresolved(row)) queued[row.get("id")] = std::move(row);
+    if (isUnresolvedTask(row)) queued[row.get("id")] = std::move(row);
   }
   return queued;
 }
@@ -480,6 +362,30 @@ std::vector<std::size_t> planRows(const SweepPlan& plan, const fs::path& out, bo
   return queue;
 }
 
+// Submits the queue and prints the arrays; false, with Slurm's message, when Slurm rejects one
+// (the index then lists the runs it did not take as pending without a job: --resume submits them).
+bool submitQueue(Submitter* submitter, const std::vector<std::size_t>& queue,
+                 std::vector<IndexRow>* rows, const std::string& index_path, std::FILE* out,
+                 std::vector<std::string>* jobs) {
+  try {
+    *jobs = submitter->submit(queue, rows);
+  } catch (const InputError& e) {
+    writeIndex(index_path, *rows);
+    std::fflush(out);
+    fmt::print(stderr, "marglab sweep: {}\n", e.what());
+    fmt::print(out,
+               "  nothing more was submitted; the folder is resumable: fix the Slurm options and "
+               "run again with --resume\n");
+    return false;
+  }
+  writeIndex(index_path, *rows);
+  for (std::size_t k = 0; k < jobs->size(); ++k) {
+    fmt::print(out, "  submitted job array {} ({})\n", (*jobs)[k], submitter->scripts()[k]);
+  }
+  std::fflush(out);
+  return true;
+}
+
 }  // namespace
 
 int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
@@ -514,22 +420,7 @@ int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
              plan.runs.size(), out.string(), queue.size());
   Submitter submitter(plan, options, out, binary);
   std::vector<std::string> jobs;
-  try {
-    jobs = submitter.submit(queue, &rows);
-  } catch (const InputError& e) {
-    writeIndex(index_path, rows);
-    std::fflush(options.out);
-    fmt::print(stderr, "marglab sweep: {}\n", e.what());
-    fmt::print(options.out,
-               "  nothing more was submitted; the folder is resumable: fix the "
-               "Slurm options and run again with --resume\n");
-    return 1;
-  }
-  writeIndex(index_path, rows);
-  for (std::size_t k = 0; k < jobs.size(); ++k) {
-    fmt::print(options.out, "  submitted job array {} ({})\n", jobs[k], submitter.scripts()[k]);
-  }
-  std::fflush(options.out);
+  if (!submitQueue(&submitter, queue, &rows, index_path, options.out, &jobs)) return 1;
   if (!options.slurm.wait) {
     const double wall = std::chrono::duration<double>(Clock::now() - start).count();
     if (!jobs.empty()) fmt::print(options.out, "  cancel: scancel {}\n", fmt::join(jobs, " "));
@@ -549,7 +440,7 @@ int slurmSweepStatus(const std::string& dir, const SweepOptions& options) {
   const std::string name = out.filename().string();
   bool interrupted = false;
   if (!binary.revision.empty()) {
-    for (std::size_t i : Reconciler(out, binary.revision).update(&rows)) {
+    for (std::size_t i : SlurmReconciler(out, binary.revision).update(&rows)) {
       fmt::print(options.out, "  {:<6} {}  {}\n", rows[i].get("status"), rows[i].get("id"),
                  describeRow(rows[i]));
     }

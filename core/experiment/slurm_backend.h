@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "core/experiment/slurm_reconcile.h"
 #include "core/experiment/slurm_script.h"
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_index.h"
@@ -35,11 +36,5 @@ int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
 // sweep stands; follows it to the end with options.slurm.wait. Exit code as above; 0 while runs
 // are still queued.
 int slurmSweepStatus(const std::string& dir, const SweepOptions& options);
-
-// The row of one finished (or forgotten) task from Slurm's state ("" when Slurm no longer knows
-// it), its exit file and its results file (of git revision `revision`). Returns false and only sets
-// the status (pending / running) while the task may still run.
-bool applyTaskOutcome(const std::string& sweep_dir, const std::string& state, const TaskExit& exit,
-                      const std::string& revision, IndexRow* row);
 
 }  // namespace marglab::experiment
