@@ -13,6 +13,7 @@ PACKAGES=(
   python3 python3-matplotlib python3-h5py python3-numpy
   python3-pandas jupyter-nbconvert python3-nbclient python3-nbformat python3-ipykernel
   chromium python3-websocket
+  slurm-wlm munge  # scripts/slurm_local.sh: a one-node Slurm cluster for `sweep --backend slurm`
 )
 
 missing=()

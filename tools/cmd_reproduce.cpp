@@ -43,6 +43,8 @@ struct ReproduceArgs {
   std::string experiments = std::string(MARGLAB_SOURCE_DIR) + "/experiments";
   std::string results = "results";
   std::string figures = "notebooks-out";
+  std::string backend = "local";
+  std::vector<std::string> slurm_args;
 };
 
 // The Markdown of one table out of the combined tables file, for the closing summary.
@@ -85,6 +87,9 @@ int runReproduce(const ReproduceArgs& args) {
     options.resume = args.resume;
     options.force = !args.resume;  // reproduce recomputes unless asked to continue
     options.status_line = cli::stderrIsTerminal();
+    options.backend = args.backend;
+    options.slurm.extra = args.slurm_args;
+    options.slurm.wait = true;  // the tables need the runs
     const int code = experiment::runSweepAndReport(
         plans[i], (fs::path(args.experiments) / files[i]).string(), options);
     if (code == 130) return code;
@@ -174,6 +179,12 @@ const bool kRegistered = cli::registerCommand(
            ->capture_default_str();
        sub.add_flag("--no-analysis", args->no_analysis,
                     "Skip the notebooks and the report (`marglab notebooks`, `marglab report`)");
+       sub.add_option("--backend", args->backend, "Sweep backend: local or slurm (see sweep)")
+           ->capture_default_str()
+           ->check(CLI::IsMember({"local", "slurm"}));
+       sub.add_option("--slurm-arg", args->slurm_args,
+                      "slurm: a further sbatch option, verbatim (repeatable)")
+           ->allow_extra_args(false);
        return [args] { return runReproduce(*args); };
      }});
 

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "core/common/error.h"
+#include "core/experiment/slurm_backend.h"
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_runner.h"
 #include "tools/command.h"
@@ -54,9 +55,21 @@ struct SweepArgs {
   bool force = false;
   bool dry_run = false;
   std::string out;
+  std::string backend = "local";
+  std::string status_dir;
+  bool wait = false;
+  experiment::SlurmOptions slurm;
 };
 
-int runSweepCommand(const SweepArgs& args) {
+int runSweepCommand(SweepArgs args) {
+  args.slurm.wait = args.wait;
+  if (!args.status_dir.empty()) {
+    experiment::SweepOptions options;
+    options.slurm = args.slurm;
+    options.status_line = cli::stderrIsTerminal();
+    return experiment::slurmSweepStatus(args.status_dir, options);
+  }
+  if (args.file.empty()) throw UsageError("sweep: a sweep file is required (or --status DIR)");
   const experiment::SweepPlan plan = experiment::loadSweepFile(args.file, cli::sweepParseOptions());
   const std::string out = args.out.empty() ? "results/" + plan.name : args.out;
   if (args.dry_run) {
@@ -76,6 +89,8 @@ int runSweepCommand(const SweepArgs& args) {
   options.resume = args.resume;
   options.force = args.force;
   options.status_line = cli::stderrIsTerminal();
+  options.backend = args.backend;
+  options.slurm = args.slurm;
   return experiment::runSweepAndReport(plan, args.file, options);
 }
 
@@ -84,7 +99,6 @@ const bool kRegistered = cli::registerCommand(
      [](CLI::App& sub) -> cli::CommandRun {
        auto args = std::make_shared<SweepArgs>();
        sub.add_option("file", args->file, "Sweep definition (TOML), e.g. experiments/quick.toml")
-           ->required()
            ->check(CLI::ExistingFile);
        sub.add_option("-j,--jobs", args->jobs, "Runs in parallel (0: number of cores)")
            ->capture_default_str()
@@ -94,6 +108,26 @@ const bool kRegistered = cli::registerCommand(
        sub.add_flag("--force", args->force, "Discard an earlier sweep in the output folder");
        sub.add_option("-o,--out", args->out, "Output folder (default: results/<sweep name>)");
        sub.add_flag("--dry-run", args->dry_run, "Validate and list the runs without running them");
+       sub.add_option("--backend", args->backend,
+                      "local: child processes here; slurm: one Slurm job array (shared filesystem)")
+           ->capture_default_str()
+           ->check(CLI::IsMember({"local", "slurm"}));
+       sub.add_flag("--wait", args->wait,
+                    "slurm: follow the array until it ends (default: return after submission)");
+       sub.add_option("--status", args->status_dir,
+                      "Reconcile a sweep folder's index with Slurm and print where it stands")
+           ->check(CLI::ExistingDirectory);
+       sub.add_option("--slurm-partition", args->slurm.partition, "slurm: --partition");
+       sub.add_option("--slurm-time", args->slurm.time,
+                      "slurm: --time of every task (default: the group's timeout_s, in minutes)");
+       sub.add_option("--slurm-mem", args->slurm.mem, "slurm: --mem of every task, e.g. 4G");
+       sub.add_option("--slurm-cpus", args->slurm.cpus, "slurm: --cpus-per-task")
+           ->capture_default_str()
+           ->check(CLI::PositiveNumber);
+       sub.add_option("--slurm-arg", args->slurm.extra,
+                      "slurm: a further sbatch option, verbatim (repeatable; write "
+                      "--slurm-arg=--qos=long)")
+           ->allow_extra_args(false);
        return [args] { return runSweepCommand(*args); };
      }});
 

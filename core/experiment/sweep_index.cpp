@@ -73,6 +73,7 @@ const std::vector<std::string>& indexColumns() {
                                                    "config",
                                                    "command",
                                                    "pid",
+                                                   "slurm_job",
                                                    "started_utc"};
   return columns;
 }

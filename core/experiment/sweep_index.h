@@ -8,13 +8,15 @@
 //   status        pending | running | ok | failed
 //   failure_kind  "" | numerical (the estimator failed: complete results file, status failed) |
 //                 signal | exit (the process died / exited without a complete results file) |
-//                 timeout | interrupted (the sweep was stopped) | error (could not start)
+//                 timeout | interrupted (the sweep was stopped, or the Slurm task cancelled) |
+//                 error (could not start) | oom (Slurm: out of memory) | node (Slurm: node failure)
 //   failure_frame, reason, exit_code, signal,
 //   reused        1 when --resume kept a complete results file from an earlier invocation
 //   wall_s        wall time of the `marglab run` process (simulation and diagnostics included)
 //   n_frames, ate_rmse, duration_s, t_opt_total_s, t_marg_total_s, wall_time_s, realtime_factor
 //                 copied from the results file's /summary (convenience; tables read the HDF5)
-//   results, log, config, command (the exact `marglab run` command line), pid, started_utc
+//   results, log, config, command (the exact `marglab run` command line), pid,
+//   slurm_job     JOBID_TASK of the run's Slurm array task (backend slurm), started_utc
 
 #include <cstdint>
 #include <map>

@@ -24,6 +24,8 @@
 #include "core/common/utc_time.h"
 #include "core/data/sequence.h"
 #include "core/estimator/variant.h"
+#include "core/experiment/slurm_backend.h"
+#include "core/experiment/sweep_common.h"
 #include "core/experiment/sweep_index.h"
 #include "core/io/results_file.h"
 #include "marglab/version.h"
@@ -36,124 +38,6 @@ using Clock = std::chrono::steady_clock;
 
 volatile std::sig_atomic_t g_stop_signal = 0;
 extern "C" void onStopSignal(int signal) { g_stop_signal = signal; }
-
-std::string readFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return {};
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
-}
-
-std::string lastNonEmptyLine(const std::string& path) {
-  const std::string text = readFile(path);
-  std::istringstream in(text);
-  std::string line, last;
-  while (std::getline(in, line)) {
-    // A progress line overwritten with \r: keep its last state.
-    const auto cr = line.find_last_of('\r');
-    if (cr != std::string::npos) line = line.substr(cr + 1);
-    if (line.find_first_not_of(" \t") != std::string::npos) last = line;
-  }
-  return last;
-}
-
-std::string signalName(int signal) {
-  const char* name = sigdescr_np(signal);
-  const char* abbrev = sigabbrev_np(signal);
-  return fmt::format("SIG{} ({})", abbrev ? abbrev : std::to_string(signal).c_str(),
-                     name ? name : "?");
-}
-
-std::string formatDuration(double seconds) {
-  if (!std::isfinite(seconds) || seconds < 0) return "--:--";
-  const long s = std::lround(seconds);
-  if (s >= 3600) return fmt::format("{}:{:02}:{:02}", s / 3600, (s / 60) % 60, s % 60);
-  return fmt::format("{}:{:02}", s / 60, s % 60);
-}
-
-// Frames a run will process, for ordering and the ETA (the sequence length when not limited).
-class FrameEstimator {
- public:
-  double operator()(const PlannedRun& run) {
-    double total = 0;
-    auto it = cache_.find(run.dataset);
-    if (it != cache_.end()) {
-      total = it->second;
-    } else {
-      try {
-        LoadOptions options;
-        options.load_imu = false;
-        const Sequence sequence = loadSequence(run.dataset, options);
-        const auto [first, last] = framesWithinTrajectory(sequence);
-        total = static_cast<double>(last > first ? last - first : sequence.cam_t_ns.size());
-      } catch (const std::exception&) {
-        total = 1000;  // unknown; the run itself will report the problem
-      }
-      cache_[run.dataset] = total;
-    }
-    if (run.frames > 0) total = std::min<double>(total, run.frames);
-    return std::max(total, 1.0);
-  }
-
- private:
-  std::map<std::string, double> cache_;
-};
-
-// Is this a complete results file? Fills the row's summary columns when it is. With git_sha, only
-// a file written by that revision counts (so --resume never mixes revisions).
-bool readCompleteResults(const std::string& path, IndexRow* row, const char* git_sha = nullptr,
-                         bool* other_revision = nullptr) {
-  if (!fs::is_regular_file(path)) return false;
-  try {
-    const ResultsReader reader(path);
-    if (git_sha != nullptr && reader.info().git_sha != git_sha) {
-      if (other_revision != nullptr) *other_revision = true;
-      return false;
-    }
-    const std::string& status = reader.info().status;
-    if (status != "ok" && status != "failed") return false;
-    const SummaryValues s = reader.summary();
-    row->set("status", status);
-    row->set("n_frames", std::to_string(s.n_frames));
-    row->setNumber("ate_rmse", s.ate_rmse);
-    row->setNumber("duration_s", s.duration_s);
-    row->setNumber("t_opt_total_s", s.t_opt_total_s);
-    row->setNumber("t_marg_total_s", s.t_marg_total_s);
-    row->setNumber("wall_time_s", s.wall_time_s);
-    row->setNumber("realtime_factor", s.realtime_factor);
-    if (status == "failed") {
-      row->set("failure_kind", "numerical");
-      row->set("failure_frame", std::to_string(reader.info().failure_frame));
-      row->set("reason", reader.info().failure_reason);
-    } else {
-      row->set("failure_kind", "");
-      row->set("failure_frame", "");
-      row->set("reason", "");
-    }
-    return true;
-  } catch (const std::exception&) {
-    return false;
-  }
-}
-
-void clearOutcome(IndexRow* row) {
-  for (const char* column :
-       {"failure_kind", "failure_frame", "reason", "exit_code", "signal", "reused", "wall_s",
-        "n_frames", "ate_rmse", "duration_s", "t_opt_total_s", "t_marg_total_s", "wall_time_s",
-        "realtime_factor", "pid", "started_utc"}) {
-    row->set(column, "");
-  }
-}
-
-// Removes what a killed writer may leave behind: <results>.tmp-<pid>-<n>.
-void removeTemporaries(const fs::path& results) {
-  std::error_code ec;
-  const std::string prefix = results.filename().string() + ".tmp-";
-  for (const auto& entry : fs::directory_iterator(results.parent_path(), ec)) {
-    if (entry.path().filename().string().rfind(prefix, 0) == 0) fs::remove(entry.path(), ec);
-  }
-}
 
 struct Slot {
   std::size_t row = 0;
@@ -184,45 +68,15 @@ class Runner {
 
  private:
   void prepareFolder(const fs::path& out, const std::string& sweep_file_text) {
-    if (fs::exists(out / "index.csv") && !options_.resume) {
-      if (!options_.force) {
-        throw UsageError(fmt::format(
-            "{} already holds a sweep: continue it with --resume, or start over with --force",
-            out.string()));
-      }
-      for (const char* sub : {"runs", "logs", "configs"}) fs::remove_all(out / sub);
-      fs::remove(out / "index.csv");
-    }
-    for (const char* sub : {"runs", "logs", "configs"}) fs::create_directories(out / sub);
-    writeFileAtomically((out / "sweep.toml").string(), sweep_file_text);
+    detail::prepareSweepFolder(out, sweep_file_text, options_.resume, options_.force);
   }
 
   void planRows(const fs::path& out) {
-    FrameEstimator frames;
+    detail::FrameEstimator frames;
     for (const PlannedRun& run : plan_.runs) {
-      IndexRow row;
-      row.set("id", run.id);
-      row.set("group", run.group);
-      row.set("dataset", run.dataset);
-      row.set("variant", run.variant);
-      const Variant v = Variant::parse(run.variant);
-      row.set("method", v.method());
-      row.set("precision", v.precisionName());
-      row.set("seed", std::to_string(run.seed));
-      row.set("frames", std::to_string(run.frames));
-      row.set("override", run.override_name);
-      row.set("results", "runs/" + run.id + ".h5");
-      row.set("log", "logs/" + run.id + ".log");
-      row.set("config", run.config_toml.empty() ? "" : "configs/" + run.id + ".toml");
-      row.set("command",
-              "marglab " + shellJoin(runArguments(run, row.get("results"), row.get("config"))));
-      const std::string fingerprint = runFingerprint(run);
-      const std::string results = (out / row.get("results")).string();
+      IndexRow row = detail::plannedRow(run);
       bool other_revision = false;
-      if (options_.resume && readFile((out / "runs" / (run.id + ".cmd")).string()) == fingerprint &&
-          readCompleteResults(results, &row, MARGLAB_GIT_SHA, &other_revision)) {
-        row.set("reused", "1");
-      } else {
+      if (!(options_.resume && detail::keepEarlierResult(out, run, &row, &other_revision))) {
         row.set("status", "pending");
         queue_.push_back(rows_.size());
         if (other_revision) ++other_revision_;
@@ -239,24 +93,8 @@ class Runner {
   void launch(const fs::path& out, std::size_t index) {
     const PlannedRun& run = plan_.runs[index];
     IndexRow& row = rows_[index];
-    clearOutcome(&row);
-    const fs::path results = out / row.get("results");
+    detail::prepareRunFiles(out, plan_.name, run, &row);
     const fs::path log = out / row.get("log");
-    // Nothing of an earlier attempt may look like this run's result.
-    std::error_code ec;
-    fs::remove(results, ec);
-    fs::remove(fs::path(results).replace_extension(".tum"), ec);
-    removeTemporaries(results);
-    if (!run.config_toml.empty()) {
-      writeFileAtomically((out / row.get("config")).string(), run.config_toml);
-    }
-    writeFileAtomically((out / "runs" / (run.id + ".cmd")).string(), runFingerprint(run));
-    {
-      std::ofstream header(log, std::ios::trunc);
-      header << "# marglab sweep " << plan_.name << ": run " << run.id << "\n# started "
-             << utcNowIso8601() << " in " << fs::absolute(out).string() << "\n# "
-             << row.get("command") << "\n";
-    }
 
     std::vector<std::string> args = runArguments(run, row.get("results"), row.get("config"));
     args.insert(args.begin(), exe_);
@@ -305,7 +143,7 @@ class Runner {
     const double wall = std::chrono::duration<double>(Clock::now() - slot.start).count();
     row.setNumber("wall_s", wall);
     const fs::path results = out / row.get("results");
-    removeTemporaries(results);
+    detail::removeTemporaries(results);
     const std::string log = (out / row.get("log")).string();
     if (WIFSIGNALED(wait_status)) {
       const int sig = WTERMSIG(wait_status);
@@ -317,19 +155,19 @@ class Runner {
                                       plan_.runs[slot.row].timeout_s));
       } else if (g_stop_signal != 0) {
         row.set("failure_kind", "interrupted");
-        row.set("reason", "the sweep was interrupted (" + signalName(sig) + ")");
+        row.set("reason", "the sweep was interrupted (" + detail::signalName(sig) + ")");
       } else {
         row.set("failure_kind", "signal");
-        row.set("reason", "killed by " + signalName(sig));
+        row.set("reason", "killed by " + detail::signalName(sig));
       }
     } else {
       const int code = WEXITSTATUS(wait_status);
       row.set("exit_code", std::to_string(code));
-      if (!readCompleteResults(results.string(), &row)) {
+      if (!detail::readCompleteResults(results.string(), &row)) {
         row.set("status", "failed");
         row.set("failure_kind", g_stop_signal != 0 ? "interrupted" : "exit");
         row.set("reason", fmt::format("exit code {} without a complete results file: {}", code,
-                                      lastNonEmptyLine(log)));
+                                      detail::lastNonEmptyLine(log)));
       }
     }
     row.set("pid", "");
@@ -379,7 +217,7 @@ class Runner {
     }
     fmt::print(stderr, "\r\033[K  sweep {}: {}/{} done, {} running, {} failed  {} elapsed  ETA {}",
                plan_.name, finished_, queue_total_, running_.size(), failed,
-               formatDuration(elapsed), formatDuration(eta));
+               detail::formatDuration(elapsed), detail::formatDuration(eta));
     std::fflush(stderr);
   }
 
@@ -513,6 +351,10 @@ std::string runFingerprint(const PlannedRun& run) {
 // Runs a validated plan and prints the summary; the exit code of `sweep` and `reproduce`.
 int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& sweep_file,
                       const experiment::SweepOptions& options) {
+  if (options.backend == "slurm") return runSlurmSweepAndReport(plan, sweep_file, options);
+  if (options.backend != "local") {
+    throw UsageError("unknown sweep backend '" + options.backend + "' (local or slurm)");
+  }
   if (!options.resume && !options.force && fs::exists(fs::path(options.out_dir) / "index.csv")) {
     throw UsageError(fmt::format(
         "{} already holds a sweep: continue it with --resume, or start over with --force",

@@ -23,10 +23,22 @@
 #include <cstdio>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "core/experiment/sweep_def.h"
 
 namespace marglab::experiment {
+
+// Backend slurm (slurm_backend.h): the runs go to a Slurm job array instead of local children.
+struct SlurmOptions {
+  std::string partition;           // --partition; "" = the cluster's default
+  std::string time;                // --time for every task; "" = from the group's timeout_s
+  std::string mem;                 // --mem, e.g. "4G"; "" = the cluster's default
+  int cpus = 1;                    // --cpus-per-task (a run is single-threaded)
+  std::vector<std::string> extra;  // further #SBATCH options, verbatim ("--qos=long")
+  bool wait = false;               // follow the array until it ends
+  double poll_s = 2;               // seconds between squeue polls while following
+};
 
 struct SweepOptions {
   std::string out_dir;
@@ -36,6 +48,8 @@ struct SweepOptions {
   std::string executable;    // marglab binary; "" = /proc/self/exe
   bool status_line = false;  // live status line on stderr (a terminal); else one line per run
   std::FILE* out = stdout;   // per-run lines and the final summary
+  std::string backend = "local";  // local | slurm
+  SlurmOptions slurm;
 };
 
 struct SweepSummary {
@@ -58,7 +72,8 @@ SweepSummary runSweep(const SweepPlan& plan, const std::string& sweep_file_text,
 
 // runSweep with the file's text, printing a header and the summary to options.out; returns the exit
 // code of `marglab sweep`: 0 (numerical failures are results), 1 when a run crashed or was
-// killed, 130 when interrupted.
+// killed, 130 when interrupted. With options.backend "slurm" the Slurm backend runs the plan
+// instead (runSlurmSweepAndReport, slurm_backend.h).
 int runSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
                       const SweepOptions& options);
 

@@ -1,0 +1,459 @@
+#include "core/experiment/slurm_backend.h"
+
+#include <fmt/core.h>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "core/common/error.h"
+#include "core/common/utc_time.h"
+#include "core/experiment/slurm_client.h"
+#include "core/experiment/slurm_reconcile.h"
+#include "core/experiment/sweep_common.h"
+#include "marglab/version.h"
+
+namespace marglab::experiment {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+volatile std::sig_atomic_t g_stop_signal = 0;
+extern "C" void onSlurmStopSignal(int signal) { g_stop_signal = signal; }
+
+// The binary and git revision that planned the folder's Slurm submissions (slurm/binary.txt).
+struct Provenance {
+  std::string executable;
+  std::string revision;
+};
+
+Provenance readProvenance(const fs::path& out) {
+  std::istringstream in(detail::readTextFile((out / "slurm" / "binary.txt").string()));
+  Provenance p;
+  std::getline(in, p.executable);
+  std::getline(in, p.revision);
+  return p;
+}
+
+void writeProvenance(const fs::path& out, const Provenance& p) {
+  writeFileAtomically((out / "slurm" / "binary.txt").string(),
+                      p.executable + "\n" + p.revision + "\n");
+}
+
+}  // namespace
+
+namespace {
+
+std::string describeRow(const IndexRow& row) {
+  if (row.get("status") == "ok") return fmt::format("ATE {:.4f} m", row.number("ate_rmse"));
+  const std::string& frame = row.get("failure_frame");
+  return row.get("failure_kind") + (frame.empty() ? "" : " at frame " + frame) + ": " +
+         row.get("reason");
+}
+
+// Submits queued rows as job arrays, one per distinct time limit, longest runs first.
+class Submitter {
+ public:
+  Submitter(const SweepPlan& plan, const SweepOptions& options, fs::path out, Provenance binary)
+      : plan_(plan), options_(options), out_(std::move(out)), binary_(std::move(binary)) {}
+
+  // rows[i] belongs to plan.runs[i]. Throws InputError with sbatch's message; the rows of an
+  // array Slurm rejected stay pending without a job (--resume submits them again).
+  std::vector<std::string> submit(const std::vector<std::size_t>& queue,
+                                  std::vector<IndexRow>* rows) {
+    std::map<std::string, std::vector<std::size_t>> by_time;
+    for (std::size_t i : queue) by_time[timeOf(plan_.runs[i])].push_back(i);
+    std::vector<std::string> jobs;
+    for (const auto& [time, indices] : by_time) {
+      jobs.push_back(submitArray(time, indices, rows));
+    }
+    return jobs;
+  }
+
+  std::vector<std::string> scripts() const { return scripts_; }
+
+ private:
+  std::string timeOf(const PlannedRun& run) const {
+    return options_.slurm.time.empty() ? slurmTimeForTimeout(run.timeout_s) : options_.slurm.time;
+  }
+
+  SlurmArraySpec spec(const std::string& time) const {
+    SlurmArraySpec s;
+    s.sweep_name = plan_.name;
+    s.sweep_dir = out_.string();
+    s.executable = binary_.executable;
+    s.revision = binary_.revision;
+    s.time = time;
+    s.throttle = options_.jobs;
+    s.partition = options_.slurm.partition;
+    s.mem = options_.slurm.mem;
+    s.cpus = options_.slurm.cpus;
+    s.extra = options_.slurm.extra;
+    return s;
+  }
+
+  std::string nextScriptPath() const {
+    for (int n = 1;; ++n) {
+      const fs::path p = out_ / "slurm" / fmt::format("array-{}.sbatch", n);
+      if (!fs::exists(p)) return p.string();
+    }
+  }
+
+  std::string submitArray(const std::string& time, const std::vector<std::size_t>& indices,
+                          std::vector<IndexRow>* rows) {
+    SlurmArraySpec s = spec(time);
+    for (std::size_t i : indices) {
+      IndexRow& row = (*rows)[i];
+      detail::prepareRunFiles(out_, plan_.name, plan_.runs[i], &row);
+      row.set("status", "pending");
+      s.tasks.push_back(
+          {row.get("id"), runArguments(plan_.runs[i], row.get("results"), row.get("config"))});
+    }
+    const std::string script = nextScriptPath();
+    writeFileAtomically(script, sbatchScript(s));
+    scripts_.push_back(script);
+    const std::string job = SlurmClient().submit(script);  // throws with Slurm's message
+    for (std::size_t k = 0; k < indices.size(); ++k) {
+      (*rows)[indices[k]].set("slurm_job", fmt::format("{}_{}", job, k));
+    }
+    std::ofstream log(out_ / "slurm" / "submissions.log", std::ios::app);
+    log << utcNowIso8601() << " job " << job << " " << indices.size() << " task(s) "
+        << fs::path(script).filename().string() << " revision " << binary_.revision << "\n";
+    return job;
+  }
+
+  const SweepPlan& plan_;
+  const SweepOptions& options_;
+  fs::path out_;
+  Provenance binary_;
+  std::vector<std::string> scripts_;
+};
+
+// Follows the queued rows until none is left: a line per finished run, the status line, Ctrl-C
+// cancels the arrays.
+class Follower {
+ public:
+  Follower(std::string name, fs::path out, std::string revision, const SweepOptions& options)
+      : name_(std::move(name)),
+        out_(std::move(out)),
+        index_path_((out_ / "index.csv").string()),
+        reconciler_(out_, std::move(revision)),
+        options_(options) {}
+
+  // Returns true when interrupted.
+  bool run(std::vector<IndexRow>* rows) {
+    total_ = static_cast<int>(std::count_if(rows->begin(), rows->end(), isUnresolvedTask));
+    installSignalHandlers();
+    const auto start = Clock::now();
+    auto stop_time = Clock::time_point::max();
+    while (true) {
+      if (g_stop_signal != 0 && stop_time == Clock::time_point::max()) {
+        cancelAll(*rows);
+        stop_time = Clock::now();
+      }
+      for (std::size_t i : reconciler_.update(rows)) announce((*rows)[i]);
+      writeIndex(index_path_, *rows);
+      if (unresolvedJobs(*rows).empty()) break;
+      // Cancelled tasks end within Slurm's KillWait; do not hang on a controller that is gone.
+      if (Clock::now() - stop_time > std::chrono::seconds(90)) break;
+      statusLine(*rows, start);
+      std::this_thread::sleep_for(std::chrono::duration<double>(options_.slurm.poll_s));
+    }
+    if (options_.status_line) fmt::print(stderr, "\r\033[K");
+    restoreSignalHandlers();
+    return g_stop_signal != 0;
+  }
+
+ private:
+  void cancelAll(const std::vector<IndexRow>& rows) {
+    const std::set<std::string> jobs = unresolvedJobs(rows);
+    std::string message;
+    if (!SlurmClient().cancel({jobs.begin(), jobs.end()}, &message)) {
+      fmt::print(stderr, "\nmarglab sweep: scancel failed: {}\n", message);
+    }
+  }
+
+  void announce(const IndexRow& row) {
+    ++finished_;
+    if (options_.status_line) fmt::print(stderr, "\r\033[K");
+    // A task cancelled before it started has no wall time.
+    const double wall = row.number("wall_s");
+    const std::string wall_text = std::isfinite(wall) ? fmt::format("{:.1f}", wall) : "-";
+    fmt::print(options_.out, "[{:>{}}/{}] {:<6} {:>7} s  {}  {}\n", finished_,
+               std::to_string(total_).size(), total_, row.get("status"), wall_text, row.get("id"),
+               describeRow(row));
+    std::fflush(options_.out);
+  }
+
+  void statusLine(const std::vector<IndexRow>& rows, Clock::time_point start) const {
+    if (!options_.status_line) return;
+    int running = 0, pending = 0, failed = 0;
+    double done_wall = 0;
+    for (const IndexRow& row : rows) {
+      if (row.get("slurm_job").empty()) continue;
+      running += row.get("status") == "running";
+      pending += row.get("status") == "pending";
+      failed += row.get("status") == "failed";
+      if (!isUnresolvedTask(row) && std::isfinite(row.number("wall_s")))
+        done_wall += row.number("wall_s");
+    }
+    const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+    // ETA: mean wall time of the finished runs × the runs left, spread over those running.
+    const double eta = finished_ > 0
+                           ? done_wall / finished_ * (running + pending) / std::max(1, running)
+                           : std::nan("");
+    fmt::print(stderr,
+               "\r\033[K  sweep {} (Slurm): {}/{} done, {} running, {} pending, {} failed  {} "
+               "elapsed  ETA {}",
+               name_, finished_, total_, running, pending, failed, detail::formatDuration(elapsed),
+               detail::formatDuration(eta));
+    std::fflush(stderr);
+  }
+
+  void installSignalHandlers() {
+    g_stop_signal = 0;
+    struct sigaction action {};
+    action.sa_handler = onSlurmStopSignal;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &old_int_);
+    sigaction(SIGTERM, &action, &old_term_);
+  }
+  void restoreSignalHandlers() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+
+  std::string name_;
+  fs::path out_;
+  std::string index_path_;
+  SlurmReconciler reconciler_;
+  const SweepOptions& options_;
+  int total_ = 0;
+  int finished_ = 0;
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
+// The closing summary; the exit code of `sweep`.
+int report(const std::string& name, const std::vector<IndexRow>& rows, const fs::path& out,
+           double wall_s, bool interrupted, std::FILE* stream) {
+  int ok = 0, numerical = 0, process = 0, reused = 0, queued = 0, unsubmitted = 0;
+  std::map<std::string, int> kinds;
+  for (const IndexRow& row : rows) {
+    const std::string& status = row.get("status");
+    reused += !row.get("reused").empty();
+    if (status == "ok") {
+      ++ok;
+    } else if (status == "failed" && row.get("failure_kind") == "numerical") {
+      ++numerical;
+    } else if (status == "failed") {
+      ++process;
+      ++kinds[row.get("failure_kind")];
+    } else if (isUnresolvedTask(row)) {
+      ++queued;
+    } else {
+      ++unsubmitted;
+    }
+  }
+  std::string kind_text;
+  for (const auto& [kind, n] : kinds)
+    kind_text += fmt::format("{}{} {}", kind_text.empty() ? " (" : ", ", n, kind);
+  if (!kind_text.empty()) kind_text += ")";
+  fmt::print(stream,
+             "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{}{}{} in {:.1f} s\n",
+             name, ok, numerical, process, kind_text,
+             reused ? fmt::format(" ({} kept from an earlier invocation)", reused) : "",
+             queued ? fmt::format(", {} still queued in Slurm", queued) : "",
+             unsubmitted ? fmt::format(", {} not submitted", unsubmitted) : "", wall_s);
+  fmt::print(stream, "  index {}\n", (out / "index.csv").string());
+  if (interrupted) {
+    fmt::print(stream, "  interrupted: the arrays were cancelled; continue with --resume\n");
+    return 130;
+  }
+  if (queued > 0) {
+    fmt::print(stream, "  follow: marglab sweep --status {} [--wait]\n", out.string());
+  }
+  return process > 0 || unsubmitted > 0 ? 1 : 0;
+}
+
+}  // namespace
+
+namespace {
+
+// The rows of an earlier submission into this folder whose task may still run (the earlier index
+// reconciled with Slurm first).
+std::map<std::string, IndexRow> queuedEarlier(const fs::path& out) {
+  const fs::path index = out / "index.csv";
+  const Provenance earlier = readProvenance(out);
+  if (!fs::exists(index) || earlier.revision.empty()) return {};
+  std::vector<IndexRow> rows = readIndex(index.string());
+  SlurmReconciler(out, earlier.revision).update(&rows);
+  writeIndex(index.string(), rows);
+  std::map<std::string, IndexRow> queued;
+  for (IndexRow& row : rows) {
+    if (isUnresolvedTask(row)) queued[row.get("id")] = std::move(row);
+  }
+  return queued;
+}
+
+// Queued tasks stay (and are not submitted twice) only when --resume plans them identically with
+// the same revision; --force must not start a new sweep under tasks still writing into the folder.
+void checkQueuedMayStay(const fs::path& out, const SweepPlan& plan,
+                        const std::map<std::string, IndexRow>& queued, bool force) {
+  if (queued.empty()) return;
+  std::set<std::string> jobs;
+  for (const auto& [id, row] : queued) jobs.insert(jobOf(row.get("slurm_job")));
+  const std::string job_list = fmt::format("{}", fmt::join(jobs, " "));
+  const std::string revision = readProvenance(out).revision;
+  const std::string what = fmt::format(
+      "{}: {} run(s) of revision {} are still queued in Slurm "
+      "(jobs {})",
+      out.string(), queued.size(), revision, job_list);
+  if (force) {
+    throw UsageError(what + ": cancel them first (scancel " + job_list +
+                     "), so that none of them writes into the new sweep");
+  }
+  if (revision != MARGLAB_GIT_SHA) {
+    throw UsageError(
+        fmt::format("{}; this is revision {}. Wait for them (marglab sweep --status {} "
+                    "--wait) or cancel them (scancel {}) before resuming, so that "
+                    "one folder never mixes revisions",
+                    what, MARGLAB_GIT_SHA, out.string(), job_list));
+  }
+  for (const PlannedRun& run : plan.runs) {
+    if (queued.count(run.id) &&
+        detail::readTextFile((out / "runs" / (run.id + ".cmd")).string()) != runFingerprint(run)) {
+      throw UsageError(what + ": run " + run.id + " is planned differently now; cancel it first");
+    }
+  }
+}
+
+// The rows of the plan and the indices to submit.
+std::vector<std::size_t> planRows(const SweepPlan& plan, const fs::path& out, bool resume,
+                                  std::map<std::string, IndexRow> queued,
+                                  std::vector<IndexRow>* rows) {
+  detail::FrameEstimator frames;
+  std::vector<std::size_t> queue;
+  std::vector<double> weights;
+  for (const PlannedRun& run : plan.runs) {
+    IndexRow row = detail::plannedRow(run);
+    bool other_revision = false;
+    if (queued.count(run.id)) {
+      row = std::move(queued[run.id]);
+    } else if (!(resume && detail::keepEarlierResult(out, run, &row, &other_revision))) {
+      row.set("status", "pending");
+      queue.push_back(rows->size());
+    }
+    rows->push_back(std::move(row));
+    weights.push_back(frames(run));
+  }
+  // Longest first: array tasks start in index order.
+  std::stable_sort(queue.begin(), queue.end(),
+                   [&](std::size_t a, std::size_t b) { return weights[a] > weights[b]; });
+  return queue;
+}
+
+// Submits the queue and prints the arrays; false, with Slurm's message, when Slurm rejects one
+// (the index then lists the runs it did not take as pending without a job: --resume submits them).
+bool submitQueue(Submitter* submitter, const std::vector<std::size_t>& queue,
+                 std::vector<IndexRow>* rows, const std::string& index_path, std::FILE* out,
+                 std::vector<std::string>* jobs) {
+  try {
+    *jobs = submitter->submit(queue, rows);
+  } catch (const InputError& e) {
+    writeIndex(index_path, *rows);
+    std::fflush(out);
+    fmt::print(stderr, "marglab sweep: {}\n", e.what());
+    fmt::print(out,
+               "  nothing more was submitted; the folder is resumable: fix the Slurm options and "
+               "run again with --resume\n");
+    return false;
+  }
+  writeIndex(index_path, *rows);
+  for (std::size_t k = 0; k < jobs->size(); ++k) {
+    fmt::print(out, "  submitted job array {} ({})\n", (*jobs)[k], submitter->scripts()[k]);
+  }
+  std::fflush(out);
+  return true;
+}
+
+}  // namespace
+
+int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
+                           const SweepOptions& options) {
+  const auto start = Clock::now();
+  const fs::path out = fs::absolute(options.out_dir).lexically_normal();
+  std::string why;
+  if (!SlurmClient::available(&why)) {
+    throw UsageError("--backend slurm: no Slurm cluster answers here (" + why +
+                     "); to try it on this machine: scripts/slurm_local.sh start");
+  }
+  if (!options.resume && !options.force && fs::exists(out / "index.csv")) {
+    throw UsageError(fmt::format(
+        "{} already holds a sweep: continue it with --resume, or start over with --force",
+        out.string()));
+  }
+  std::map<std::string, IndexRow> queued;
+  if (options.resume || options.force) queued = queuedEarlier(out);
+  checkQueuedMayStay(out, plan, queued, options.force);
+  detail::prepareSweepFolder(out, detail::readTextFile(sweep_file), options.resume, options.force);
+  for (const char* sub : {"slurm/exit", "slurm/out"}) fs::create_directories(out / sub);
+  std::vector<IndexRow> rows;
+  const std::vector<std::size_t> queue =
+      planRows(plan, out, options.resume, std::move(queued), &rows);
+  const Provenance binary{options.executable.empty() ? fs::read_symlink("/proc/self/exe").string()
+                                                     : fs::absolute(options.executable).string(),
+                          MARGLAB_GIT_SHA};
+  writeProvenance(out, binary);
+  const std::string index_path = (out / "index.csv").string();
+  writeIndex(index_path, rows);
+  fmt::print(options.out, "sweep {}: {} runs -> {} (Slurm; {} to submit)\n", plan.name,
+             plan.runs.size(), out.string(), queue.size());
+  Submitter submitter(plan, options, out, binary);
+  std::vector<std::string> jobs;
+  if (!submitQueue(&submitter, queue, &rows, index_path, options.out, &jobs)) return 1;
+  if (!options.slurm.wait) {
+    const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+    if (!jobs.empty()) fmt::print(options.out, "  cancel: scancel {}\n", fmt::join(jobs, " "));
+    return report(plan.name, rows, out, wall, false, options.out);
+  }
+  const bool interrupted = Follower(plan.name, out, binary.revision, options).run(&rows);
+  const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+  return report(plan.name, rows, out, wall, interrupted, options.out);
+}
+
+int slurmSweepStatus(const std::string& dir, const SweepOptions& options) {
+  const auto start = Clock::now();
+  const fs::path out = fs::absolute(dir).lexically_normal();
+  const std::string index_path = (out / "index.csv").string();
+  std::vector<IndexRow> rows = readIndex(index_path);
+  const Provenance binary = readProvenance(out);
+  const std::string name = out.filename().string();
+  bool interrupted = false;
+  if (!binary.revision.empty()) {
+    for (std::size_t i : SlurmReconciler(out, binary.revision).update(&rows)) {
+      fmt::print(options.out, "  {:<6} {}  {}\n", rows[i].get("status"), rows[i].get("id"),
+                 describeRow(rows[i]));
+    }
+    writeIndex(index_path, rows);
+    if (options.slurm.wait) interrupted = Follower(name, out, binary.revision, options).run(&rows);
+  }
+  for (const IndexRow& row : rows) {
+    if (row.get("status") == "failed" && row.get("failure_kind") != "numerical") {
+      fmt::print(options.out, "  failed {}  {}\n", row.get("id"), describeRow(row));
+    }
+  }
+  const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+  return report(name, rows, out, wall, interrupted, options.out);
+}
+
+}  // namespace marglab::experiment

@@ -1,0 +1,194 @@
+#include "core/experiment/sweep_common.h"
+
+#include <fmt/core.h>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "core/common/error.h"
+#include "core/common/utc_time.h"
+#include "core/data/sequence.h"
+#include "core/estimator/variant.h"
+#include "core/experiment/sweep_runner.h"
+#include "core/io/results_file.h"
+#include "marglab/version.h"
+
+namespace marglab::experiment::detail {
+
+namespace fs = std::filesystem;
+
+std::string readTextFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return {};
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+std::string lastNonEmptyLine(const std::string& path) {
+  const std::string text = readTextFile(path);
+  std::istringstream in(text);
+  std::string line, last;
+  while (std::getline(in, line)) {
+    // A progress line overwritten with \r: keep its last state.
+    const auto cr = line.find_last_of('\r');
+    if (cr != std::string::npos) line = line.substr(cr + 1);
+    if (line.find_first_not_of(" \t") != std::string::npos) last = line;
+  }
+  return last;
+}
+
+std::string signalName(int signal) {
+  const char* name = sigdescr_np(signal);
+  const char* abbrev = sigabbrev_np(signal);
+  return fmt::format("SIG{} ({})", abbrev ? abbrev : std::to_string(signal).c_str(),
+                     name ? name : "?");
+}
+
+std::string formatDuration(double seconds) {
+  if (!std::isfinite(seconds) || seconds < 0) return "--:--";
+  const long s = std::lround(seconds);
+  if (s >= 3600) return fmt::format("{}:{:02}:{:02}", s / 3600, (s / 60) % 60, s % 60);
+  return fmt::format("{}:{:02}", s / 60, s % 60);
+}
+
+double FrameEstimator::operator()(const PlannedRun& run) {
+  double total = 0;
+  auto it = cache_.find(run.dataset);
+  if (it != cache_.end()) {
+    total = it->second;
+  } else {
+    try {
+      LoadOptions options;
+      options.load_imu = false;
+      const Sequence sequence = loadSequence(run.dataset, options);
+      const auto [first, last] = framesWithinTrajectory(sequence);
+      total = static_cast<double>(last > first ? last - first : sequence.cam_t_ns.size());
+    } catch (const std::exception&) {
+      total = 1000;  // unknown; the run itself will report the problem
+    }
+    cache_[run.dataset] = total;
+  }
+  if (run.frames > 0) total = std::min<double>(total, run.frames);
+  return std::max(total, 1.0);
+}
+
+bool readCompleteResults(const std::string& path, IndexRow* row, const char* git_sha,
+                         bool* other_revision) {
+  if (!fs::is_regular_file(path)) return false;
+  try {
+    const ResultsReader reader(path);
+    if (git_sha != nullptr && reader.info().git_sha != git_sha) {
+      if (other_revision != nullptr) *other_revision = true;
+      return false;
+    }
+    const std::string& status = reader.info().status;
+    if (status != "ok" && status != "failed") return false;
+    const SummaryValues s = reader.summary();
+    row->set("status", status);
+    row->set("n_frames", std::to_string(s.n_frames));
+    row->setNumber("ate_rmse", s.ate_rmse);
+    row->setNumber("duration_s", s.duration_s);
+    row->setNumber("t_opt_total_s", s.t_opt_total_s);
+    row->setNumber("t_marg_total_s", s.t_marg_total_s);
+    row->setNumber("wall_time_s", s.wall_time_s);
+    row->setNumber("realtime_factor", s.realtime_factor);
+    const bool failed = status == "failed";
+    row->set("failure_kind", failed ? "numerical" : "");
+    row->set("failure_frame", failed ? std::to_string(reader.info().failure_frame) : "");
+    row->set("reason", failed ? reader.info().failure_reason : "");
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+void clearOutcome(IndexRow* row) {
+  for (const char* column :
+       {"failure_kind", "failure_frame", "reason", "exit_code", "signal", "reused", "wall_s",
+        "n_frames", "ate_rmse", "duration_s", "t_opt_total_s", "t_marg_total_s", "wall_time_s",
+        "realtime_factor", "pid", "slurm_job", "started_utc"}) {
+    row->set(column, "");
+  }
+}
+
+void removeTemporaries(const fs::path& results) {
+  std::error_code ec;
+  const std::string prefix = results.filename().string() + ".tmp-";
+  for (const auto& entry : fs::directory_iterator(results.parent_path(), ec)) {
+    if (entry.path().filename().string().rfind(prefix, 0) == 0) fs::remove(entry.path(), ec);
+  }
+}
+
+void prepareSweepFolder(const fs::path& out, const std::string& sweep_file_text, bool resume,
+                        bool force) {
+  if (fs::exists(out / "index.csv") && !resume) {
+    if (!force) {
+      throw UsageError(fmt::format(
+          "{} already holds a sweep: continue it with --resume, or start over with --force",
+          out.string()));
+    }
+    for (const char* sub : {"runs", "logs", "configs", "slurm"}) fs::remove_all(out / sub);
+    fs::remove(out / "index.csv");
+  }
+  for (const char* sub : {"runs", "logs", "configs"}) fs::create_directories(out / sub);
+  writeFileAtomically((out / "sweep.toml").string(), sweep_file_text);
+}
+
+IndexRow plannedRow(const PlannedRun& run) {
+  IndexRow row;
+  row.set("id", run.id);
+  row.set("group", run.group);
+  row.set("dataset", run.dataset);
+  row.set("variant", run.variant);
+  const Variant v = Variant::parse(run.variant);
+  row.set("method", v.method());
+  row.set("precision", v.precisionName());
+  row.set("seed", std::to_string(run.seed));
+  row.set("frames", std::to_string(run.frames));
+  row.set("override", run.override_name);
+  row.set("results", "runs/" + run.id + ".h5");
+  row.set("log", "logs/" + run.id + ".log");
+  row.set("config", run.config_toml.empty() ? "" : "configs/" + run.id + ".toml");
+  row.set("command",
+          "marglab " + shellJoin(runArguments(run, row.get("results"), row.get("config"))));
+  return row;
+}
+
+bool keepEarlierResult(const fs::path& out, const PlannedRun& run, IndexRow* row,
+                       bool* other_revision) {
+  if (readTextFile((out / "runs" / (run.id + ".cmd")).string()) != runFingerprint(run)) {
+    return false;
+  }
+  if (!readCompleteResults((out / row->get("results")).string(), row, MARGLAB_GIT_SHA,
+                           other_revision)) {
+    return false;
+  }
+  row->set("reused", "1");
+  return true;
+}
+
+void prepareRunFiles(const fs::path& out, const std::string& sweep_name, const PlannedRun& run,
+                     IndexRow* row) {
+  clearOutcome(row);
+  const fs::path results = out / row->get("results");
+  // Nothing of an earlier attempt may look like this run's result.
+  std::error_code ec;
+  fs::remove(results, ec);
+  fs::remove(fs::path(results).replace_extension(".tum"), ec);
+  removeTemporaries(results);
+  if (!run.config_toml.empty()) {
+    writeFileAtomically((out / row->get("config")).string(), run.config_toml);
+  }
+  writeFileAtomically((out / "runs" / (run.id + ".cmd")).string(), runFingerprint(run));
+  std::ofstream header(out / row->get("log"), std::ios::trunc);
+  header << "# marglab sweep " << sweep_name << ": run " << run.id << "\n# started "
+         << utcNowIso8601() << " in " << fs::absolute(out).string() << "\n# " << row->get("command")
+         << "\n";
+}
+
+}  // namespace marglab::experiment::detail

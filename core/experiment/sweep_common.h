@@ -1,0 +1,62 @@
+#pragma once
+// What every sweep backend (the local child processes of sweep_runner.cpp, the Slurm job array of
+// slurm_backend.cpp) does the same way, so that a sweep folder means the same whichever backend
+// filled it: the folder layout, the index row of a planned run, the --resume decision (complete
+// results file of this revision, same fingerprint), the files written before a run starts, and the
+// reading of a finished run's results file.
+
+#include <filesystem>
+#include <map>
+#include <string>
+
+#include "core/experiment/sweep_def.h"
+#include "core/experiment/sweep_index.h"
+
+namespace marglab::experiment::detail {
+
+std::string readTextFile(const std::string& path);  // "" when missing
+// The last non-blank line of a log (a progress line overwritten with \r: its last state).
+std::string lastNonEmptyLine(const std::string& path);
+std::string formatDuration(double seconds);  // m:ss or h:mm:ss; --:-- when unknown
+std::string signalName(int signal);          // "SIGKILL (Killed)"
+
+// Is this a complete results file? Fills the row's status and summary columns when it is. With
+// git_sha, only a file written by that revision counts (so --resume never mixes revisions).
+bool readCompleteResults(const std::string& path, IndexRow* row, const char* git_sha = nullptr,
+                         bool* other_revision = nullptr);
+
+// Empties the outcome columns of a row that is about to run (again).
+void clearOutcome(IndexRow* row);
+
+// Removes what a killed writer may leave behind: <results>.tmp-<pid>-<n>.
+void removeTemporaries(const std::filesystem::path& results);
+
+// Creates the folder (runs/, logs/, configs/, sweep.toml); with force, removes an earlier sweep.
+// Throws UsageError when out holds a sweep and neither resume nor force is set.
+void prepareSweepFolder(const std::filesystem::path& out, const std::string& sweep_file_text,
+                        bool resume, bool force);
+
+// The index row of a planned run (status empty): ids, paths and the exact command.
+IndexRow plannedRow(const PlannedRun& run);
+
+// --resume: keeps the row's earlier result when its results file is complete, of this build's
+// revision and planned identically (runs/<id>.cmd). Sets *other_revision when the file is complete
+// but of another revision.
+bool keepEarlierResult(const std::filesystem::path& out, const PlannedRun& run, IndexRow* row,
+                       bool* other_revision);
+
+// Before a run starts: removes an earlier attempt's results, writes its config, fingerprint and log
+// header, and clears the row's outcome.
+void prepareRunFiles(const std::filesystem::path& out, const std::string& sweep_name,
+                     const PlannedRun& run, IndexRow* row);
+
+// Frames a run will process, for ordering and the ETA (the sequence length when not limited).
+class FrameEstimator {
+ public:
+  double operator()(const PlannedRun& run);
+
+ private:
+  std::map<std::string, double> cache_;
+};
+
+}  // namespace marglab::experiment::detail

@@ -1,0 +1,362 @@
+// `marglab sweep --backend slurm` on a real one-node Slurm cluster (scripts/slurm_local.sh start;
+// .ci/run starts and stops it): the index and the HDF5 estimates equal the local backend's; a
+// cancelled task and one over its time limit get the right failure_kind and --resume submits
+// exactly those; a submission Slurm rejects leaves the folder resumable. Without a cluster these
+// tests skip (the outcome mapping is still checked, without Slurm).
+
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "common/cli_runner.h"
+#include "core/experiment/slurm_backend.h"
+#include "core/experiment/slurm_client.h"
+#include "core/experiment/sweep_index.h"
+#include "core/io/results_file.h"
+
+namespace marglab::experiment {
+namespace {
+
+namespace fs = std::filesystem;
+using test::runCli;
+using test::runShell;
+
+#define REQUIRE_SLURM()                                                                  \
+  do {                                                                                   \
+    std::string why;                                                                     \
+    if (!SlurmClient::available(&why)) {                                                 \
+      GTEST_SKIP() << "no Slurm cluster answers (" << why                                \
+                   << "); start the one-node cluster with `bash scripts/slurm_local.sh " \
+                      "start` (root, Debian slurm-wlm + munge)";                         \
+    }                                                                                    \
+  } while (0)
+
+std::string readText(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::string quote(const fs::path& p) { return "'" + p.string() + "'"; }
+
+const IndexRow* findRow(const std::vector<IndexRow>& rows, const std::string& id) {
+  for (const IndexRow& row : rows) {
+    if (row.get("id") == id) return &row;
+  }
+  return nullptr;
+}
+
+fs::path freshDir(const std::string& name) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("marglab_slurm_" + name + "_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::vector<double> readDoubles(const fs::path& file, const std::string& dataset) {
+  const ResultsReader reader(file.string());
+  return reader.file().readVector<double>(dataset);
+}
+
+// The ids of the tasks of a written sbatch script ("  N) ID=...; set -- ...").
+std::set<std::string> scriptIds(const fs::path& script) {
+  std::set<std::string> ids;
+  const std::regex task(R"(^  [0-9]+\) ID='?([^;']+)'?;)");
+  std::istringstream in(readText(script));
+  for (std::string line; std::getline(in, line);) {
+    std::smatch m;
+    if (std::regex_search(line, m, task)) ids.insert(m[1]);
+  }
+  return ids;
+}
+
+TEST(SlurmOutcome, SlurmStatesMapToFailureKinds) {
+  const fs::path dir = freshDir("outcome");
+  fs::create_directories(dir / "runs");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"TIMEOUT", "timeout"},       {"DEADLINE", "timeout"},
+      {"CANCELLED", "interrupted"}, {"OUT_OF_MEMORY", "oom"},
+      {"NODE_FAIL", "node"},        {"PREEMPTED", "interrupted"},
+      {"FAILED", "exit"},           {"", "exit"}};
+  for (const auto& [state, kind] : cases) {
+    SCOPED_TRACE(state);
+    IndexRow row;
+    row.set("id", "x");
+    row.set("results", "runs/x.h5");
+    row.set("log", "logs/x.log");
+    row.set("slurm_job", "7_3");
+    row.set("status", "running");
+    EXPECT_TRUE(applyTaskOutcome(dir.string(), state, TaskExit{}, "rev", &row));
+    EXPECT_EQ(row.get("status"), "failed");
+    EXPECT_EQ(row.get("failure_kind"), kind);
+    EXPECT_NE(row.get("reason").find("7_3"), std::string::npos) << row.get("reason");
+  }
+  // Still queued or running: not an outcome yet.
+  for (const std::string state : {"PENDING", "RUNNING", "COMPLETING"}) {
+    IndexRow row;
+    row.set("slurm_job", "7_3");
+    EXPECT_FALSE(applyTaskOutcome(dir.string(), state, TaskExit{}, "rev", &row)) << state;
+    EXPECT_EQ(row.get("status"), state == "PENDING" ? "pending" : "running");
+  }
+  // A task killed by SIGTERM that Slurm has forgotten: its exit file says so.
+  TaskExit exit;
+  exit.present = true;
+  exit.signal = "TERM";
+  exit.start = 100;
+  exit.end = 160.5;
+  IndexRow row;
+  row.set("results", "runs/x.h5");
+  row.set("slurm_job", "7_3");
+  ASSERT_TRUE(applyTaskOutcome(dir.string(), "", exit, "rev", &row));
+  EXPECT_EQ(row.get("failure_kind"), "signal");
+  EXPECT_EQ(row.number("wall_s"), 60.5);
+  fs::remove_all(dir);
+}
+
+// The same short sweep through both backends: same index values, bit-identical estimates.
+TEST(SlurmSweep, IndexAndEstimatesEqualTheLocalBackend) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("equal");
+  std::ofstream(dir / "eq.toml") << R"(name = "eq"
+[[group]]
+name = "vo"
+datasets = ["kitti/10"]
+variants = ["headline"]
+frames = 40
+[[group]]
+name = "nan"
+datasets = ["kitti/04"]
+variants = ["ns-qr-sqrt-f32"]
+frames = 30
+args = ["--inject-nan-frame", "12"]
+)";
+  const auto local =
+      runCli("sweep " + quote(dir / "eq.toml") + " --jobs 2 --out " + quote(dir / "local"));
+  ASSERT_EQ(local.exit_code, 0) << local.output;
+  const auto slurm = runCli("sweep " + quote(dir / "eq.toml") +
+                            " --backend slurm --wait --jobs 2 --out " + quote(dir / "slurm"));
+  ASSERT_EQ(slurm.exit_code, 0) << slurm.output;
+  EXPECT_NE(slurm.output.find("4 ok, 1 failed numerically, 0 crashed"), std::string::npos)
+      << slurm.output;
+  const auto a = readIndex((dir / "local" / "index.csv").string());
+  const auto b = readIndex((dir / "slurm" / "index.csv").string());
+  ASSERT_EQ(a.size(), b.size());
+  for (const IndexRow& row : a) {
+    SCOPED_TRACE(row.get("id"));
+    const IndexRow* other = findRow(b, row.get("id"));
+    ASSERT_NE(other, nullptr);
+    for (const char* column : {"status", "failure_kind", "failure_frame", "reason", "ate_rmse",
+                               "n_frames", "command", "exit_code"}) {
+      EXPECT_EQ(row.get(column), other->get(column)) << column;
+    }
+    EXPECT_NE(other->get("slurm_job"), "");
+    for (const char* dataset : {"/frames/p_est", "/frames/q_est"}) {
+      const auto x = readDoubles(dir / "local" / row.get("results"), dataset);
+      const auto y = readDoubles(dir / "slurm" / other->get("results"), dataset);
+      ASSERT_EQ(x.size(), y.size()) << dataset;
+      EXPECT_EQ(std::memcmp(x.data(), y.data(), x.size() * sizeof(double)), 0) << dataset;
+    }
+  }
+  // The exact script is kept, with the throttle from --jobs; tables read the folder unchanged.
+  const std::string script = readText(dir / "slurm" / "slurm" / "array-1.sbatch");
+  EXPECT_NE(script.find("#SBATCH --array=0-4%2"), std::string::npos) << script;
+  const auto tables = runCli("tables " + quote(dir / "slurm") + " --format csv");
+  EXPECT_EQ(tables.exit_code, 0) << tables.output;
+  fs::remove_all(dir);
+}
+
+// The state of one task as squeue shows it ("" when unknown).
+std::string taskState(const std::string& task) {
+  const auto r = runShell("squeue -h -t all -j " + task + " -o %T");
+  return r.exit_code == 0 ? r.output.substr(0, r.output.find('\n')) : "";
+}
+
+TEST(SlurmSweep, CancelledAndTimedOutTasksAreRecordedAndResumeSubmitsExactlyThem) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("cancel");
+  // Two runs of several minutes: one over a 1-minute limit (timeout_s 1 → --time=1, Slurm's
+  // smallest), one cancelled; a short one that succeeds.
+  std::ofstream(dir / "c.toml") << R"(name = "c"
+[[group]]
+name = "limit"
+datasets = ["tumvi/magistrale1"]
+variants = ["ns-qr-sqrt-f64"]
+timeout_s = 1
+[[group]]
+name = "cancel"
+datasets = ["tumvi/magistrale1"]
+variants = ["ns-qr-sqrt-f32"]
+[[group]]
+name = "short"
+datasets = ["kitti/04"]
+variants = ["ns-qr-sqrt-f64"]
+frames = 20
+)";
+  const fs::path out = dir / "out";
+  const auto submit =
+      runCli("sweep " + quote(dir / "c.toml") + " --backend slurm --out " + quote(out));
+  ASSERT_EQ(submit.exit_code, 0) << submit.output;
+  auto rows = readIndex((out / "index.csv").string());
+  const std::string limit_id = "limit__tumvi-magistrale1__ns-qr-sqrt-f64__s1";
+  const std::string cancel_id = "cancel__tumvi-magistrale1__ns-qr-sqrt-f32__s1";
+  const std::string short_id = "short__kitti-04__ns-qr-sqrt-f64__s1";
+  const std::string cancel_task = findRow(rows, cancel_id)->get("slurm_job");
+  ASSERT_FALSE(cancel_task.empty());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (taskState(cancel_task) != "RUNNING" && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  ASSERT_EQ(taskState(cancel_task), "RUNNING");
+  ASSERT_EQ(runShell("scancel " + cancel_task).exit_code, 0);
+
+  const auto status = runCli("sweep --status " + quote(out) + " --wait");
+  EXPECT_EQ(status.exit_code, 1) << status.output;  // killed runs make the sweep fail
+  rows = readIndex((out / "index.csv").string());
+  EXPECT_EQ(findRow(rows, limit_id)->get("failure_kind"), "timeout") << status.output;
+  EXPECT_EQ(findRow(rows, cancel_id)->get("failure_kind"), "interrupted") << status.output;
+  EXPECT_EQ(findRow(rows, short_id)->get("status"), "ok") << status.output;
+  for (const auto& entry : fs::directory_iterator(out / "runs")) {
+    EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << entry.path();
+  }
+
+  // --resume submits the two failed runs and nothing else (then they are cancelled again).
+  const auto resume =
+      runCli("sweep " + quote(dir / "c.toml") + " --backend slurm --resume --out " + quote(out));
+  ASSERT_EQ(resume.exit_code, 0) << resume.output;
+  EXPECT_NE(resume.output.find("(Slurm; 2 to submit)"), std::string::npos) << resume.output;
+  std::set<std::string> resubmitted;
+  for (const char* script : {"array-3.sbatch", "array-4.sbatch"}) {
+    for (const std::string& id : scriptIds(out / "slurm" / script)) resubmitted.insert(id);
+  }
+  EXPECT_EQ(resubmitted, (std::set<std::string>{limit_id, cancel_id}));
+  EXPECT_FALSE(fs::exists(out / "slurm" / "array-5.sbatch"));
+  rows = readIndex((out / "index.csv").string());
+  EXPECT_EQ(findRow(rows, short_id)->get("reused"), "1");
+  std::set<std::string> jobs;
+  for (const std::string& id : {limit_id, cancel_id}) {
+    const std::string task = findRow(rows, id)->get("slurm_job");
+    jobs.insert(task.substr(0, task.find('_')));
+  }
+  for (const std::string& job : jobs) runShell("scancel " + job);
+  const auto after = runCli("sweep --status " + quote(out) + " --wait");
+  rows = readIndex((out / "index.csv").string());
+  EXPECT_EQ(findRow(rows, cancel_id)->get("failure_kind"), "interrupted") << after.output;
+  fs::remove_all(dir);
+}
+
+TEST(SlurmSweep, RejectedSubmissionFailsWithSlurmsMessageAndStaysResumable) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("reject");
+  std::ofstream(dir / "r.toml") << R"(name = "r"
+[[group]]
+name = "vo"
+datasets = ["kitti/04"]
+variants = ["ns-qr-sqrt-f64", "sc-sc-sq-f64"]
+frames = 20
+)";
+  const fs::path out = dir / "out";
+  const auto rejected =
+      runCli("sweep " + quote(dir / "r.toml") +
+             " --backend slurm --slurm-arg=--partition=no_such_partition --out " + quote(out));
+  EXPECT_EQ(rejected.exit_code, 1) << rejected.output;
+  EXPECT_NE(rejected.output.find("Invalid partition name specified"), std::string::npos)
+      << rejected.output;
+  auto rows = readIndex((out / "index.csv").string());
+  ASSERT_EQ(rows.size(), 2u);
+  for (const IndexRow& row : rows) {
+    EXPECT_EQ(row.get("status"), "pending");
+    EXPECT_EQ(row.get("slurm_job"), "");
+  }
+  const auto resume = runCli("sweep " + quote(dir / "r.toml") +
+                             " --backend slurm --resume --wait " + "--out " + quote(out));
+  ASSERT_EQ(resume.exit_code, 0) << resume.output;
+  rows = readIndex((out / "index.csv").string());
+  for (const IndexRow& row : rows) EXPECT_EQ(row.get("status"), "ok") << row.get("id");
+  fs::remove_all(dir);
+}
+
+// Starts the marglab CLI with stdout and stderr into log; returns its pid.
+pid_t startCli(const std::vector<std::string>& args, const fs::path& log) {
+  std::vector<std::string> argv = {MARGLAB_CLI};
+  argv.insert(argv.end(), args.begin(), args.end());
+  std::vector<char*> c_argv;
+  for (std::string& a : argv) c_argv.push_back(a.data());
+  c_argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, c_argv[0], &actions, nullptr, c_argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  return rc == 0 ? pid : -1;
+}
+
+TEST(SlurmSweep, CtrlCWhileFollowingCancelsTheArrayAndForceWaitsForIt) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("sigint");
+  std::ofstream(dir / "i.toml") << R"(name = "i"
+[[group]]
+name = "vo"
+datasets = ["kitti/10"]
+variants = ["headline"]
+frames = 600
+)";
+  const fs::path out = dir / "out";
+  const pid_t sweep = startCli({"sweep", (dir / "i.toml").string(), "--backend", "slurm", "--wait",
+                                "--jobs", "1", "--out", out.string()},
+                               dir / "sweep.log");
+  ASSERT_GT(sweep, 0);
+  std::string first_task;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    try {
+      first_task = readIndex((out / "index.csv").string()).front().get("slurm_job");
+    } catch (const std::exception&) {
+      continue;  // not written yet
+    }
+    if (!first_task.empty() && taskState(first_task) == "RUNNING") break;
+  }
+  ASSERT_EQ(taskState(first_task), "RUNNING") << readText(dir / "sweep.log");
+  // --force must not start a new sweep under tasks still running in the folder.
+  const auto force =
+      runCli("sweep " + quote(dir / "i.toml") + " --backend slurm --force --out " + quote(out));
+  EXPECT_EQ(force.exit_code, 2) << force.output;
+  EXPECT_NE(force.output.find("still queued in Slurm"), std::string::npos) << force.output;
+
+  ASSERT_EQ(kill(sweep, SIGINT), 0);
+  int status = 0;
+  ASSERT_EQ(waitpid(sweep, &status, 0), sweep);
+  const std::string log = readText(dir / "sweep.log");
+  ASSERT_TRUE(WIFEXITED(status)) << log;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << log;
+  int interrupted = 0;
+  for (const IndexRow& row : readIndex((out / "index.csv").string())) {
+    SCOPED_TRACE(row.get("id"));
+    EXPECT_TRUE(row.get("status") == "ok" || row.get("failure_kind") == "interrupted") << log;
+    interrupted += row.get("failure_kind") == "interrupted";
+    const std::string state = taskState(row.get("slurm_job"));
+    EXPECT_FALSE(isActiveState(state)) << state;
+  }
+  EXPECT_GE(interrupted, 3) << log;  // one task at a time: at most the first one finished
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace marglab::experiment
