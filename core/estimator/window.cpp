@@ -255,7 +255,7 @@ void Window<Scalar>::observationRows(const Landmark& lm, const std::set<int64_t>
   for (const auto& [frame_id, obs] : lm.obs) {
     if (system_frames.count(frame_id) == 0) continue;
     const bool in_host = frame_id == lm.host;
-    BodyPoint<Scalar> body;
+    BodyPoint<Scalar> body;  // world points only
     if (lm.world()) body = worldBodyPoint<Scalar>(jacobianPoseOf(frame_id), poseOf(frame_id),
                                                   p_w_jac, lm.param);
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {

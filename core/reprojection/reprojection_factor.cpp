@@ -10,12 +10,6 @@ namespace {
 
 constexpr int kPoseCols = 6;  // a pose increment [δt; δφ]
 
-// Inserts f into a small sorted vector.
-void insertSorted(std::vector<int64_t>& frames, int64_t f) {
-  const auto it = std::lower_bound(frames.begin(), frames.end(), f);
-  if (it == frames.end() || *it != f) frames.insert(it, f);
-}
-
 }  // namespace
 
 template <typename Scalar>
@@ -26,12 +20,17 @@ void stackLandmarkRows(int64_t track_id, int64_t host,
   const bool hosted = host >= 0;
   std::vector<int64_t>& frames = out->frames;
   frames.clear();
+  // A small sorted vector (a lambda: inlined in the loops, measured).
+  auto insert = [&frames](int64_t f) {
+    const auto it = std::lower_bound(frames.begin(), frames.end(), f);
+    if (it == frames.end() || *it != f) frames.insert(it, f);
+  };
   for (const ReprojectionRows<Scalar>& row : rows) {
     if (row.target < 0) continue;
-    if (hosted) insertSorted(frames, host);
-    insertSorted(frames, row.target);
+    if (hosted) insert(host);
+    insert(row.target);
   }
-  for (const PoseLandmarkRows<Scalar>& e : extra) insertSorted(frames, e.frame);
+  for (const PoseLandmarkRows<Scalar>& e : extra) insert(e.frame);
   auto local = [&frames](int64_t f) {
     return kPoseCols *
            static_cast<int>(std::lower_bound(frames.begin(), frames.end(), f) - frames.begin());
