@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 #include <algorithm>
+#include <set>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -174,6 +175,7 @@ class Runner {
     jobs_ = options_.jobs > 0 ? options_.jobs : std::max(1u, std::thread::hardware_concurrency());
 
     planRows(out);
+    trackImagesOnce(out);
     writeIndex(index_path_, rows_);
     installSignalHandlers();
     start_ = Clock::now();
@@ -190,7 +192,7 @@ class Runner {
             "{} already holds a sweep: continue it with --resume, or start over with --force",
             out.string()));
       }
-      for (const char* sub : {"runs", "logs", "configs"}) fs::remove_all(out / sub);
+      for (const char* sub : {"runs", "logs", "configs", "tracks"}) fs::remove_all(out / sub);
       fs::remove(out / "index.csv");
     }
     for (const char* sub : {"runs", "logs", "configs"}) fs::create_directories(out / sub);
@@ -234,6 +236,28 @@ class Runner {
     std::stable_sort(queue_.begin(), queue_.end(),
                      [&](std::size_t a, std::size_t b) { return weights_[a] > weights_[b]; });
     for (std::size_t i : queue_) remaining_weight_ += weights_[i];
+  }
+
+  // The image front-end once per dataset of the queued `frontend = "images"` runs, before any run
+  // starts (they read its track file). A file kept by --resume is reused.
+  void trackImagesOnce(const fs::path& out) {
+    std::set<std::string> done;
+    for (const std::size_t index : queue_) {
+      const PlannedRun& run = plan_.runs[index];
+      const std::string tracks = sweepTrackFile(run);
+      if (run.frontend != "images" || !done.insert(tracks).second) continue;
+      if (options_.resume && fs::exists(out / tracks)) continue;
+      fs::create_directories(out / "tracks");
+      const std::string log = (out / "logs" / ("tracks_" + slug(run.dataset) + ".log")).string();
+      const std::string command =
+          "cd " + shellJoin({out.string()}) + " && " +
+          shellJoin({exe_, "datasets", "track", "--dataset", run.dataset, "-o", tracks}) + " > " +
+          shellJoin({log}) + " 2>&1";
+      if (std::system(command.c_str()) != 0) {
+        throw InputError(log, 0,
+                         fmt::format("tracking the images of {} failed (see the log)", run.dataset));
+      }
+    }
   }
 
   void launch(const fs::path& out, std::size_t index) {

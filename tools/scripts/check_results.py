@@ -7,7 +7,10 @@ Checks that every attribute and dataset of the schema exists with consistent sha
 ragged /marg/eigenvalues agree with /marg (one ascending row of prior_cols values per event), that
 /sparsify agrees with the marg_strategy attribute (equal column lengths, rows only for dense / nfr,
 frame_index within /frames, nnz_sparse <= nnz_dense and KLD >= 0 where the prior was recovered,
-KLD NaN where it was kept dense), and recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
+KLD NaN where it was kept dense), that /frontend agrees with the frontend attribute (images /
+simulated / tracks; equal column lengths, t_ns strictly increasing and containing every /frames
+t_ns, n_features = n_tracked + n_new, 0 <= n_stereo <= n_features, t_frontend_s finite and >= 0 for
+images; both absent in files written before the front-end existed), and recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
 Umeyama/Kabsch alignment without scale (reflection fix diag(1, 1, det(U V^T))), comparing it with
 /summary ate_rmse and /frames/ate_error. Prints "OK ..." and exits 0, or lists every problem and
 exits 1 (2 for usage errors). Needs only numpy and h5py.
@@ -29,6 +32,8 @@ SPARSIFY_1D = ["frame_index", "t_ns", "blanket_cols", "n_blanket_poses", "n_blan
                "nnz_dense", "nnz_sparse", "kld", "recovered", "t_schur_s", "t_recovery_s",
                "t_insert_s"]
 MARG_STRATEGIES = ("discard", "dense", "nfr")
+FRONTEND_1D = ["t_ns", "n_features", "n_tracked", "n_new", "n_stereo", "t_frontend_s"]
+FRONTENDS = ("images", "simulated", "tracks")
 SUMMARY_ATTRS = ["ate_rmse", "n_frames", "duration_s", "t_opt_total_s", "t_marg_total_s",
                  "realtime_factor"]
 
@@ -85,6 +90,42 @@ def check_sparsify(f, n_frames):
         problems.append("/sparsify/kld negative where the prior was recovered")
     if not np.all(np.isnan(kld[~recovered])):
         problems.append("/sparsify/kld not NaN where the prior was kept dense")
+    return problems
+
+
+def check_frontend(f, frame_t_ns):
+    """/frontend against the frontend attribute (both absent in older files: simulated tracks)."""
+    kind = f.attrs.get("frontend")
+    if kind is None:
+        return [] if "frontend" not in f else ["/frontend without a frontend attribute"]
+    if isinstance(kind, bytes):
+        kind = kind.decode()
+    if kind not in FRONTENDS:
+        return [f"frontend {kind!r} is not one of {', '.join(FRONTENDS)}"]
+    if "frontend" not in f:
+        return ["missing group /frontend"]
+    fe = f["frontend"]
+    missing = [name for name in FRONTEND_1D if name not in fe]
+    if missing:
+        return [f"missing /frontend/{name}" for name in missing]
+    lengths = {fe[name].shape for name in FRONTEND_1D}
+    if len(lengths) != 1 or len(next(iter(lengths))) != 1:
+        return [f"/frontend columns differ in shape: {lengths}"]
+    problems = []
+    t = fe["t_ns"][:]
+    if np.any(np.diff(t) <= 0):
+        problems.append("/frontend/t_ns not strictly increasing")
+    if not np.all(np.isin(frame_t_ns, t)):
+        problems.append("/frames/t_ns has frames without a /frontend row")
+    n_features, n_tracked, n_new, n_stereo = (fe[c][:].astype(np.int64) for c in
+                                              ("n_features", "n_tracked", "n_new", "n_stereo"))
+    if np.any(n_tracked < 0) or np.any(n_new < 0) or np.any(n_features != n_tracked + n_new):
+        problems.append("/frontend: n_features != n_tracked + n_new (or negative counts)")
+    if np.any(n_stereo < 0) or np.any(n_stereo > n_features):
+        problems.append("/frontend: n_stereo outside 0..n_features")
+    t_fe = fe["t_frontend_s"][:]
+    if kind == "images" and (not np.all(np.isfinite(t_fe)) or np.any(t_fe < 0)):
+        problems.append("/frontend/t_frontend_s not finite and >= 0 in an images run")
     return problems
 
 
@@ -148,6 +189,7 @@ def check(path):
                             problems.append(f"sigma_min/max of event {k} differ from its eigenvalues")
 
         problems += check_sparsify(f, n)
+        problems += check_frontend(f, fr["t_ns"][:])
 
         summary = f["summary"].attrs
         for name in SUMMARY_ATTRS:
