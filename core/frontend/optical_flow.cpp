@@ -54,6 +54,7 @@ struct StereoFrontend::Impl {
   std::vector<cv::Point2f> prev_points;  // raw left keypoints of the previous frame
   std::vector<int64_t> prev_ids;
   std::unordered_map<int64_t, cv::Point2f> prev_disparity;  // raw right − raw left, last frame
+  std::unordered_map<int64_t, int> unmatched;  // tracks without a match: frames since their last
   std::vector<Eigen::Vector2d> last_raw_left;
   int64_t next_id = 0;
 
@@ -180,6 +181,9 @@ cv::Point2f StereoFrontend::Impl::disparityGuess(const Eigen::Vector2d& uv0,
 // level, and near points (EuRoC's floor at take-off) have disparities of 50+ px, so each keypoint
 // is tried from a sequence of starts until one passes the forward–backward and epipolar checks:
 // its track's disparity in the previous frame (if it had a match), then the disparity guesses.
+// A track that found no match tries one guess per frame in turn (all within a few frames): most
+// such points are out of the right view or occluded, and retrying every guess in every frame
+// would cost most of the front-end's time.
 void StereoFrontend::Impl::matchStereo(const std::vector<cv::Mat>& pyramid0,
                                        const std::vector<cv::Mat>& pyramid1,
                                        const std::vector<cv::Point2f>& points, TrackFrame* frame) {
@@ -194,6 +198,11 @@ void StereoFrontend::Impl::matchStereo(const std::vector<cv::Mat>& pyramid0,
       const StereoObservation& obs = frame->observations[i];
       const auto prev = prev_disparity.find(obs.track_id);
       if (round == 0 && prev == prev_disparity.end()) continue;
+      const auto miss = unmatched.find(obs.track_id);
+      if (round > 0 && miss != unmatched.end() &&
+          static_cast<std::size_t>(miss->second) % (rounds - 1) != round - 1) {
+        continue;
+      }
       from.push_back(points[i]);
       guess.push_back(round == 0 ? points[i] + prev->second
                                  : disparityGuess(obs.uv0,
@@ -218,6 +227,13 @@ void StereoFrontend::Impl::matchStereo(const std::vector<cv::Mat>& pyramid0,
     }
     pending = std::move(still);
   }
+  std::unordered_map<int64_t, int> next_unmatched;
+  for (const std::size_t i : pending) {
+    const int64_t id = frame->observations[i].track_id;
+    const auto miss = unmatched.find(id);
+    next_unmatched[id] = miss == unmatched.end() ? 0 : miss->second + 1;
+  }
+  unmatched = std::move(next_unmatched);
   prev_disparity = std::move(disparity);
 }
 

@@ -11,9 +11,11 @@
 // looks the same in every frame and in both cameras: a keypoint detected at an offset δ from c
 // stays at c + δ in every image where the sprite is drawn. That is the truth the test compares
 // with (the offset cancels, only tracking error remains).
-// Vanishing: from frame vanish_frame(l) on, a sprite is no longer drawn (an occlusion); tracks on
-// it are outliers from then on. A point is visible when its depth is in [0.3, 15] m, it faces the
-// camera (World::facing) and its sprite centre lies inside the image.
+// Swapping: from frame vanishFrame(l) on, the point is drawn with another texture (an occluding
+// object now covers it); the keypoint on the old texture has no true position any more, so a
+// track that jumps to a wrong pixel there is an outlier (what the forward–backward check must
+// catch). The sprite centre, the point's true pixel, does not change. A point is visible when its depth is in [0.3, 15] m, it faces the
+// camera (World::facing) and its sprite overlaps the image.
 
 #include <Eigen/Core>
 
@@ -88,17 +90,19 @@ class WorldRenderer {
         image.at<double>(v, u) = 128.0 + 20.0 * std::sin(0.004 * u + 0.003 * v);
       }
     }
+    // Far to near, so that nearer sprites are drawn last (they add; overlaps are rare).
     for (std::size_t l = 0; l < world_.points_w.size(); ++l) {
       const Eigen::Vector3d p_c = R_w_c.transpose() * (world_.points_w[l] - p_w_c);
       if (p_c.z() < 0.3 || p_c.z() > 15.0 || !world_.facing(l, p_w_c)) continue;
       const Eigen::Vector2d pinhole(cam.fx * p_c.x() / p_c.z() + cam.cx,
                                     cam.fy * p_c.y() / p_c.z() + cam.cy);
       const Eigen::Vector2d c = cam.distortPixel(pinhole);
-      if (c.x() < 10 || c.y() < 10 || c.x() > calib.width - 11 || c.y() > calib.height - 11)
+      // Sprites partly outside the image are drawn too: points leave the view gradually.
+      if (c.x() < -10 || c.y() < -10 || c.x() > calib.width + 9 || c.y() > calib.height + 9)
         continue;
-      if (frame_index >= vanishFrame(l)) continue;
+      const bool swapped = frame_index >= vanishFrame(l);
       (*centres)[l] = c;
-      drawSprite(spriteOf(l), c, &image);
+      drawSprite(spriteOf(swapped ? l + (std::size_t{1} << 40) : l), c, &image);
     }
     cv::Mat grey;
     image.convertTo(grey, CV_8UC1);  // rounds and saturates

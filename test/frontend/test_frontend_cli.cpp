@@ -78,10 +78,10 @@ TEST_F(FrontendCli, ShortRealImageRunPassesTheChecker) {
   EXPECT_EQ(reader.info().metadata.frontend, "images");
   EXPECT_EQ(reader.info().metadata.mode, "vio");
   EXPECT_EQ(reader.frames().size(), 25u);
-  // The front-end tracked the 20 images before the ground truth starts, then the 25 run frames.
+  // The front-end tracked the 21 images before the ground truth starts, then the 25 run frames.
   const auto rows = reader.frontendRecords();
-  ASSERT_EQ(rows.size(), 45u);
-  EXPECT_EQ(rows[20].t_ns, reader.frames().t_ns.front());
+  ASSERT_EQ(rows.size(), 46u);
+  EXPECT_EQ(rows[21].t_ns, reader.frames().t_ns.front());
   EXPECT_TRUE(std::isfinite(reader.summary().ate_rmse));
   const std::string python = test::findPythonWithH5py();
   if (python.empty()) GTEST_SKIP() << "h5py not found: checker skipped";
@@ -92,7 +92,7 @@ TEST_F(FrontendCli, ShortRealImageRunPassesTheChecker) {
 TEST_F(FrontendCli, TrackFileReproducesTheImagesRun) {
   const std::string tracks = path("tracks.h5"), a = path("images.h5"), b = path("tracks_run.h5");
   const auto track = runCli(std::string("datasets track --dataset ") + kImages +
-                            " --frames 36 -o '" + tracks + "'");
+                            " --frames 40 -o '" + tracks + "'");  // 21 before the GT + 16 run frames
   ASSERT_EQ(track.exit_code, 0) << track.output;
   const std::string common = std::string(" --dataset ") + kImages +
                              " --imu real --variant ns-qr-sqrt-f64 --frames 16 --no-diagnostics";
