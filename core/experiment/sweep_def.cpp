@@ -294,6 +294,12 @@ class Parser {
         throw error(*node, "frontend must be \"images\", \"simulated\" or \"auto\"");
       }
       frontend = *v;
+      for (const std::string& arg : group_args) {
+        const std::string option = arg.substr(0, arg.find('='));
+        if (option == "--frontend" || option == "--tracks") {
+          throw error(*node, "frontend is set here: args must not hold " + option + " too");
+        }
+      }
     }
 
     toml::table group_config;
