@@ -203,14 +203,13 @@ void printTracking(const ImageSequence& images, const ImageTracking& tracking, d
              distributionOf(tracked).median);
   fmt::print(
       "track length        mean {:.1f}  median {:.0f}  p90 {:.0f}  max {:.0f}  ({} tracks)\n",
-      s.track_length.mean, s.track_length.median, s.track_length.p90, s.track_length.max,
-      s.tracks);
+      s.track_length.mean, s.track_length.median, s.track_length.p90, s.track_length.max, s.tracks);
   fmt::print("stereo share        {:.3f}\n", s.stereo_share);
-  fmt::print("front-end time      {:.2f} ms/frame = {:.0f} stereo frames/s wall, {:.2f} ms/frame = "
-             "{:.0f} frames/s CPU (one thread, best of {} passes; PNG decoding excluded)\n",
-             1e3 * best_s / static_cast<double>(n), static_cast<double>(n) / best_s,
-             1e3 * best_cpu_s / static_cast<double>(n), static_cast<double>(n) / best_cpu_s,
-             passes);
+  fmt::print(
+      "front-end time      {:.2f} ms/frame = {:.0f} stereo frames/s wall, {:.2f} ms/frame = "
+      "{:.0f} frames/s CPU (one thread, best of {} passes; PNG decoding excluded)\n",
+      1e3 * best_s / static_cast<double>(n), static_cast<double>(n) / best_s,
+      1e3 * best_cpu_s / static_cast<double>(n), static_cast<double>(n) / best_cpu_s, passes);
   fmt::print("PNG decoding        {:.2f} ms/frame (both images)\n",
              1e3 * tracking.t_decode_s / static_cast<double>(n));
 }
@@ -264,21 +263,23 @@ const SubVerb kSubVerbs[] = {
     {"track", "the image front-end on a folder's stereo images -> track file + speed", setupTrack},
 };
 
-const bool kRegistered = registerCommand(
-    {"datasets", "the real datasets: list, check, simulate, track", 60, [](CLI::App& app) -> CommandRun {
-       app.require_subcommand(1);
-       auto runs = std::make_shared<std::vector<std::pair<CLI::App*, CommandRun>>>();
-       for (const SubVerb& verb : kSubVerbs) {
-         CLI::App* sub = app.add_subcommand(verb.name, verb.description);
-         runs->emplace_back(sub, verb.setup(*sub));
-       }
-       return [runs] {
-         for (auto& [sub, run] : *runs) {
-           if (sub->parsed()) return run();
-         }
-         return 2;
-       };
-     }});
+const bool kRegistered =
+    registerCommand({"datasets", "the real datasets: list, check, simulate, track", 60,
+                     [](CLI::App& app) -> CommandRun {
+                       app.require_subcommand(1);
+                       auto runs =
+                           std::make_shared<std::vector<std::pair<CLI::App*, CommandRun>>>();
+                       for (const SubVerb& verb : kSubVerbs) {
+                         CLI::App* sub = app.add_subcommand(verb.name, verb.description);
+                         runs->emplace_back(sub, verb.setup(*sub));
+                       }
+                       return [runs] {
+                         for (auto& [sub, run] : *runs) {
+                           if (sub->parsed()) return run();
+                         }
+                         return 2;
+                       };
+                     }});
 
 }  // namespace
 }  // namespace marglab::cli

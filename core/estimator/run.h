@@ -64,8 +64,8 @@ struct RunOutcome {
   SummaryValues summary;
   std::string tum_path;
   double mean_features_per_frame = 0;
-  std::string frontend;          // "images" | "simulated" | "tracks"
-  std::string frontend_summary;  // one line: features, tracked, stereo share, speed
+  std::string frontend;                // "images" | "simulated" | "tracks"
+  std::string frontend_summary;        // one line: features, tracked, stereo share, speed
   std::int64_t n_keyframe_events = 0;  // /sparsify rows (strategies dense, nfr)
 };
 

@@ -234,8 +234,8 @@ class Parser {
   void parseGroup(const toml::table& group, SweepPlan* plan) {
     const int line = lineOf(group);
     checkKeys(group,
-              {"name", "datasets", "variants", "seeds", "frames", "timeout_s", "args",
-               "frontend", "config_file", "config", "override"},
+              {"name", "datasets", "variants", "seeds", "frames", "timeout_s", "args", "frontend",
+               "config_file", "config", "override"},
               "a [[group]]");
     const std::string group_name = requiredString(group, "name", "a [[group]]", line);
     if (!validName(group_name)) {

@@ -9,7 +9,6 @@
 #include <sys/wait.h>
 #include <unistd.h>
 #include <algorithm>
-#include <set>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -18,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -254,8 +254,8 @@ class Runner {
           shellJoin({exe_, "datasets", "track", "--dataset", run.dataset, "-o", tracks}) + " > " +
           shellJoin({log}) + " 2>&1";
       if (std::system(command.c_str()) != 0) {
-        throw InputError(log, 0,
-                         fmt::format("tracking the images of {} failed (see the log)", run.dataset));
+        throw InputError(
+            log, 0, fmt::format("tracking the images of {} failed (see the log)", run.dataset));
       }
     }
   }

@@ -135,7 +135,7 @@ bool undistortEquidistant(const CameraModel<Scalar>& cam, const Eigen::Matrix<Sc
 
 template <typename Scalar>
 typename CameraModel<Scalar>::Vec2 CameraModel<Scalar>::distortNormalized(const Vec2& x,
-                                                                           Mat2* J) const {
+                                                                          Mat2* J) const {
   switch (model) {
     case DistortionModel::kRadTan:
       return radtan(k, x, J);
@@ -211,8 +211,8 @@ CameraModel<Scalar> cameraModelFromCalib(const CameraCalib& calib, const std::st
   return cam;
 }
 
-#define MARGLAB_CAMERA_MODEL(S)        \
-  template struct CameraModel<S>;      \
+#define MARGLAB_CAMERA_MODEL(S)   \
+  template struct CameraModel<S>; \
   template CameraModel<S> cameraModelFromCalib<S>(const CameraCalib&, const std::string&);
 MARGLAB_INSTANTIATE(MARGLAB_CAMERA_MODEL)
 #undef MARGLAB_CAMERA_MODEL

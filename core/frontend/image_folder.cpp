@@ -51,7 +51,8 @@ std::map<int64_t, ListedImage> readAslImageList(const fs::path& cam) {
 
 const std::string& existing(const ListedImage& image) {
   if (!isFile(image.path)) {
-    throw InputError(image.path, 0, fmt::format("image named by {} does not exist", image.listed_at));
+    throw InputError(image.path, 0,
+                     fmt::format("image named by {} does not exist", image.listed_at));
   }
   return image.path;
 }
@@ -110,8 +111,8 @@ std::string shippedByName(const Sequence& seq) {
     folder.resize(folder.size() - suffix.size());
   }
   if (folder.rfind("dataset-", 0) == 0) {
-    folder = folder.substr(8, folder.find("_512") == std::string::npos ? std::string::npos
-                                                                        : folder.find("_512") - 8);
+    folder = folder.substr(
+        8, folder.find("_512") == std::string::npos ? std::string::npos : folder.find("_512") - 8);
   }
   const std::string name = std::string(datasetKindName(seq.kind)) + "/" + folder;
   const std::vector<std::string> shipped = listSequences();

@@ -3,13 +3,13 @@
 #include <fmt/core.h>
 
 #include <chrono>
-#include <ctime>
-#include <unordered_map>
 #include <cmath>
+#include <ctime>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
+#include <unordered_map>
 
 #include "core/common/error.h"
 #include "core/geometry/so3.h"
@@ -96,10 +96,11 @@ struct StereoFrontend::Impl {
 // LK from `from` to `to` starting at *tracked (the initial guesses), then back; ok[i] when both
 // converge, the result is inside the image and the round trip returns within
 // fb_max_px.
-std::vector<bool> StereoFrontend::Impl::trackForwardBackward(
-    const std::vector<cv::Mat>& from, const std::vector<cv::Mat>& to,
-    const std::vector<cv::Point2f>& points, std::vector<cv::Point2f>* tracked,
-    std::vector<bool>* lk_ok) const {
+std::vector<bool> StereoFrontend::Impl::trackForwardBackward(const std::vector<cv::Mat>& from,
+                                                             const std::vector<cv::Mat>& to,
+                                                             const std::vector<cv::Point2f>& points,
+                                                             std::vector<cv::Point2f>* tracked,
+                                                             std::vector<bool>* lk_ok) const {
   std::vector<bool> ok(points.size(), false);
   if (lk_ok != nullptr) lk_ok->assign(points.size(), false);
   if (points.empty()) return ok;
@@ -204,9 +205,9 @@ void StereoFrontend::Impl::matchStereo(const std::vector<cv::Mat>& pyramid0,
         continue;
       }
       from.push_back(points[i]);
-      guess.push_back(round == 0 ? points[i] + prev->second
-                                 : disparityGuess(obs.uv0,
-                                                  options.stereo_disparity_guesses_px[round - 1]));
+      guess.push_back(
+          round == 0 ? points[i] + prev->second
+                     : disparityGuess(obs.uv0, options.stereo_disparity_guesses_px[round - 1]));
       tried.push_back(i);
     }
     const std::vector<bool> ok = trackForwardBackward(pyramid0, pyramid1, from, &guess, nullptr);

@@ -42,14 +42,14 @@ namespace marglab {
 
 struct FrontendOptions {
   int grid_cell_px = 50;
-  int pyramid_levels = 3;   // finest level included (OpenCV maxLevel = levels − 1)
-  int max_iterations = 5;   // per pyramid level
-  int window_px = 21;       // LK patch side
-  double fb_max_px = 0.2;   // forward–backward check
+  int pyramid_levels = 3;  // finest level included (OpenCV maxLevel = levels − 1)
+  int max_iterations = 5;  // per pyramid level
+  int window_px = 21;      // LK patch side
+  double fb_max_px = 0.2;  // forward–backward check
   double epipolar_max = 0.005;
   double min_eigen = 1e-3;  // Shi–Tomasi λ_min (OpenCV units: gradients / 255, block-averaged)
   int corner_block_px = 3;
-  int border_px = 8;        // keypoints closer to the image edge are dropped
+  int border_px = 8;  // keypoints closer to the image edge are dropped
   // Stereo: starts of the left→right LK after the previous frame's disparity (see matchStereo).
   std::vector<double> stereo_disparity_guesses_px = {0, 12, 30, 55, 85, 120};
 };
@@ -59,11 +59,11 @@ FrontendOptions defaultFrontendOptions(const Sequence& sequence);
 // Per frame statistics (the results file's /frontend group).
 struct FrontendFrameStats {
   int64_t t_ns = 0;
-  int n_features = 0;  // observations handed to the estimator
-  int n_tracked = 0;   // of those, continued from the previous frame
-  int n_new = 0;       // detected in this frame
-  int n_stereo = 0;    // with a right match
-  double t_frontend_s = 0;  // wall time of tracking + detection + stereo + undistortion
+  int n_features = 0;         // observations handed to the estimator
+  int n_tracked = 0;          // of those, continued from the previous frame
+  int n_new = 0;              // detected in this frame
+  int n_stereo = 0;           // with a right match
+  double t_frontend_s = 0;    // wall time of tracking + detection + stereo + undistortion
   double cpu_frontend_s = 0;  // the same in CPU time of the process (one thread: the speed)
 };
 

@@ -82,9 +82,8 @@ std::string drawTrackFigure(const TrackFigureRequest& request) {
                                  list.size(), request.dataset));
   }
   const std::size_t k = static_cast<std::size_t>(request.frame);
-  TrackStream stream = request.tracks_file.empty()
-                           ? trackImages(images, k + 1).stream
-                           : readTrackFile(request.tracks_file);
+  TrackStream stream = request.tracks_file.empty() ? trackImages(images, k + 1).stream
+                                                   : readTrackFile(request.tracks_file);
   // The track file may start later (cut to the ground truth): find frame k by its timestamp.
   std::size_t index = stream.frames.size();
   for (std::size_t i = 0; i < stream.frames.size(); ++i) {
@@ -97,10 +96,10 @@ std::string drawTrackFigure(const TrackFigureRequest& request) {
   const Sequence& seq = images.sequence;
   const auto cam0 = cameraModelFromCalib<double>(seq.calib.cam0, seq.calib_source);
   const auto cam1 = cameraModelFromCalib<double>(seq.calib.cam1, seq.calib_source);
-  const cv::Mat left = toPinhole(readGreyImage(list.left[k], seq.calib.cam0.width,
-                                               seq.calib.cam0.height), cam0);
-  const cv::Mat right = toPinhole(readGreyImage(list.right[k], seq.calib.cam1.width,
-                                                seq.calib.cam1.height), cam1);
+  const cv::Mat left =
+      toPinhole(readGreyImage(list.left[k], seq.calib.cam0.width, seq.calib.cam0.height), cam0);
+  const cv::Mat right =
+      toPinhole(readGreyImage(list.right[k], seq.calib.cam1.width, seq.calib.cam1.height), cam1);
   cv::Mat canvas;
   cv::hconcat(left, right, canvas);
   drawFrame(stream, index, request, left.cols, &canvas);

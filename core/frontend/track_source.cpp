@@ -66,8 +66,8 @@ std::size_t imagesNeeded(const Sequence& sequence, const StereoImageList& images
   std::size_t first = 0;
   if (sequence.hasTrajectory()) {
     const auto& t = images.t_ns;
-    first = static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), sequence.gt.t_ns.front()) -
-                                     t.begin());
+    first = static_cast<std::size_t>(
+        std::lower_bound(t.begin(), t.end(), sequence.gt.t_ns.front()) - t.begin());
   }
   return std::min(images.size(), first + static_cast<std::size_t>(max_frames));
 }
@@ -97,8 +97,7 @@ void simulate(const TrackSourceOptions& options, TrackSource* source) {
   source->stream = simulateSequence(seq, *source->trajectory, simulation);
   source->stats = streamFrontendStats(source->stream);
   source->frontend = "simulated";
-  source->provenance.emplace_back("measurements",
-                                  "simulated stereo tracks, undistorted pinhole");
+  source->provenance.emplace_back("measurements", "simulated stereo tracks, undistorted pinhole");
 }
 
 }  // namespace
@@ -117,9 +116,9 @@ ImageTracking trackImages(const ImageSequence& images, std::size_t max_images) {
   for (std::size_t i = 0; i < n; ++i) {
     const auto start = std::chrono::steady_clock::now();
     const cv::Mat left = readGreyImage(list.left[i], seq.calib.cam0.width, seq.calib.cam0.height);
-    const cv::Mat right =
-        readGreyImage(list.right[i], seq.calib.cam1.width, seq.calib.cam1.height);
-    out.t_decode_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const cv::Mat right = readGreyImage(list.right[i], seq.calib.cam1.width, seq.calib.cam1.height);
+    out.t_decode_s +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     FrontendFrameStats stats;
     out.stream.frames.push_back(frontend.process(list.t_ns[i], left, right, &stats));
     out.stats.push_back(stats);
@@ -214,10 +213,10 @@ std::string frontendSummary(const std::string& frontend,
     time += s.t_frontend_s;
   }
   const double n = static_cast<double>(std::max<std::size_t>(stats.size(), 1));
-  std::string text = fmt::format(
-      "{}: {} frames, {:.0f} features/frame (median), {:.0f} tracked, stereo {:.0f} %", frontend,
-      stats.size(), distributionOf(features).median, distributionOf(tracked).median,
-      100.0 * stereo / std::max(total, 1.0));
+  std::string text =
+      fmt::format("{}: {} frames, {:.0f} features/frame (median), {:.0f} tracked, stereo {:.0f} %",
+                  frontend, stats.size(), distributionOf(features).median,
+                  distributionOf(tracked).median, 100.0 * stereo / std::max(total, 1.0));
   if (std::isfinite(time)) {
     text += fmt::format(", {:.2f} ms/frame ({:.0f} frames/s)", 1e3 * time / n, n / time);
   }

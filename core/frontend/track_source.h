@@ -49,8 +49,8 @@ struct TrackSource {
   Sequence sequence;  // with the shipped fallback's ground truth / IMU where used
   std::unique_ptr<TrajectoryFunction> trajectory;
   bool has_ground_truth = false;
-  TrackStream stream;     // the estimator's frames
-  std::string frontend;   // "images" | "simulated" | "tracks"
+  TrackStream stream;                     // the estimator's frames
+  std::string frontend;                   // "images" | "simulated" | "tracks"
   std::vector<FrontendFrameStats> stats;  // /frontend rows: every frame the source produced
   std::vector<std::pair<std::string, std::string>> provenance;  // results-file root attributes
 };
@@ -72,7 +72,8 @@ std::vector<FrontendFrameStats> streamFrontendStats(const TrackStream& stream);
 
 // "front-end images: 95 frames, 152 features/frame (median), 138 tracked, track length median
 // 9, stereo 93 %, 1.9 ms/frame (520 frames/s)".
-std::string frontendSummary(const std::string& frontend, const std::vector<FrontendFrameStats>& stats);
+std::string frontendSummary(const std::string& frontend,
+                            const std::vector<FrontendFrameStats>& stats);
 
 // The results file's /frontend rows.
 std::vector<FrontendRecord> frontendRecords(const std::vector<FrontendFrameStats>& stats);

@@ -580,8 +580,8 @@ std::vector<FrontendRecord> ResultsReader::frontendRecords() const {
   const auto n_stereo = g.readVector<std::int32_t>("n_stereo");
   const auto t_frontend = g.readVector<double>("t_frontend_s");
   const std::size_t n = t_ns.size();
-  for (const std::size_t size : {n_features.size(), n_tracked.size(), n_new.size(),
-                                 n_stereo.size(), t_frontend.size()}) {
+  for (const std::size_t size :
+       {n_features.size(), n_tracked.size(), n_new.size(), n_stereo.size(), t_frontend.size()}) {
     if (size != n) throw InputError(path_, 0, "/frontend: columns differ in length");
   }
   out.resize(n);

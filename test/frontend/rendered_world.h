@@ -14,8 +14,8 @@
 // Swapping: from frame vanishFrame(l) on, the point is drawn with another texture (an occluding
 // object now covers it); the keypoint on the old texture has no true position any more, so a
 // track that jumps to a wrong pixel there is an outlier (what the forward–backward check must
-// catch). The sprite centre, the point's true pixel, does not change. A point is visible when its depth is in [0.3, 15] m, it faces the
-// camera (World::facing) and its sprite overlaps the image.
+// catch). The sprite centre, the point's true pixel, does not change. A point is visible when its
+// depth is in [0.3, 15] m, it faces the camera (World::facing) and its sprite overlaps the image.
 
 #include <Eigen/Core>
 
@@ -111,7 +111,8 @@ class WorldRenderer {
 
   static void drawSprite(const Sprite& s, const Eigen::Vector2d& c, cv::Mat* image) {
     constexpr double kSigma = 1.8;
-    const int u0 = static_cast<int>(std::floor(c.x())) - 9, v0 = static_cast<int>(std::floor(c.y())) - 9;
+    const int u0 = static_cast<int>(std::floor(c.x())) - 9,
+              v0 = static_cast<int>(std::floor(c.y())) - 9;
     for (int v = std::max(v0, 0); v <= std::min(v0 + 19, image->rows - 1); ++v) {
       for (int u = std::max(u0, 0); u <= std::min(u0 + 19, image->cols - 1); ++u) {
         double value = 0;

@@ -114,8 +114,9 @@ TYPED_TEST(CameraModelTest, DistortionJacobianMatchesCentralDifferences) {
   using Mat2 = typename CameraModel<TypeParam>::Mat2;
   for (const char* name : {"euroc/V1_01_easy", "tumvi/room1", "kitti/00"}) {
     const auto cam = this->model(name);
-    for (const Vec2& x : {Vec2(TypeParam(0.3), TypeParam(-0.2)), Vec2(TypeParam(-0.7), TypeParam(0.5)),
-                          Vec2(TypeParam(0.05), TypeParam(0.01)), Vec2(TypeParam(1.0), TypeParam(0.4))}) {
+    for (const Vec2& x :
+         {Vec2(TypeParam(0.3), TypeParam(-0.2)), Vec2(TypeParam(-0.7), TypeParam(0.5)),
+          Vec2(TypeParam(0.05), TypeParam(0.01)), Vec2(TypeParam(1.0), TypeParam(0.4))}) {
       Mat2 J;
       cam.distortNormalized(x, &J);
       const auto f = [&](const Vec2& p) { return cam.distortNormalized(p); };

@@ -7,10 +7,10 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
-#include <unistd.h>
 
 #include "common/cli_runner.h"
 #include "core/data/sequence.h"
@@ -91,8 +91,9 @@ TEST_F(FrontendCli, ShortRealImageRunPassesTheChecker) {
 
 TEST_F(FrontendCli, TrackFileReproducesTheImagesRun) {
   const std::string tracks = path("tracks.h5"), a = path("images.h5"), b = path("tracks_run.h5");
-  const auto track = runCli(std::string("datasets track --dataset ") + kImages +
-                            " --frames 40 -o '" + tracks + "'");  // 21 before the GT + 16 run frames
+  const auto track =
+      runCli(std::string("datasets track --dataset ") + kImages + " --frames 40 -o '" + tracks +
+             "'");  // 21 before the GT + 16 run frames
   ASSERT_EQ(track.exit_code, 0) << track.output;
   const std::string common = std::string(" --dataset ") + kImages +
                              " --imu real --variant ns-qr-sqrt-f64 --frames 16 --no-diagnostics";
@@ -128,8 +129,8 @@ TEST_F(FrontendCli, UserAslFolderFallsBackToTheShippedGroundTruth) {
 TEST_F(FrontendCli, FolderWithoutGroundTruthRunsVoWithoutAte) {
   const fs::path folder = userFolder("unknown_flight", 12, 1);
   const std::string out = path("nogt.h5");
-  const auto result = runCli("run --dataset '" + folder.string() +
-                             "' --variant ns-qr-sqrt-f64 -o '" + out + "'");
+  const auto result =
+      runCli("run --dataset '" + folder.string() + "' --variant ns-qr-sqrt-f64 -o '" + out + "'");
   ASSERT_EQ(result.exit_code, 0) << result.output;
   EXPECT_NE(result.output.find("ATE RMSE          unavailable"), std::string::npos)
       << result.output;
@@ -143,8 +144,8 @@ TEST_F(FrontendCli, FolderWithoutGroundTruthRunsVoWithoutAte) {
 
 // Bad input: exit 1, the message names the file, and no results file appears.
 void expectBadInput(const fs::path& folder, const std::string& named, const std::string& out) {
-  const auto result = runCli("run --dataset '" + folder.string() +
-                             "' --variant ns-qr-sqrt-f32 -o '" + out + "'");
+  const auto result =
+      runCli("run --dataset '" + folder.string() + "' --variant ns-qr-sqrt-f32 -o '" + out + "'");
   EXPECT_EQ(result.exit_code, 1) << result.output;
   EXPECT_NE(result.output.find(named), std::string::npos) << named << "\n" << result.output;
   EXPECT_FALSE(fs::exists(out));
@@ -173,8 +174,10 @@ TEST_F(FrontendCli, PngOfTheWrongSize) {
 }
 
 TEST_F(FrontendCli, ImagesRequestedWhereThereAreNone) {
-  const auto result = runCli("run --dataset euroc/V1_01_easy --frontend images --variant "
-                             "ns-qr-sqrt-f32 --frames 5 -o '" + path("x.h5") + "'");
+  const auto result = runCli(
+      "run --dataset euroc/V1_01_easy --frontend images --variant "
+      "ns-qr-sqrt-f32 --frames 5 -o '" +
+      path("x.h5") + "'");
   EXPECT_EQ(result.exit_code, 2) << result.output;
   EXPECT_FALSE(fs::exists(path("x.h5")));
 }

@@ -17,10 +17,10 @@
 namespace marglab {
 namespace {
 
-constexpr int kFrames = 50;                  // 2.5 s at 20 Hz
-constexpr double kVanishProbability = 0.02;  // texture swaps per landmark and frame
+constexpr int kFrames = 50;                   // 2.5 s at 20 Hz
+constexpr double kVanishProbability = 0.02;   // texture swaps per landmark and frame
 constexpr int64_t kStartNs = 40'000'000'000;  // into the ground truth: the MAV is flying
-constexpr double kOutlierPx = 1.0;           // a forward track further from the truth is wrong
+constexpr double kOutlierPx = 1.0;            // a forward track further from the truth is wrong
 
 double percentile(std::vector<double> v, double q) {
   std::sort(v.begin(), v.end());
@@ -32,7 +32,8 @@ constexpr std::size_t kNoLandmark = static_cast<std::size_t>(-1);
 struct TrackTruth {
   std::size_t landmark = kNoLandmark;  // none: the detection was not on a single sprite
   Eigen::Vector2d offset = Eigen::Vector2d::Zero();
-  bool corrupted = false;  // an outlier the checks let through: its later pixels are not scored  // detected raw pixel − sprite centre
+  bool corrupted = false;  // an outlier the checks let through: its later pixels are not scored  //
+                           // detected raw pixel − sprite centre
 };
 
 struct Measured {
@@ -68,24 +69,23 @@ class RenderedTracking : public ::testing::Test {
 
 void score(const CameraModel<double>& cam0, const CameraModel<double>& cam1,
            const test::RenderedFrame& previous, const test::RenderedFrame& image,
-           const TrackFrame& frame,
-           const std::vector<Eigen::Vector2d>& raw_left, const std::vector<FlowCandidate>& flow,
-           std::unordered_map<int64_t, TrackTruth>* truth, Measured* m) {
+           const TrackFrame& frame, const std::vector<Eigen::Vector2d>& raw_left,
+           const std::vector<FlowCandidate>& flow, std::unordered_map<int64_t, TrackTruth>* truth,
+           Measured* m) {
   // Forward tracks before the forward–backward check. A step is wrong when it moved the keypoint
   // by more than kOutlierPx away from the true motion of its point (or the point left the view);
   // slow drift that stays below that per frame shows in the accuracy statistics instead.
   for (const FlowCandidate& c : flow) {
     const auto t = truth->find(c.track_id);
-    if (!c.lk_ok || t == truth->end() || t->second.landmark == kNoLandmark ||
-        t->second.corrupted) {
+    if (!c.lk_ok || t == truth->end() || t->second.landmark == kNoLandmark || t->second.corrupted) {
       continue;
     }
     const auto centre = image.centre0.find(t->second.landmark);
     const auto before = previous.centre0.find(t->second.landmark);
-    const bool wrong = centre == image.centre0.end() || before == previous.centre0.end() ||
-                       (Eigen::Vector2d(c.u - c.u_prev, c.v - c.v_prev) -
-                        (centre->second - before->second))
-                               .norm() > kOutlierPx;
+    const bool wrong =
+        centre == image.centre0.end() || before == previous.centre0.end() ||
+        (Eigen::Vector2d(c.u - c.u_prev, c.v - c.v_prev) - (centre->second - before->second))
+                .norm() > kOutlierPx;
     if (!wrong) continue;
     ++m->wrong_forward;
     if (c.kept) {
@@ -145,14 +145,13 @@ Measured trackRendered(const StereoCalib& calib, const TrajectorySpline& spline,
     score(cam0, cam1, (*images)[k > 0 ? k - 1 : 0], image, frames->back(), frontend.lastRawLeft(),
           flow, &truth, &m);
   }
-  std::printf("rendered: %zu tracked observations, error median %.4f px, p95 %.4f px; stereo "
-              "median %.4f px (%zu); wrong forward steps %d, removed %.1f %%; %d associated, "
-              "%d outliers survived\n",
-              m.track_error.size(), percentile(m.track_error, 0.5),
-              percentile(m.track_error, 0.95), percentile(m.stereo_error, 0.5),
-              m.stereo_error.size(), m.wrong_forward,
-              100.0 * m.wrong_removed / std::max(m.wrong_forward, 1), m.associated,
-              m.surviving_outliers);
+  std::printf(
+      "rendered: %zu tracked observations, error median %.4f px, p95 %.4f px; stereo "
+      "median %.4f px (%zu); wrong forward steps %d, removed %.1f %%; %d associated, "
+      "%d outliers survived\n",
+      m.track_error.size(), percentile(m.track_error, 0.5), percentile(m.track_error, 0.95),
+      percentile(m.stereo_error, 0.5), m.stereo_error.size(), m.wrong_forward,
+      100.0 * m.wrong_removed / std::max(m.wrong_forward, 1), m.associated, m.surviving_outliers);
   return m;
 }
 
