@@ -75,6 +75,7 @@ struct ResultsWriter::Impl {
   std::vector<Eigen::Vector3d> frame_p_est, frame_p_gt;
   double t_opt_total = 0.0, t_marg_total = 0.0;
   std::size_t marg_rows = 0;
+  bool frontend_written = false;
 
   void requireOpen() const {
     if (!open) throw InputError(file.path(), 0, "results file already finished");
@@ -259,6 +260,8 @@ void ResultsWriter::appendSparsify(const SparsifyRecord& r) {
 void ResultsWriter::writeFrontend(const std::vector<FrontendRecord>& rows) {
   Impl& d = *impl_;
   d.requireOpen();
+  if (d.frontend_written) throw InputError(d.file.path(), 0, "/frontend written twice");
+  d.frontend_written = true;
   const h5::Group g = d.file.group("frontend");
   g.setAttr("description", "one row per frame the track source produced");
   std::vector<std::int64_t> t_ns;
@@ -323,6 +326,8 @@ SummaryValues ResultsWriter::finish(const RunSummary& summary, RunStatus status,
                                     std::int64_t failure_frame, const std::string& failure_reason) {
   Impl& d = *impl_;
   d.requireOpen();
+  // Every file has the group (zero rows when the writer's user had no front-end statistics).
+  if (!d.frontend_written) writeFrontend({});
   const AteResult ate = computeAte(d.frame_p_est, d.frame_p_gt);
   d.ate_error.append(ate.error);
 

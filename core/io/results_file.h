@@ -58,7 +58,8 @@
 //   t_schur_s, t_recovery_s, t_insert_s f64   wall time of the marginalization (Schur / flat QR)
 //                                 of the event, of the information recovery (eq. 16), and of
 //                                 inserting the factors into the window
-// /frontend  one row per frame the track source produced (absent in older files): for images,
+// /frontend  one row per frame the track source produced (zero rows when the writer was given
+//            none; absent in older files): for images,
 //            every tracked image, including those before the first frame with ground truth
 //            (rows before /frames' first t_ns); for simulated / track-file runs, the frames of
 //            the stream, with counts recomputed from it:
@@ -215,7 +216,7 @@ class ResultsWriter {
   void appendFrame(const FrameRecord& frame);
   void appendMarg(const MargRecord& marg);  // marg.eigenvalues becomes the next ragged row
   void appendSparsify(const SparsifyRecord& record);
-  // The whole /frontend group, at most once per file.
+  // The whole /frontend group, at most once per file (finish() writes it with zero rows if not).
   void writeFrontend(const std::vector<FrontendRecord>& rows);
   // The full double prior of marginalization event k (the /marg row of the same event); at most
   // once per k. J_m and r_m (both or neither) for square-root storage.

@@ -8,8 +8,8 @@ ragged /marg/eigenvalues agree with /marg (one ascending row of prior_cols value
 /sparsify agrees with the marg_strategy attribute (equal column lengths, rows only for dense / nfr,
 frame_index within /frames, nnz_sparse <= nnz_dense and KLD >= 0 where the prior was recovered,
 KLD NaN where it was kept dense), that /frontend agrees with the frontend attribute (images /
-simulated / tracks; equal column lengths, t_ns strictly increasing and containing every /frames
-t_ns, n_features = n_tracked + n_new, 0 <= n_stereo <= n_features, t_frontend_s finite and >= 0 for
+simulated / tracks; equal column lengths, t_ns strictly increasing and, unless it has zero rows,
+containing every /frames t_ns, n_features = n_tracked + n_new, 0 <= n_stereo <= n_features, t_frontend_s finite and >= 0 for
 images; both absent in files written before the front-end existed), and recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
 Umeyama/Kabsch alignment without scale (reflection fix diag(1, 1, det(U V^T))), comparing it with
 /summary ate_rmse and /frames/ate_error. Prints "OK ..." and exits 0, or lists every problem and
@@ -115,7 +115,7 @@ def check_frontend(f, frame_t_ns):
     t = fe["t_ns"][:]
     if np.any(np.diff(t) <= 0):
         problems.append("/frontend/t_ns not strictly increasing")
-    if not np.all(np.isin(frame_t_ns, t)):
+    if t.size and not np.all(np.isin(frame_t_ns, t)):  # zero rows: no statistics were given
         problems.append("/frames/t_ns has frames without a /frontend row")
     n_features, n_tracked, n_new, n_stereo = (fe[c][:].astype(np.int64) for c in
                                               ("n_features", "n_tracked", "n_new", "n_stereo"))
