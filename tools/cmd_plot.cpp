@@ -5,7 +5,11 @@
 
 #include <memory>
 
+#include <fmt/core.h>
+
+#include "core/common/error.h"
 #include "core/experiment/plotting.h"
+#include "core/frontend/track_figure.h"
 #include "tools/command.h"
 
 namespace marglab {
@@ -15,13 +19,14 @@ const bool kRegistered = cli::registerCommand(
     {"plot", "Figures of the paper (Fig. 1, 4-7 analogs) from sweep results, PNG + PDF", 40,
      [](CLI::App& sub) -> cli::CommandRun {
        auto request = std::make_shared<experiment::PlotRequest>();
+       auto tracks = std::make_shared<TrackFigureRequest>();
        sub.add_option("dirs", request->dirs, "Sweep folders (results/NAME), one or more")
-           ->required()
            ->check(CLI::ExistingDirectory);
        sub.add_option("--figure", request->figures,
                       "Figures, comma-separated: fig1 (trajectories + sigma_min, VIO), fig4 (dEm, "
                       "VIO), fig5 (dEm, VO), fig6 (sigma_min, VO), fig7 (trajectories, VO), "
-                      "sparsify (Hsiung et al. Fig. 6a/6b and KLD of nfr runs)")
+                      "sparsify (Hsiung et al. Fig. 6a/6b and KLD of nfr runs); tracks (one "
+                      "stereo frame with its feature tracks, needs --dataset, no folders)")
            ->capture_default_str();
        sub.add_option("-o,--out", request->out,
                       "Output folder (default: notebooks-out/<name of the first folder>)");
@@ -31,7 +36,23 @@ const bool kRegistered = cli::registerCommand(
        sub.add_option("--vo-dataset", request->vo_dataset,
                       "Sequence of Figs. 5-7 (else the first KITTI one present)")
            ->capture_default_str();
-       return [request] { return experiment::runPlot(*request); };
+       sub.add_option("--dataset", tracks->dataset,
+                      "tracks: image folder or shipped name (euroc/V1_01_easy_images)");
+       sub.add_option("--frame", tracks->frame, "tracks: stereo frame index")
+           ->capture_default_str();
+       sub.add_option("--tracks", tracks->tracks_file,
+                      "tracks: draw this track file instead of running the front-end")
+           ->check(CLI::ExistingFile);
+       return [request, tracks] {
+         if (request->figures == "tracks") {
+           if (tracks->dataset.empty()) throw UsageError("--figure tracks needs --dataset");
+           if (!request->out.empty()) tracks->out_dir = request->out;
+           fmt::print("wrote {}\n", drawTrackFigure(*tracks));
+           return 0;
+         }
+         if (request->dirs.empty()) throw UsageError("plot needs one or more sweep folders");
+         return experiment::runPlot(*request);
+       };
      }});
 
 }  // namespace

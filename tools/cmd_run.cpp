@@ -24,6 +24,8 @@ struct RunArgs {
   std::string variant;
   std::string mode = "auto";
   std::string imu = "synthetic";
+  std::string frontend = "auto";
+  std::string tracks;
   int frames = 0;
   std::uint64_t seed = 1;
   std::string config_file;
@@ -58,6 +60,10 @@ int runRun(const RunArgs& args) {
                  : args.mode == "vio" ? RunMode::kVio
                                       : RunMode::kAuto;
   options.imu = args.imu == "real" ? ImuSource::kReal : ImuSource::kSynthetic;
+  if (!parseFrontendKind(args.frontend, &options.frontend)) {
+    throw UsageError("--frontend must be auto, images or simulated");
+  }
+  options.tracks_file = args.tracks;
   options.max_frames = args.frames;
   options.seed = args.seed;
   options.output = args.output;
@@ -124,7 +130,13 @@ int runRun(const RunArgs& args) {
           : fmt::format("FAILED at frame {}: {}", outcome.failure_frame, outcome.failure_reason));
   fmt::print("  frames            {} ({:.1f} s of data, {:.0f} features/frame)\n", s.n_frames,
              s.duration_s, outcome.mean_features_per_frame);
-  fmt::print("  ATE RMSE          {:.4f} m ({} pairs, SE(3)-aligned)\n", s.ate_rmse, s.n_ate_pairs);
+  fmt::print("  front-end         {}\n", outcome.frontend_summary);
+  if (s.n_ate_pairs > 0) {
+    fmt::print("  ATE RMSE          {:.4f} m ({} pairs, SE(3)-aligned)\n", s.ate_rmse,
+               s.n_ate_pairs);
+  } else {
+    fmt::print("  ATE RMSE          unavailable (no ground truth for these frames)\n");
+  }
   fmt::print("  time opt / marg   {:.3f} s / {:.3f} s\n", s.t_opt_total_s, s.t_marg_total_s);
   fmt::print("  real-time factor  {:.1f}x\n", s.realtime_factor);
   if (options.config.marg_strategy == MargStrategy::kDiscard) {
@@ -159,6 +171,16 @@ const bool kRegistered = cli::registerCommand(
                       "VIO: synthetic IMU from the trajectory, or the sequence's real recording")
            ->check(CLI::IsMember({"synthetic", "real"}))
            ->capture_default_str();
+       sub.add_option("--frontend", args->frontend,
+                      "Feature tracks: images (the optical-flow front-end on the folder's "
+                      "images), simulated (along the ground truth) or auto: images where the "
+                      "folder has them")
+           ->check(CLI::IsMember({"auto", "images", "simulated"}))
+           ->capture_default_str();
+       sub.add_option("--tracks", args->tracks,
+                      "Run on this track file (HDF5 or text, datasets/README.md) instead of a "
+                      "front-end; --dataset supplies calibration, ground truth and IMU")
+           ->check(CLI::ExistingFile);
        sub.add_option("--frames", args->frames, "Process only the first N frames (0: all)")
            ->capture_default_str()
            ->check(cli::nonNegativeInt("the number of frames (0: all)"));

@@ -132,7 +132,7 @@ void prepareSweepFolder(const fs::path& out, const std::string& sweep_file_text,
           "{} already holds a sweep: continue it with --resume, or start over with --force",
           out.string()));
     }
-    for (const char* sub : {"runs", "logs", "configs", "slurm"}) fs::remove_all(out / sub);
+    for (const char* sub : {"runs", "logs", "configs", "slurm", "tracks"}) fs::remove_all(out / sub);
     fs::remove(out / "index.csv");
   }
   for (const char* sub : {"runs", "logs", "configs"}) fs::create_directories(out / sub);

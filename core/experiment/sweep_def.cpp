@@ -247,7 +247,7 @@ class Parser {
   void parseGroup(const toml::table& group, SweepPlan* plan) {
     const int line = lineOf(group);
     checkKeys(group,
-              {"name", "datasets", "variants", "seeds", "frames", "timeout_s", "args",
+              {"name", "datasets", "variants", "seeds", "frames", "timeout_s", "args", "frontend",
                "config_file", "config", "override"},
               "a [[group]]");
     const std::string group_name = requiredString(group, "name", "a [[group]]", line);
@@ -300,6 +300,20 @@ class Parser {
       timeout_s = *v;
     }
     const std::vector<std::string> group_args = runArgs(group);
+    std::string frontend;
+    if (const toml::node* node = group.get("frontend")) {
+      const auto v = node->value<std::string>();
+      if (!v || (*v != "images" && *v != "simulated" && *v != "auto")) {
+        throw error(*node, "frontend must be \"images\", \"simulated\" or \"auto\"");
+      }
+      frontend = *v;
+      for (const std::string& arg : group_args) {
+        const std::string option = arg.substr(0, arg.find('='));
+        if (option == "--frontend" || option == "--tracks") {
+          throw error(*node, "frontend is set here: args must not hold " + option + " too");
+        }
+      }
+    }
 
     toml::table group_config;
     if (const toml::node* node = group.get("config_file")) {
@@ -366,6 +380,7 @@ class Parser {
             run.frames = frames;
             run.timeout_s = timeout_s;
             run.override_name = o.name;
+            run.frontend = frontend;
             run.extra_args = group_args;
             run.extra_args.insert(run.extra_args.end(), o.args.begin(), o.args.end());
             toml::table config = group_config;
@@ -449,6 +464,8 @@ SweepPlan loadSweepFile(const std::string& path, const ParseOptions& options) {
   return parseSweep(buffer.str(), path, base, options);
 }
 
+std::string sweepTrackFile(const PlannedRun& run) { return "tracks/" + slug(run.dataset) + ".h5"; }
+
 std::vector<std::string> runArguments(const PlannedRun& run, const std::string& results_path,
                                       const std::string& config_path) {
   std::vector<std::string> args = {"run",
@@ -465,6 +482,14 @@ std::vector<std::string> runArguments(const PlannedRun& run, const std::string& 
   if (!run.config_toml.empty()) {
     args.push_back("--config");
     args.push_back(config_path);
+  }
+  if (run.frontend == "images") {
+    // Tracked once per dataset by the runner: ten variants must not track the images ten times.
+    args.push_back("--tracks");
+    args.push_back(sweepTrackFile(run));
+  } else if (!run.frontend.empty()) {
+    args.push_back("--frontend");
+    args.push_back(run.frontend);
   }
   args.insert(args.end(), run.extra_args.begin(), run.extra_args.end());
   args.push_back("-o");

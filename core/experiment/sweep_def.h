@@ -21,6 +21,12 @@
 //   frames      = 600                           # optional, 0 (default): the whole sequence
 //   timeout_s   = 0                             # optional wall-time limit per run (0: none)
 //   args        = ["--no-diagnostics"]          # optional extra `marglab run` options
+//   frontend    = "images"                      # optional: images | simulated | auto (the run's
+//                                               # --frontend; default: not passed = auto). With
+//                                               # "images" the runner tracks each dataset's
+//                                               # images once (`marglab datasets track` →
+//                                               # tracks/<dataset slug>.h5 in the sweep folder)
+//                                               # and every run reads them (--tracks)
 //   config_file = "my.toml"                     # optional estimator config (relative to the file)
 //   [group.config]                              # optional inline config overrides, same layout
 //   lm = { max_iterations = 5 }                 # as `marglab run --config` (EstimatorConfig)
@@ -51,6 +57,7 @@ struct PlannedRun {
   int frames = 0;                       // 0: whole sequence
   double timeout_s = 0;                 // 0: none
   std::string override_name;            // "" for the unnamed override
+  std::string frontend;                 // "" (not passed), "images", "simulated", "auto"
   std::vector<std::string> extra_args;  // group args, then override args
   std::string config_toml;              // merged config overrides (TOML text), "" when none
   int line = 0;                         // line of the group in the sweep file (for messages)
@@ -85,6 +92,9 @@ std::vector<std::string> expandVariantEntry(const std::string& entry);
 
 // "kitti/10" → "kitti-10"; anything outside [A-Za-z0-9_.-] becomes '-'.
 std::string slug(const std::string& text);
+
+// The track file of an images run, relative to the sweep folder: "tracks/<dataset slug>.h5".
+std::string sweepTrackFile(const PlannedRun& run);
 
 // The `marglab run` arguments of a planned run (without the program name), with the results file
 // and, when config_toml is non-empty, the config file it was written to.

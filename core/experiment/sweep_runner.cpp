@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -58,6 +59,7 @@ class Runner {
     jobs_ = options_.jobs > 0 ? options_.jobs : std::max(1u, std::thread::hardware_concurrency());
 
     planRows(out);
+    trackImagesOnce(out);
     writeIndex(index_path_, rows_);
     installSignalHandlers();
     start_ = Clock::now();
@@ -88,6 +90,28 @@ class Runner {
     std::stable_sort(queue_.begin(), queue_.end(),
                      [&](std::size_t a, std::size_t b) { return weights_[a] > weights_[b]; });
     for (std::size_t i : queue_) remaining_weight_ += weights_[i];
+  }
+
+  // The image front-end once per dataset of the queued `frontend = "images"` runs, before any run
+  // starts (they read its track file). A file kept by --resume is reused.
+  void trackImagesOnce(const fs::path& out) {
+    std::set<std::string> done;
+    for (const std::size_t index : queue_) {
+      const PlannedRun& run = plan_.runs[index];
+      const std::string tracks = sweepTrackFile(run);
+      if (run.frontend != "images" || !done.insert(tracks).second) continue;
+      if (options_.resume && fs::exists(out / tracks)) continue;
+      fs::create_directories(out / "tracks");
+      const std::string log = (out / "logs" / ("tracks_" + slug(run.dataset) + ".log")).string();
+      const std::string command =
+          "cd " + shellJoin({out.string()}) + " && " +
+          shellJoin({exe_, "datasets", "track", "--dataset", run.dataset, "-o", tracks}) + " > " +
+          shellJoin({log}) + " 2>&1";
+      if (std::system(command.c_str()) != 0) {
+        throw InputError(
+            log, 0, fmt::format("tracking the images of {} failed (see the log)", run.dataset));
+      }
+    }
   }
 
   void launch(const fs::path& out, std::size_t index) {

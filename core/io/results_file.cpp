@@ -75,6 +75,7 @@ struct ResultsWriter::Impl {
   std::vector<Eigen::Vector3d> frame_p_est, frame_p_gt;
   double t_opt_total = 0.0, t_marg_total = 0.0;
   std::size_t marg_rows = 0;
+  bool frontend_written = false;
 
   void requireOpen() const {
     if (!open) throw InputError(file.path(), 0, "results file already finished");
@@ -104,6 +105,7 @@ ResultsWriter ResultsWriter::create(const std::string& path, const RunMetadata& 
   f.setAttr("qr_threshold_mode", metadata.qr_threshold_mode);
   f.setAttr("qr_threshold", metadata.qr_threshold);
   f.setAttr("marg_strategy", metadata.marg_strategy);
+  f.setAttr("frontend", metadata.frontend);
   for (const auto& [key, value] : metadata.extra) f.setAttr(key, value);
   // Provisional status: replaced by finish(); only visible if someone inspects the temporary.
   f.setAttr("status", "running");
@@ -255,6 +257,33 @@ void ResultsWriter::appendSparsify(const SparsifyRecord& r) {
   d.s_t_insert_s.append(r.t_insert_s);
 }
 
+void ResultsWriter::writeFrontend(const std::vector<FrontendRecord>& rows) {
+  Impl& d = *impl_;
+  d.requireOpen();
+  if (d.frontend_written) throw InputError(d.file.path(), 0, "/frontend written twice");
+  d.frontend_written = true;
+  const h5::Group g = d.file.group("frontend");
+  g.setAttr("description", "one row per frame the track source produced");
+  std::vector<std::int64_t> t_ns;
+  std::vector<std::int32_t> n_features, n_tracked, n_new, n_stereo;
+  std::vector<double> t_frontend;
+  for (const FrontendRecord& r : rows) {
+    t_ns.push_back(r.t_ns);
+    n_features.push_back(r.n_features);
+    n_tracked.push_back(r.n_tracked);
+    n_new.push_back(r.n_new);
+    n_stereo.push_back(r.n_stereo);
+    t_frontend.push_back(r.t_frontend_s);
+  }
+  describe(g.write("t_ns", t_ns), "ns", "frame timestamp");
+  describe(g.write("n_features", n_features), "1", "observations of the frame");
+  describe(g.write("n_tracked", n_tracked), "1", "continued from the previous frame");
+  describe(g.write("n_new", n_new), "1", "detected in this frame");
+  describe(g.write("n_stereo", n_stereo), "1", "with a right match");
+  describe(g.write("t_frontend_s", t_frontend), "s",
+           "front-end wall time without image decoding, NaN if not measured");
+}
+
 void ResultsWriter::appendPriorMatrices(std::int64_t k, const PriorLayout& layout, const MatXd& H_m,
                                         const VecXd& b_m, const MatXd* J_m, const VecXd* r_m) {
   Impl& d = *impl_;
@@ -297,6 +326,8 @@ SummaryValues ResultsWriter::finish(const RunSummary& summary, RunStatus status,
                                     std::int64_t failure_frame, const std::string& failure_reason) {
   Impl& d = *impl_;
   d.requireOpen();
+  // Every file has the group (zero rows when the writer's user had no front-end statistics).
+  if (!d.frontend_written) writeFrontend({});
   const AteResult ate = computeAte(d.frame_p_est, d.frame_p_gt);
   d.ate_error.append(ate.error);
 
@@ -381,11 +412,13 @@ ResultsReader::ResultsReader(const std::string& path) : path_(path) {
   // Files written before the strategies existed marginalized as discard does.
   m.marg_strategy =
       file_.hasAttr("marg_strategy") ? file_.attr<std::string>("marg_strategy") : "discard";
+  // Files written before the image front-end existed all used simulated tracks.
+  m.frontend = file_.hasAttr("frontend") ? file_.attr<std::string>("frontend") : "simulated";
   static const char* const kKnown[] = {
       "schema_version", "marglab_version",   "git_sha",      "created_utc", "dataset",
       "sequence",       "variant",           "precision",    "mode",        "seed",
       "config_toml",    "qr_threshold_mode", "qr_threshold", "status",      "failure_frame",
-      "failure_reason", "marg_strategy"};
+      "failure_reason", "marg_strategy",     "frontend"};
   for (const std::string& name : file_.attrNames()) {
     if (std::find(std::begin(kKnown), std::end(kKnown), name) != std::end(kKnown)) continue;
     try {
@@ -537,6 +570,28 @@ std::vector<SparsifyRecord> ResultsReader::sparsifyRecords() const {
     r.t_schur_s = t_schur[k];
     r.t_recovery_s = t_recovery[k];
     r.t_insert_s = t_insert[k];
+  }
+  return out;
+}
+
+std::vector<FrontendRecord> ResultsReader::frontendRecords() const {
+  std::vector<FrontendRecord> out;
+  if (!file_.exists("frontend")) return out;
+  const h5::Group g = file_.openGroup("frontend");
+  const auto t_ns = g.readVector<std::int64_t>("t_ns");
+  const auto n_features = g.readVector<std::int32_t>("n_features");
+  const auto n_tracked = g.readVector<std::int32_t>("n_tracked");
+  const auto n_new = g.readVector<std::int32_t>("n_new");
+  const auto n_stereo = g.readVector<std::int32_t>("n_stereo");
+  const auto t_frontend = g.readVector<double>("t_frontend_s");
+  const std::size_t n = t_ns.size();
+  for (const std::size_t size :
+       {n_features.size(), n_tracked.size(), n_new.size(), n_stereo.size(), t_frontend.size()}) {
+    if (size != n) throw InputError(path_, 0, "/frontend: columns differ in length");
+  }
+  out.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    out[k] = {t_ns[k], n_features[k], n_tracked[k], n_new[k], n_stereo[k], t_frontend[k]};
   }
   return out;
 }

@@ -5,8 +5,9 @@
 //
 // Schema, schema_version = 2 (all times in seconds unless the name ends in _ns; t_ns are int64
 // nanoseconds of the dataset clock; positions in metres, world frame of the estimate / GT).
-// Version 2 added /sparsify, the marg_strategy attribute and precision "mixed"; files of version 1
-// are read as runs with marg_strategy discard and no /sparsify rows.
+// Version 2 added /sparsify, the marg_strategy attribute, precision "mixed", /frontend and the
+// frontend attribute; files of version 1 are read as runs with marg_strategy discard, simulated
+// tracks and no /sparsify or /frontend rows.
 //
 // /  attributes
 //   schema_version  int64   2
@@ -20,6 +21,8 @@
 //   failure_frame   int64   row of /frames where the run failed, −1 when ok
 //   failure_reason  str     "" when ok
 //   marg_strategy   str     "discard" | "dense" | "nfr" (absent in older files: "discard")
+//   frontend        str     "images" | "simulated" | "tracks": where the feature tracks came from
+//                           (core/frontend/track_source.h; absent in older files: "simulated")
 //   + RunMetadata::extra (str)
 // /frames  one row per processed frame (extendible, chunked along time):
 //   t_ns int64 (n) · is_keyframe uint8 (n) · n_landmarks, n_observations, lm_iterations int32 (n)
@@ -58,6 +61,17 @@
 //   t_schur_s, t_recovery_s, t_insert_s f64   wall time of the marginalization (Schur / flat QR)
 //                                 of the event, of the information recovery (eq. 16), and of
 //                                 inserting the factors into the window
+// /frontend  one row per frame the track source produced (zero rows when the writer was given
+//            none; absent in older files): for images,
+//            every tracked image, including those before the first frame with ground truth
+//            (rows before /frames' first t_ns); for simulated / track-file runs, the frames of
+//            the stream, with counts recomputed from it:
+//   t_ns int64                    frame timestamp
+//   n_features int32              observations of the frame (tracked + new)
+//   n_tracked, n_new int32        continued from the previous frame / detected in this frame
+//   n_stereo int32                with a right match
+//   t_frontend_s f64              front-end wall time (tracking, detection, stereo,
+//                                 undistortion; image decoding excluded), NaN when not measured
 // /summary  attributes
 //   ate_rmse f64 [m] (NaN without GT), n_ate_pairs, n_frames, n_marg int64,
 //   duration_s f64 (last − first t_ns of /frames), t_opt_total_s, t_marg_total_s f64,
@@ -100,6 +114,7 @@ struct RunMetadata {
   std::string qr_threshold_mode;  // "absolute" | "relative" | "" (no flat QR)
   double qr_threshold = std::numeric_limits<double>::quiet_NaN();
   std::string marg_strategy = "discard";
+  std::string frontend = "simulated";
   std::vector<std::pair<std::string, std::string>> extra;  // more root string attributes
 };
 
@@ -148,6 +163,16 @@ struct SparsifyRecord {
   double t_insert_s = 0.0;
 };
 
+// One row of /frontend.
+struct FrontendRecord {
+  std::int64_t t_ns = 0;
+  int n_features = 0;
+  int n_tracked = 0;
+  int n_new = 0;
+  int n_stereo = 0;
+  double t_frontend_s = std::numeric_limits<double>::quiet_NaN();
+};
+
 // Fills a MargRecord from the diagnostics of one event (prior_cols = eigenvalues.size()).
 MargRecord makeMargRecord(std::int64_t frame_index, std::int64_t t_ns, int prior_rows,
                           const PriorDiagnostics& diagnostics);
@@ -194,6 +219,8 @@ class ResultsWriter {
   void appendFrame(const FrameRecord& frame);
   void appendMarg(const MargRecord& marg);  // marg.eigenvalues becomes the next ragged row
   void appendSparsify(const SparsifyRecord& record);
+  // The whole /frontend group, at most once per file (finish() writes it with zero rows if not).
+  void writeFrontend(const std::vector<FrontendRecord>& rows);
   // The full double prior of marginalization event k (the /marg row of the same event); at most
   // once per k. J_m and r_m (both or neither) for square-root storage.
   void appendPriorMatrices(std::int64_t k, const PriorLayout& layout, const MatXd& H_m,
@@ -249,6 +276,8 @@ class ResultsReader {
   VecXd eigenvalues(std::size_t k) const;
   // /sparsify rows (empty for files without the group).
   std::vector<SparsifyRecord> sparsifyRecords() const;
+  // /frontend rows (empty for files without the group).
+  std::vector<FrontendRecord> frontendRecords() const;
   std::vector<std::int64_t> storedPriors() const;  // ascending event indices
   std::optional<StoredPrior> prior(std::int64_t k) const;
   SummaryValues summary() const;

@@ -55,6 +55,16 @@ Trajectory cameraGroundTruth(const Trajectory& gt, const SE3<double>& T_b_c0) {
 
 std::string splitDataset(const Sequence& sequence) { return datasetKindName(sequence.kind); }
 
+TrackSourceOptions trackSourceOptions(const RunOptions& options) {
+  TrackSourceOptions source;
+  source.dataset = options.dataset;
+  source.frontend = options.frontend;
+  source.tracks_file = options.tracks_file;
+  source.max_frames = options.max_frames;
+  source.seed = options.seed;
+  return source;
+}
+
 // The synthetic IMU's random stream is separate from the world's and the tracks'.
 std::uint64_t imuSeed(std::uint64_t seed) { return seed ^ 0x9e3779b97f4a7c15ULL; }
 
@@ -110,9 +120,14 @@ ImuSetup imuSetup(const RunOptions& options, const Sequence& sequence,
 }
 
 template <typename Scalar>
-RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const TrackStream& stream,
-                   const TrajectoryFunction& trajectory, const EstimatorConfig& config) {
+RunOutcome runWith(const RunOptions& options, const TrackSource& source,
+                   const EstimatorConfig& config) {
+  const Sequence& sequence = source.sequence;
+  const TrackStream& stream = source.stream;
+  const TrajectoryFunction& trajectory = *source.trajectory;
   RunOutcome outcome;
+  outcome.frontend = source.frontend;
+  outcome.frontend_summary = frontendSummary(source.frontend, source.stats);
   const bool vio = options.mode == RunMode::kVio;
   outcome.vio = vio;
   const SE3<double> T_b_c0 = cameraExtrinsic(sequence.calib.cam0);
@@ -142,11 +157,13 @@ RunOutcome runWith(const RunOptions& options, const Sequence& sequence, const Tr
                                 ? config.qr_threshold
                                 : static_cast<double>(NumericTraits<Scalar>::sqrtEpsilon());
   }
+  metadata.frontend = source.frontend;
   metadata.extra = {{"dataset_path", sequence.directory},
-                    {"gt_source", sequence.gt_source},
-                    {"measurements", "simulated stereo tracks, undistorted pinhole"}};
+                    {"gt_source", source.has_ground_truth ? sequence.gt_source : "none"}};
+  for (const auto& [key, value] : source.provenance) metadata.extra.emplace_back(key, value);
   for (const auto& [key, value] : imu_provenance) metadata.extra.emplace_back(key, value);
   ResultsWriter writer = ResultsWriter::create(options.output, metadata);
+  writer.writeFrontend(frontendRecords(source.stats));
 
   SlidingWindowEstimator<Scalar> estimator(config, options.variant, rigFromCalib(sequence.calib),
                                            T_w_c0_first, std::move(imu));
@@ -256,29 +273,25 @@ std::string tumPathFor(const std::string& results_path) {
 }
 
 RunOutcome runSequence(const RunOptions& options) {
-  const Sequence sequence = loadSequence(options.dataset);
-  if (!sequence.hasTrajectory()) {
-    throw InputError(sequence.directory, 0,
-                     fmt::format("sequence {} has no trajectory to simulate from (only camera "
-                                 "timestamps are shipped)",
-                                 sequence.name));
-  }
+  const TrackSource source = obtainTracks(trackSourceOptions(options));
+  const Sequence& sequence = source.sequence;
   EstimatorConfig config = options.config;
   if (config.min_frames_after_kf < 0)
     config.min_frames_after_kf = sequence.defaults.min_frames_after_kf;
   if (config.max_position_error_m < 0) {
     config.max_position_error_m = sequence.defaults.max_position_error_m;
   }
-  const TrajectorySpline spline = TrajectorySpline::fromSequence(sequence);
-  SimulationOptions simulation = defaultSimulationOptions(sequence, options.seed);
-  if (options.max_frames > 0) simulation.tracker.max_frames = options.max_frames;
-  const TrackStream stream = simulateSequence(sequence, spline, simulation);
-  if (stream.frames.empty()) {
-    throw InputError(sequence.directory, 0, "no camera frame lies inside the trajectory");
-  }
   RunOptions resolved = options;
   if (resolved.mode == RunMode::kAuto) {
-    resolved.mode = sequence.kind == DatasetKind::kKitti ? RunMode::kVo : RunMode::kVio;
+    // Without ground truth there is no initial velocity and gravity direction: VO.
+    resolved.mode = sequence.kind == DatasetKind::kKitti || !source.has_ground_truth
+                        ? RunMode::kVo
+                        : RunMode::kVio;
+  }
+  if (resolved.mode == RunMode::kVio && !source.has_ground_truth) {
+    throw InputError(sequence.directory, 0,
+                     "VIO starts from the ground-truth state at its first frame, and this "
+                     "sequence has no ground truth (use --mode vo)");
   }
   if (resolved.mode == RunMode::kVio && sequence.kind == DatasetKind::kKitti) {
     throw InputError(sequence.directory, 0,
@@ -298,9 +311,9 @@ RunOutcome runSequence(const RunOptions& options) {
     }
   }
   if (options.variant.floatState()) {
-    return runWith<float>(resolved, sequence, stream, spline, config);
+    return runWith<float>(resolved, source, config);
   }
-  return runWith<double>(resolved, sequence, stream, spline, config);
+  return runWith<double>(resolved, source, config);
 }
 
 }  // namespace marglab

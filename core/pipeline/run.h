@@ -20,6 +20,7 @@
 #include "core/data/types.h"
 #include "core/estimator/config.h"
 #include "core/estimator/variant.h"
+#include "core/frontend/track_source.h"
 #include "core/geometry/camera.h"
 #include "core/io/results_file.h"
 
@@ -36,6 +37,10 @@ struct RunOptions {
   Variant variant;
   RunMode mode = RunMode::kAuto;
   ImuSource imu = ImuSource::kSynthetic;
+  // Where the tracks come from (core/frontend/track_source.h): a track file when tracks_file is
+  // set, else the images or the simulation (auto: images where the folder has them).
+  FrontendKind frontend = FrontendKind::kAuto;
+  std::string tracks_file;
   int max_frames = 0;  // 0: the whole sequence
   std::uint64_t seed = 1;
   EstimatorConfig config;
@@ -59,6 +64,8 @@ struct RunOutcome {
   SummaryValues summary;
   std::string tum_path;
   double mean_features_per_frame = 0;
+  std::string frontend;                // "images" | "simulated" | "tracks"
+  std::string frontend_summary;        // one line: features, tracked, stereo share, speed
   std::int64_t n_keyframe_events = 0;  // /sparsify rows (strategies dense, nfr)
 };
 

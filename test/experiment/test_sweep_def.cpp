@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <filesystem>
 #include <fstream>
 
@@ -145,8 +147,47 @@ INSTANTIATE_TEST_SUITE_P(
         Malformed{"MissingVariants",
                   "name = \"bad\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n", 2,
                   "needs variants"},
+        Malformed{"UnknownFrontend",
+                  "name = \"bad\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
+                  "variants = [\"headline\"]\nfrontend = \"klt\"\n",
+                  6, "frontend must be"},
+        Malformed{"FrontendTwice",
+                  "name = \"bad\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
+                  "variants = [\"headline\"]\nargs = [\"--frontend\", \"images\"]\n"
+                  "frontend = \"images\"\n",
+                  7, "must not hold --frontend"},
         Malformed{"TomlSyntax", "name = \"bad\"\n[[group]\n", 2, ""}),
     [](const auto& info) { return std::string(info.param.name); });
+
+// frontend = "images": every run reads the track file the runner writes once per dataset.
+TEST(SweepDefinition, ImagesFrontendRunsReadOneTrackFilePerDataset) {
+  const SweepPlan plan = parse(R"(
+name = "real"
+[[group]]
+name = "img"
+datasets = ["euroc/V1_01_easy_images"]
+variants = ["ns-qr-sqrt-f32", "ns-qr-sqrt-f64"]
+frontend = "images"
+[[group]]
+name = "sim"
+datasets = ["euroc/V1_01_easy_images"]
+variants = ["ns-qr-sqrt-f32"]
+frontend = "simulated"
+)");
+  ASSERT_EQ(plan.runs.size(), 3u);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(plan.runs[i].frontend, "images");
+    EXPECT_EQ(sweepTrackFile(plan.runs[i]), "tracks/euroc-V1_01_easy_images.h5");
+    const std::vector<std::string> args = runArguments(plan.runs[i], "runs/x.h5", "");
+    const auto it = std::find(args.begin(), args.end(), "--tracks");
+    ASSERT_NE(it, args.end());
+    EXPECT_EQ(*(it + 1), "tracks/euroc-V1_01_easy_images.h5");
+  }
+  const std::vector<std::string> sim = runArguments(plan.runs[2], "runs/y.h5", "");
+  const auto it = std::find(sim.begin(), sim.end(), "--frontend");
+  ASSERT_NE(it, sim.end());
+  EXPECT_EQ(*(it + 1), "simulated");
+}
 
 TEST(SweepDefinition, RunOptionsAreCheckedByTheGivenChecker) {
   ParseOptions options;

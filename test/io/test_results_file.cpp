@@ -374,6 +374,38 @@ TEST_F(ResultsFileTest, SparsifyGroupHasZeroRowsForDiscardAndIsOptionalForOlderF
   EXPECT_TRUE(r.sparsifyRecords().empty());
 }
 
+TEST_F(ResultsFileTest, FrontendGroupRoundTripsAndIsOptionalForOlderFiles) {
+  const std::string path = file("frontend.h5");
+  RunMetadata metadata;
+  metadata.frontend = "images";
+  {
+    ResultsWriter w = ResultsWriter::create(path, metadata);
+    w.writeFrontend({{10, 120, 0, 120, 100, 0.004}, {20, 125, 118, 7, 101, 0.003}});
+    w.finish(RunSummary{});
+  }
+  {
+    const ResultsReader r(path);
+    EXPECT_EQ(r.info().metadata.frontend, "images");
+    const std::vector<FrontendRecord> rows = r.frontendRecords();
+    ASSERT_EQ(rows.size(), 2u);
+    EXPECT_EQ(rows[1].t_ns, 20);
+    EXPECT_EQ(rows[1].n_features, 125);
+    EXPECT_EQ(rows[1].n_tracked, 118);
+    EXPECT_EQ(rows[1].n_new, 7);
+    EXPECT_EQ(rows[1].n_stereo, 101);
+    EXPECT_EQ(rows[1].t_frontend_s, 0.003);
+  }
+  // A file written before the front-end existed: neither the group nor the attribute.
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  EXPECT_GE(H5Ldelete(f, "frontend", H5P_DEFAULT), 0);
+  EXPECT_GE(H5Adelete(f, "frontend"), 0);
+  H5Fclose(f);
+  const ResultsReader r(path);
+  EXPECT_EQ(r.info().metadata.frontend, "simulated");
+  EXPECT_TRUE(r.frontendRecords().empty());
+}
+
 TEST_F(ResultsFileTest, WriterDestroyedWithoutFinishLeavesNoFile) {
   const std::string path = file("unfinished.h5");
   {

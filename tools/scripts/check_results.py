@@ -7,11 +7,13 @@ Checks that every attribute and dataset of the schema exists with consistent sha
 ragged /marg/eigenvalues agree with /marg (one ascending row of prior_cols values per event), that
 /sparsify agrees with the marg_strategy attribute (equal column lengths, rows only for dense / nfr,
 frame_index within /frames, nnz_sparse <= nnz_dense and KLD >= 0 where the prior was recovered,
-KLD NaN where it was kept dense), and recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
+KLD NaN where it was kept dense), that /frontend agrees with the frontend attribute (images /
+simulated / tracks; equal column lengths, t_ns strictly increasing and, unless it has zero rows,
+containing every /frames t_ns, n_features = n_tracked + n_new, 0 <= n_stereo <= n_features, t_frontend_s finite and >= 0 for
+images; both absent in files written before the front-end existed), and recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
 Umeyama/Kabsch alignment without scale (reflection fix diag(1, 1, det(U V^T))), comparing it with
 /summary ate_rmse and /frames/ate_error. Prints "OK ..." and exits 0, or lists every problem and
-exits 1 (2 for usage errors). A /frontend group (schema_version 2, optional) must hold per-frame
-columns (one row per /frames row) and agree with the root attribute `frontend`.
+exits 1 (2 for usage errors).
 
 The schema's names come from marglab_results.py (the one place they are listed on the Python
 side); the checks themselves read the file with h5py directly and recompute everything they
@@ -86,24 +88,38 @@ def check_sparsify(f, n_frames):
     return problems
 
 
-def check_frontend(f, n_frames):
-    """/frontend (optional, schema_version 2): per-frame int64 counts and f64 t_frontend_s, one row
-    per /frames row; the root attribute `frontend` names where the measurements came from."""
+def check_frontend(f, frame_t_ns):
+    """/frontend against the frontend attribute (both absent in older files: simulated tracks)."""
     kind = f.attrs.get("frontend")
+    if kind is None:
+        return [] if "frontend" not in f else ["/frontend without a frontend attribute"]
+    kind = str(decode(kind))
+    if kind not in FRONTEND_KINDS:
+        return [f"frontend {kind!r} is not one of {', '.join(FRONTEND_KINDS)}"]
     if "frontend" not in f:
-        return []
-    problems = []
-    if kind is not None and str(decode(kind)) not in FRONTEND_KINDS:
-        problems.append(f"frontend attribute {decode(kind)!r} is not one of "
-                        f"{', '.join(FRONTEND_KINDS)}")
+        return ["missing group /frontend"]
     fe = f["frontend"]
-    for name in FRONTEND_1D:
-        if name not in fe:
-            problems.append(f"missing /frontend/{name}")
-        elif fe[name].shape != (n_frames,):
-            problems.append(f"/frontend/{name} has shape {fe[name].shape}, expected ({n_frames},)")
-        elif name.startswith("n_") and np.any(fe[name][:] < 0):
-            problems.append(f"/frontend/{name} has negative counts")
+    missing = [name for name in FRONTEND_1D if name not in fe]
+    if missing:
+        return [f"missing /frontend/{name}" for name in missing]
+    lengths = {fe[name].shape for name in FRONTEND_1D}
+    if len(lengths) != 1 or len(next(iter(lengths))) != 1:
+        return [f"/frontend columns differ in shape: {lengths}"]
+    problems = []
+    t = fe["t_ns"][:]
+    if np.any(np.diff(t) <= 0):
+        problems.append("/frontend/t_ns not strictly increasing")
+    if t.size and not np.all(np.isin(frame_t_ns, t)):  # zero rows: no statistics were given
+        problems.append("/frames/t_ns has frames without a /frontend row")
+    n_features, n_tracked, n_new, n_stereo = (fe[c][:].astype(np.int64) for c in
+                                              ("n_features", "n_tracked", "n_new", "n_stereo"))
+    if np.any(n_tracked < 0) or np.any(n_new < 0) or np.any(n_features != n_tracked + n_new):
+        problems.append("/frontend: n_features != n_tracked + n_new (or negative counts)")
+    if np.any(n_stereo < 0) or np.any(n_stereo > n_features):
+        problems.append("/frontend: n_stereo outside 0..n_features")
+    t_fe = fe["t_frontend_s"][:]
+    if kind == "images" and (not np.all(np.isfinite(t_fe)) or np.any(t_fe < 0)):
+        problems.append("/frontend/t_frontend_s not finite and >= 0 in an images run")
     return problems
 
 
@@ -176,7 +192,7 @@ def check_file(path):
                             problems.append(f"sigma_min/max of event {k} differ from its eigenvalues")
 
         problems += check_sparsify(f, n)
-        problems += check_frontend(f, n)
+        problems += check_frontend(f, fr["t_ns"][:])
 
         summary = f["summary"].attrs
         for name in SUMMARY_ATTRS:

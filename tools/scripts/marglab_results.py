@@ -31,7 +31,7 @@ except ImportError:  # check_results.py and plot_paper.py need only numpy and h5
 
 # ---- the schema ---------------------------------------------------------------------------------
 
-SCHEMA_VERSIONS = (1, 2)  # 2: optional /frontend group and root attribute `frontend`
+SCHEMA_VERSIONS = (1, 2)  # 2: /sparsify, marg_strategy, precision mixed, /frontend + `frontend`
 ROOT_ATTRS = ["schema_version", "marglab_version", "git_sha", "created_utc", "dataset",
               "sequence", "variant", "precision", "seed", "config_toml", "status",
               "failure_frame", "failure_reason"]
@@ -45,7 +45,7 @@ DEM_DIRECTIONS = ["x", "y", "z", "roll", "pitch", "yaw", "random"]
 SPARSIFY_1D = ["frame_index", "t_ns", "blanket_cols", "n_blanket_poses", "n_blanket_landmarks",
                "nnz_dense", "nnz_sparse", "kld", "recovered", "t_schur_s", "t_recovery_s",
                "t_insert_s"]
-FRONTEND_1D = ["n_features", "n_tracked", "n_new", "n_stereo", "t_frontend_s"]
+FRONTEND_1D = ["t_ns", "n_features", "n_tracked", "n_new", "n_stereo", "t_frontend_s"]
 FRONTEND_KINDS = ("images", "simulated", "tracks")
 MARG_STRATEGIES = ("discard", "dense", "nfr")
 SUMMARY_ATTRS = ["ate_rmse", "n_frames", "duration_s", "t_opt_total_s", "t_marg_total_s",
@@ -188,11 +188,14 @@ class Run:
                 sparsify["recovered"] = sparsify["recovered"].astype(bool)
 
             frontend = None
-            if "frontend" in f:
+            if "frontend" in f and "t_ns" in f["frontend"]:
+                # Its own rows, keyed by t_ns (the frames the front-end tracked, a superset of
+                # /frames; zero rows when the run had no front-end statistics).
                 fe = f["frontend"]
-                frontend = _columns(fe, [c for c in FRONTEND_1D if c in fe], n, "/frontend")
-                for name in fe:  # columns added after this reader: kept when per-frame
-                    if name not in frontend and fe[name].shape == (n,):
+                k = fe["t_ns"].shape[0]
+                frontend = _columns(fe, [c for c in FRONTEND_1D if c in fe], k, "/frontend")
+                for name in fe:  # columns added after this reader: kept when per-row
+                    if name not in frontend and fe[name].shape == (k,):
                         frontend[name] = fe[name][:]
 
         self.frames = _frame(frames)

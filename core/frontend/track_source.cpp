@@ -1,0 +1,226 @@
+#include "core/frontend/track_source.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "core/common/error.h"
+#include "core/sim/feature_tracker.h"
+#include "core/sim/track_io.h"
+
+namespace marglab {
+
+bool parseFrontendKind(const std::string& text, FrontendKind* kind) {
+  if (text == "auto") {
+    *kind = FrontendKind::kAuto;
+  } else if (text == "images") {
+    *kind = FrontendKind::kImages;
+  } else if (text == "simulated") {
+    *kind = FrontendKind::kSimulated;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+// Without ground truth: the body stays at the origin (a VO run starts at the identity).
+class StillTrajectory : public TrajectoryFunction {
+ public:
+  StillTrajectory(int64_t start_ns, int64_t end_ns) : start_ns_(start_ns), end_ns_(end_ns) {}
+  int64_t startTimeNs() const override { return start_ns_; }
+  int64_t endTimeNs() const override { return end_ns_; }
+  TrajectorySample evaluate(int64_t) const override { return {}; }
+
+ private:
+  int64_t start_ns_, end_ns_;
+};
+
+// The estimator's frames: those inside the ground truth's span, then the first max_frames.
+void cutToEstimatorFrames(const Sequence& sequence, int max_frames, TrackStream* stream) {
+  auto& frames = stream->frames;
+  if (sequence.hasTrajectory()) {
+    const int64_t t0 = sequence.gt.t_ns.front(), t1 = sequence.gt.t_ns.back();
+    frames.erase(std::remove_if(frames.begin(), frames.end(),
+                                [&](const TrackFrame& f) { return f.t_ns < t0 || f.t_ns > t1; }),
+                 frames.end());
+  }
+  if (max_frames > 0 && frames.size() > static_cast<std::size_t>(max_frames)) {
+    frames.resize(static_cast<std::size_t>(max_frames));
+  }
+  if (frames.empty()) {
+    throw InputError(sequence.directory, 0,
+                     "no camera frame lies inside the trajectory (nothing for the estimator)");
+  }
+}
+
+// How many images the front-end must track so that the cut above is complete.
+std::size_t imagesNeeded(const Sequence& sequence, const StereoImageList& images, int max_frames) {
+  if (max_frames <= 0) return images.size();
+  std::size_t first = 0;
+  if (sequence.hasTrajectory()) {
+    const auto& t = images.t_ns;
+    first = static_cast<std::size_t>(
+        std::lower_bound(t.begin(), t.end(), sequence.gt.t_ns.front()) - t.begin());
+  }
+  return std::min(images.size(), first + static_cast<std::size_t>(max_frames));
+}
+
+void addTrajectory(TrackSource* source) {
+  const Sequence& seq = source->sequence;
+  source->has_ground_truth = seq.hasTrajectory();
+  if (source->has_ground_truth) {
+    source->trajectory = std::make_unique<TrajectorySpline>(TrajectorySpline::fromSequence(seq));
+  } else {
+    const int64_t t0 = seq.cam_t_ns.empty() ? 0 : seq.cam_t_ns.front();
+    const int64_t t1 = seq.cam_t_ns.empty() ? 0 : seq.cam_t_ns.back();
+    source->trajectory = std::make_unique<StillTrajectory>(t0, t1);
+  }
+}
+
+void simulate(const TrackSourceOptions& options, TrackSource* source) {
+  const Sequence& seq = source->sequence;
+  if (!seq.hasTrajectory()) {
+    throw InputError(seq.directory, 0,
+                     fmt::format("sequence {} has no trajectory to simulate from (only camera "
+                                 "timestamps); use its images (--frontend images) or a track file",
+                                 seq.name));
+  }
+  SimulationOptions simulation = defaultSimulationOptions(seq, options.seed);
+  if (options.max_frames > 0) simulation.tracker.max_frames = options.max_frames;
+  source->stream = simulateSequence(seq, *source->trajectory, simulation);
+  source->stats = streamFrontendStats(source->stream);
+  source->frontend = "simulated";
+  source->provenance.emplace_back("measurements", "simulated stereo tracks, undistorted pinhole");
+}
+
+}  // namespace
+
+ImageTracking trackImages(const ImageSequence& images, std::size_t max_images) {
+  if (!images.images) {
+    throw UsageError(fmt::format("{} has no images (expected mav0/cam0/data/ or image_0/)",
+                                 images.sequence.directory));
+  }
+  const Sequence& seq = images.sequence;
+  const StereoImageList& list = *images.images;
+  const std::size_t n = max_images > 0 ? std::min(max_images, list.size()) : list.size();
+  StereoFrontend frontend(seq.calib, defaultFrontendOptions(seq), seq.calib_source);
+  ImageTracking out;
+  out.stream.sequence = seq.name;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto start = std::chrono::steady_clock::now();
+    const cv::Mat left = readGreyImage(list.left[i], seq.calib.cam0.width, seq.calib.cam0.height);
+    const cv::Mat right = readGreyImage(list.right[i], seq.calib.cam1.width, seq.calib.cam1.height);
+    out.t_decode_s +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    FrontendFrameStats stats;
+    out.stream.frames.push_back(frontend.process(list.t_ns[i], left, right, &stats));
+    out.stats.push_back(stats);
+  }
+  return out;
+}
+
+TrackSource obtainTracks(const TrackSourceOptions& options) {
+  TrackSource source;
+  ImageSequence images = loadImageSequence(options.dataset);
+  source.sequence = images.sequence;
+  if (!images.fallback.empty()) {
+    source.provenance.emplace_back("fallback_sequence", images.fallback);
+  }
+  addTrajectory(&source);
+  if (!options.tracks_file.empty()) {
+    source.stream = readTrackFile(options.tracks_file);
+    cutToEstimatorFrames(source.sequence, options.max_frames, &source.stream);
+    source.stats = streamFrontendStats(source.stream);
+    source.frontend = "tracks";
+    source.provenance.emplace_back("measurements", "track file " + options.tracks_file);
+    return source;
+  }
+  const bool use_images = options.frontend == FrontendKind::kImages ||
+                          (options.frontend == FrontendKind::kAuto && images.images.has_value());
+  if (!use_images) {
+    simulate(options, &source);
+    return source;
+  }
+  // KITTI's calib.txt has no image size: the images define it.
+  ImageTracking tracking = trackImages(
+      images, imagesNeeded(source.sequence, images.images ? *images.images : StereoImageList{},
+                           options.max_frames));
+  source.stream = std::move(tracking.stream);
+  source.stats = std::move(tracking.stats);
+  cutToEstimatorFrames(source.sequence, options.max_frames, &source.stream);
+  source.frontend = "images";
+  source.provenance.emplace_back(
+      "measurements", "stereo optical-flow front-end on the images, undistorted pinhole");
+  source.provenance.emplace_back("images", images.images->source);
+  return source;
+}
+
+std::vector<FrontendFrameStats> streamFrontendStats(const TrackStream& stream) {
+  std::vector<FrontendFrameStats> rows;
+  std::unordered_set<int64_t> previous;
+  for (const TrackFrame& frame : stream.frames) {
+    FrontendFrameStats s;
+    s.t_ns = frame.t_ns;
+    s.t_frontend_s = std::numeric_limits<double>::quiet_NaN();
+    std::unordered_set<int64_t> current;
+    for (const StereoObservation& obs : frame.observations) {
+      ++s.n_features;
+      if (previous.count(obs.track_id) != 0) ++s.n_tracked;
+      if (obs.has_right) ++s.n_stereo;
+      current.insert(obs.track_id);
+    }
+    s.n_new = s.n_features - s.n_tracked;
+    rows.push_back(s);
+    previous = std::move(current);
+  }
+  return rows;
+}
+
+std::vector<FrontendRecord> frontendRecords(const std::vector<FrontendFrameStats>& stats) {
+  std::vector<FrontendRecord> rows;
+  for (const FrontendFrameStats& s : stats) {
+    rows.push_back({s.t_ns, s.n_features, s.n_tracked, s.n_new, s.n_stereo, s.t_frontend_s});
+  }
+  return rows;
+}
+
+double medianTrackLength(const TrackStream& stream) {
+  std::unordered_map<int64_t, int> length;
+  for (const TrackFrame& frame : stream.frames) {
+    for (const StereoObservation& obs : frame.observations) ++length[obs.track_id];
+  }
+  std::vector<double> values;
+  for (const auto& [id, n] : length) values.push_back(n);
+  return distributionOf(values).median;
+}
+
+std::string frontendSummary(const std::string& frontend,
+                            const std::vector<FrontendFrameStats>& stats) {
+  std::vector<double> features, tracked;
+  double stereo = 0, total = 0, time = 0;
+  for (const FrontendFrameStats& s : stats) {
+    features.push_back(s.n_features);
+    tracked.push_back(s.n_tracked);
+    stereo += s.n_stereo;
+    total += s.n_features;
+    time += s.t_frontend_s;
+  }
+  const double n = static_cast<double>(std::max<std::size_t>(stats.size(), 1));
+  std::string text =
+      fmt::format("{}: {} frames, {:.0f} features/frame (median), {:.0f} tracked, stereo {:.0f} %",
+                  frontend, stats.size(), distributionOf(features).median,
+                  distributionOf(tracked).median, 100.0 * stereo / std::max(total, 1.0));
+  if (std::isfinite(time)) {
+    text += fmt::format(", {:.2f} ms/frame ({:.0f} frames/s)", 1e3 * time / n, n / time);
+  }
+  return text;
+}
+
+}  // namespace marglab
