@@ -119,6 +119,78 @@ ImuSetup imuSetup(const RunOptions& options, const Sequence& sequence,
   return setup;
 }
 
+// The root attributes of a run's results file: what ran, on what, with which settings.
+template <typename Scalar>
+RunMetadata runMetadata(const RunOptions& options, const TrackSource& source,
+                        const EstimatorConfig& config, bool vio,
+                        const std::map<std::string, std::string>& imu_provenance) {
+  const Sequence& sequence = source.sequence;
+  RunMetadata metadata;
+  metadata.dataset = splitDataset(sequence);
+  const std::string& name = sequence.name;
+  metadata.sequence = name.substr(name.find('/') == std::string::npos ? 0 : name.find('/') + 1);
+  metadata.variant = options.variant.name();
+  metadata.precision = options.variant.precisionName();
+  metadata.mode = vio ? "vio" : "vo";
+  metadata.seed = options.seed;
+  metadata.config_toml = config.toToml();
+  metadata.marg_strategy = toString(config.marg_strategy);
+  if (options.variant.marg == MargMethod::kQr) {
+    metadata.qr_threshold_mode = toString(config.qr_threshold_mode);
+    metadata.qr_threshold = config.qr_threshold >= 0
+                                ? config.qr_threshold
+                                : static_cast<double>(NumericTraits<Scalar>::sqrtEpsilon());
+  }
+  metadata.frontend = source.frontend;
+  metadata.extra = {{"dataset_path", sequence.directory},
+                    {"gt_source", source.has_ground_truth ? sequence.gt_source : "none"}};
+  for (const auto& [key, value] : source.provenance) metadata.extra.emplace_back(key, value);
+  for (const auto& [key, value] : imu_provenance) metadata.extra.emplace_back(key, value);
+  return metadata;
+}
+
+// The gauge diagnostics of one marginalization event (/marg) and, every store_prior_every
+// events, the prior itself.
+void writeMargEvent(const MargEvent& event, int frame_index, std::int64_t t_ns,
+                    std::int64_t marg_index, const RunOptions& options,
+                    const EstimatorConfig& config, ResultsWriter& writer) {
+  const PriorLayout& layout = event.layout;
+  const GaugeState& state = event.state;
+  const std::uint64_t seed = config.diagnostics_seed + static_cast<std::uint64_t>(marg_index);
+  const bool sqrt_storage = options.variant.storage == PriorStorage::kSqrt;
+  const PriorDiagnostics diagnostics =
+      sqrt_storage ? diagnoseSqrtPrior(event.J_m, event.r_m, layout, state, seed)
+                   : diagnosePrior(event.H_m, event.b_m, layout, state, seed);
+  writer.appendMarg(makeMargRecord(frame_index, t_ns, event.prior_rows, diagnostics));
+  if (config.store_prior_every > 0 && marg_index % config.store_prior_every == 0) {
+    writer.appendPriorMatrices(marg_index, layout, event.H_m, event.b_m,
+                               sqrt_storage ? &event.J_m : nullptr,
+                               sqrt_storage ? &event.r_m : nullptr);
+  }
+}
+
+// A captured window (--dump-windows) into the dump folder.
+void writeCapturedWindow(WindowSnapshot window, const RunOptions& options, int frame_index) {
+  window.dataset = options.dataset;
+  window.frame_index = frame_index;
+  writeWindow(window, (std::filesystem::path(options.dump_dir) /
+                       windowFileName(options.dataset, options.variant.name(), frame_index))
+                          .string());
+}
+
+// Why the run fails at this frame ("" when it goes on): a numerical failure of the estimator, or
+// a position error beyond the dataset's bound.
+std::string frameFailure(const FrameResult& result, const FrameRecord& record,
+                         const EstimatorConfig& config) {
+  if (!result.status.ok()) return result.status.toString();
+  if (std::isfinite(record.p_gt.x()) &&
+      (record.p_est - record.p_gt).norm() > config.max_position_error_m) {
+    return fmt::format("position error {:.2f} m exceeds the bound of {:.1f} m",
+                       (record.p_est - record.p_gt).norm(), config.max_position_error_m);
+  }
+  return "";
+}
+
 template <typename Scalar>
 RunOutcome runWith(const RunOptions& options, const TrackSource& source,
                    const EstimatorConfig& config) {
@@ -141,28 +213,8 @@ RunOutcome runWith(const RunOptions& options, const TrackSource& source,
     imu = imuSetup(options, sequence, trajectory, stream.frames.front().t_ns, &imu_provenance);
   }
 
-  RunMetadata metadata;
-  metadata.dataset = splitDataset(sequence);
-  const std::string& name = sequence.name;
-  metadata.sequence = name.substr(name.find('/') == std::string::npos ? 0 : name.find('/') + 1);
-  metadata.variant = options.variant.name();
-  metadata.precision = options.variant.precisionName();
-  metadata.mode = vio ? "vio" : "vo";
-  metadata.seed = options.seed;
-  metadata.config_toml = config.toToml();
-  metadata.marg_strategy = toString(config.marg_strategy);
-  if (options.variant.marg == MargMethod::kQr) {
-    metadata.qr_threshold_mode = toString(config.qr_threshold_mode);
-    metadata.qr_threshold = config.qr_threshold >= 0
-                                ? config.qr_threshold
-                                : static_cast<double>(NumericTraits<Scalar>::sqrtEpsilon());
-  }
-  metadata.frontend = source.frontend;
-  metadata.extra = {{"dataset_path", sequence.directory},
-                    {"gt_source", source.has_ground_truth ? sequence.gt_source : "none"}};
-  for (const auto& [key, value] : source.provenance) metadata.extra.emplace_back(key, value);
-  for (const auto& [key, value] : imu_provenance) metadata.extra.emplace_back(key, value);
-  ResultsWriter writer = ResultsWriter::create(options.output, metadata);
+  ResultsWriter writer = ResultsWriter::create(
+      options.output, runMetadata<Scalar>(options, source, config, vio, imu_provenance));
   writer.writeFrontend(frontendRecords(source.stats));
 
   SlidingWindowEstimator<Scalar> estimator(config, options.variant, rigFromCalib(sequence.calib),
@@ -186,12 +238,7 @@ RunOutcome runWith(const RunOptions& options, const TrackSource& source,
     if (dump) estimator.captureNextWindow();
     const FrameResult result = estimator.processFrame(frame);
     if (std::optional<WindowSnapshot> window = estimator.takeCapturedWindow()) {
-      window->dataset = options.dataset;
-      window->frame_index = k;
-      const std::string path = (std::filesystem::path(options.dump_dir) /
-                                windowFileName(options.dataset, options.variant.name(), k))
-                                   .string();
-      writeWindow(*window, path);
+      writeCapturedWindow(std::move(*window), options, k);
     }
 
     FrameRecord record = toFrameRecord(result);
@@ -202,21 +249,7 @@ RunOutcome runWith(const RunOptions& options, const TrackSource& source,
     quaternions.push_back(record.q_est);
 
     if (result.marg_event && result.status.ok() && !result.marg_event->layout.empty()) {
-      const MargEvent& event = *result.marg_event;
-      const PriorLayout& layout = event.layout;
-      const GaugeState& state = event.state;
-      const std::uint64_t seed = config.diagnostics_seed + static_cast<std::uint64_t>(marg_index);
-      const bool sqrt_storage = options.variant.storage == PriorStorage::kSqrt;
-      const PriorDiagnostics diagnostics =
-          sqrt_storage ? diagnoseSqrtPrior(event.J_m, event.r_m, layout, state, seed)
-                       : diagnosePrior(event.H_m, event.b_m, layout, state, seed);
-      writer.appendMarg(makeMargRecord(k, frame.t_ns, event.prior_rows, diagnostics));
-      if (config.store_prior_every > 0 && marg_index % config.store_prior_every == 0) {
-        writer.appendPriorMatrices(marg_index, layout, event.H_m, event.b_m,
-                                   sqrt_storage ? &event.J_m : nullptr,
-                                   sqrt_storage ? &event.r_m : nullptr);
-      }
-      ++marg_index;
+      writeMargEvent(*result.marg_event, k, frame.t_ns, marg_index++, options, config, writer);
     }
     if (result.sparsify_event && result.status.ok()) {
       const SparsifyEvent& event = *result.sparsify_event;
@@ -228,14 +261,7 @@ RunOutcome runWith(const RunOptions& options, const TrackSource& source,
     }
     if (options.progress) options.progress(k + 1, total);
 
-    std::string failure;
-    if (!result.status.ok()) {
-      failure = result.status.toString();
-    } else if (std::isfinite(record.p_gt.x()) &&
-               (record.p_est - record.p_gt).norm() > config.max_position_error_m) {
-      failure = fmt::format("position error {:.2f} m exceeds the bound of {:.1f} m",
-                            (record.p_est - record.p_gt).norm(), config.max_position_error_m);
-    }
+    const std::string failure = frameFailure(result, record, config);
     if (!failure.empty()) {
       outcome.status = RunStatus::kFailed;
       outcome.failure_frame = k;
