@@ -145,6 +145,98 @@ double sum(const std::vector<WindowTimes>& w, double WindowTimes::*field) {
 
 }  // namespace
 
+namespace {
+
+// One LM iteration, five variants side by side (the mixed one is not a paper variant).
+void timeIterations(const WindowSnapshot& w, const BenchOptions& o, WindowTimes& t) {
+  WindowKernels<float> ns32(w, Variant::parse("ns-qr-sqrt-f32")),
+      sc32(w, Variant::parse("sc-sc-sq-f32"));
+  WindowKernels<double> ns64(w, Variant::parse("ns-qr-sqrt-f64")),
+      sc64(w, Variant::parse("sc-sc-sq-f64")), nsmix(w, Variant::parse("ns-qr-sqrt-mixed"));
+  ns32.linearize();
+  t.landmarks = ns32.numLandmarkBlocks();
+  std::vector<double> it =
+      timeSideBySide({iterationOf(ns32), iterationOf(ns64), iterationOf(sc32), iterationOf(sc64),
+                      iterationOf(nsmix)},
+                     o.rounds, o.batch_s);
+  t.ns_f32 = it[0];
+  t.ns_f64 = it[1];
+  t.sc_f32 = it[2];
+  t.sc_f64 = it[3];
+  t.ns_mixed = it[4];
+}
+
+// Marginalization, qr vs sc (square-root storage), side by side.
+void timeMarginalization(const WindowSnapshot& w, const BenchOptions& o, WindowTimes& t) {
+  WindowKernels<float> mq32(w, Variant::parse("ns-qr-sqrt-f32")),
+      ms32(w, Variant::parse("ns-sc-sqrt-f32"));
+  WindowKernels<double> mq64(w, Variant::parse("ns-qr-sqrt-f64")),
+      ms64(w, Variant::parse("ns-sc-sqrt-f64"));
+  std::vector<double> mg =
+      timeSideBySide({margOf(mq32, MargMethod::kQr), margOf(ms32, MargMethod::kSchur),
+                      margOf(mq64, MargMethod::kQr), margOf(ms64, MargMethod::kSchur)},
+                     o.rounds, o.batch_s);
+  t.marg_qr_f32 = mg[0];
+  t.marg_sc_f32 = mg[1];
+  t.marg_qr_f64 = mg[2];
+  t.marg_sc_f64 = mg[3];
+}
+
+// The landmark QR kernel alone, f32 and f64, on the window's landmark blocks.
+void timeQrKernel(const WindowSnapshot& w, const BenchOptions& o, WindowTimes& t) {
+  WindowKernels<float> ns32(w, Variant::parse("ns-qr-sqrt-f32"));
+  WindowKernels<double> ns64(w, Variant::parse("ns-qr-sqrt-f64"));
+  ns32.linearize();
+  ns64.linearize();
+  std::vector<PoseBlockMap> maps32, maps64;
+  for (int i = 0; i < ns32.numLandmarkBlocks(); ++i) {
+    maps32.push_back(ns32.blockMap(i));
+    t.qr_flops += landmarkQrFlops(static_cast<int>(ns32.blockJp(i).rows()),
+                                  static_cast<int>(ns32.blockJp(i).cols()) + 4);
+  }
+  for (int i = 0; i < ns64.numLandmarkBlocks(); ++i) maps64.push_back(ns64.blockMap(i));
+  LandmarkBlockNs<float> b32;
+  LandmarkBlockNs<double> b64;
+  std::vector<double> qr =
+      timeSideBySide({qrOf(ns32, maps32, b32), qrOf(ns64, maps64, b64)}, o.rounds, o.batch_s);
+  t.qr_f32_s = qr[0];
+  t.qr_f64_s = qr[1];
+}
+
+// To convergence: marglab ns-f64 optimize() vs Ceres DENSE_SCHUR / SPARSE_SCHUR, each round in
+// turn, best per candidate (Ceres: its Solver::Summary total time).
+void timeToConvergence(const NamedWindow& nw, const BenchOptions& o, WindowTimes& t) {
+  const WindowSnapshot& w = nw.window;
+  WindowKernels<double> full(w, Variant::parse("ns-qr-sqrt-f64"));
+  t.marglab_s = t.dense_s = t.sparse_s = 1e300;
+  for (int round = 0; round < o.rounds; ++round) {
+    const auto t0 = Clock::now();
+    double cost = 0;
+    if (!full.optimizeFull(&t.marglab_iterations, &cost).ok()) {
+      throw InputError("", 0, "bench: marglab optimize() failed on " + nw.name);
+    }
+    t.marglab_s = std::min(t.marglab_s, std::chrono::duration<double>(Clock::now() - t0).count());
+    t.marglab_cost = cost;
+    for (auto solver : {ceres::DENSE_SCHUR, ceres::SPARSE_SCHUR}) {
+      CeresWindowOptions co;
+      co.linear_solver = solver;
+      const CeresWindowResult c = solveWindowWithCeres(w, co);
+      if (!c.ok) throw InputError("", 0, "bench: Ceres failed on " + nw.name + ": " + c.message);
+      if (solver == ceres::DENSE_SCHUR) {
+        t.dense_s = std::min(t.dense_s, c.seconds);
+        t.dense_iterations = c.iterations;
+        t.dense_cost = c.cost_final;
+      } else {
+        t.sparse_s = std::min(t.sparse_s, c.seconds);
+        t.sparse_iterations = c.iterations;
+        t.sparse_cost = c.cost_final;
+      }
+    }
+  }
+}
+
+}  // namespace
+
 BenchReport runBench(const BenchOptions& o) {
   BenchReport r;
   r.date_utc = utcNow();
@@ -157,81 +249,12 @@ BenchReport runBench(const BenchOptions& o) {
 
   for (const NamedWindow& nw : windows) {
     progress(o, nw.name);
-    const WindowSnapshot& w = nw.window;
     WindowTimes t;
     t.name = nw.name;
-    // LM iteration, five variants side by side (the mixed one is not a paper variant).
-    WindowKernels<float> ns32(w, Variant::parse("ns-qr-sqrt-f32")),
-        sc32(w, Variant::parse("sc-sc-sq-f32"));
-    WindowKernels<double> ns64(w, Variant::parse("ns-qr-sqrt-f64")),
-        sc64(w, Variant::parse("sc-sc-sq-f64")), nsmix(w, Variant::parse("ns-qr-sqrt-mixed"));
-    ns32.linearize();
-    t.landmarks = ns32.numLandmarkBlocks();
-    std::vector<double> it =
-        timeSideBySide({iterationOf(ns32), iterationOf(ns64), iterationOf(sc32), iterationOf(sc64),
-                        iterationOf(nsmix)},
-                       o.rounds, o.batch_s);
-    t.ns_f32 = it[0];
-    t.ns_f64 = it[1];
-    t.sc_f32 = it[2];
-    t.sc_f64 = it[3];
-    t.ns_mixed = it[4];
-    // Marginalization, qr vs sc (square-root storage), side by side.
-    WindowKernels<float> mq32(w, Variant::parse("ns-qr-sqrt-f32")),
-        ms32(w, Variant::parse("ns-sc-sqrt-f32"));
-    WindowKernels<double> mq64(w, Variant::parse("ns-qr-sqrt-f64")),
-        ms64(w, Variant::parse("ns-sc-sqrt-f64"));
-    std::vector<double> mg =
-        timeSideBySide({margOf(mq32, MargMethod::kQr), margOf(ms32, MargMethod::kSchur),
-                        margOf(mq64, MargMethod::kQr), margOf(ms64, MargMethod::kSchur)},
-                       o.rounds, o.batch_s);
-    t.marg_qr_f32 = mg[0];
-    t.marg_sc_f32 = mg[1];
-    t.marg_qr_f64 = mg[2];
-    t.marg_sc_f64 = mg[3];
-    // QR kernel.
-    ns64.linearize();
-    std::vector<PoseBlockMap> maps32, maps64;
-    for (int i = 0; i < ns32.numLandmarkBlocks(); ++i) {
-      maps32.push_back(ns32.blockMap(i));
-      t.qr_flops += landmarkQrFlops(static_cast<int>(ns32.blockJp(i).rows()),
-                                    static_cast<int>(ns32.blockJp(i).cols()) + 4);
-    }
-    for (int i = 0; i < ns64.numLandmarkBlocks(); ++i) maps64.push_back(ns64.blockMap(i));
-    LandmarkBlockNs<float> b32;
-    LandmarkBlockNs<double> b64;
-    std::vector<double> qr =
-        timeSideBySide({qrOf(ns32, maps32, b32), qrOf(ns64, maps64, b64)}, o.rounds, o.batch_s);
-    t.qr_f32_s = qr[0];
-    t.qr_f64_s = qr[1];
-    // To convergence: marglab ns-f64 optimize() vs Ceres DENSE_SCHUR / SPARSE_SCHUR, each round
-    // in turn, best per candidate (Ceres: its Solver::Summary total time).
-    WindowKernels<double> full(w, Variant::parse("ns-qr-sqrt-f64"));
-    t.marglab_s = t.dense_s = t.sparse_s = 1e300;
-    for (int round = 0; round < o.rounds; ++round) {
-      const auto t0 = Clock::now();
-      double cost = 0;
-      if (!full.optimizeFull(&t.marglab_iterations, &cost).ok()) {
-        throw InputError("", 0, "bench: marglab optimize() failed on " + nw.name);
-      }
-      t.marglab_s = std::min(t.marglab_s, std::chrono::duration<double>(Clock::now() - t0).count());
-      t.marglab_cost = cost;
-      for (auto solver : {ceres::DENSE_SCHUR, ceres::SPARSE_SCHUR}) {
-        CeresWindowOptions co;
-        co.linear_solver = solver;
-        const CeresWindowResult c = solveWindowWithCeres(w, co);
-        if (!c.ok) throw InputError("", 0, "bench: Ceres failed on " + nw.name + ": " + c.message);
-        if (solver == ceres::DENSE_SCHUR) {
-          t.dense_s = std::min(t.dense_s, c.seconds);
-          t.dense_iterations = c.iterations;
-          t.dense_cost = c.cost_final;
-        } else {
-          t.sparse_s = std::min(t.sparse_s, c.seconds);
-          t.sparse_iterations = c.iterations;
-          t.sparse_cost = c.cost_final;
-        }
-      }
-    }
+    timeIterations(nw.window, o, t);
+    timeMarginalization(nw.window, o, t);
+    timeQrKernel(nw.window, o, t);
+    timeToConvergence(nw, o, t);
     r.windows.push_back(t);
   }
   progress(o, "single-core peak");
