@@ -120,6 +120,22 @@ TEST(VoMixed, NoiseFreeTracksRecoverTheTruthToAMillimetre) {
 // reduced system by O(ε_f ‖H‖), so ‖(H + D) δ + b‖ ≤ c ε_f (‖H + D‖ ‖δ‖ + ‖b‖) with c a small
 // multiple of the rows per landmark, whatever κ(H) (1e6 here, from the gauge prior). The all-double
 // step's backward error is of double size, far below: the elimination did run in float.
+// One damped LM step of the window with the variant's linearization; the undamped reduced system
+// (λ-independent part) in *H, *b when given.
+VecXd dampedStep(const Window<double>& window, const char* variant, double lambda, MatXd* H,
+                 VecXd* b) {
+  Linearization<double>::Options options;
+  options.lambda_min = testConfig().lambda_min;
+  const auto lin = makeLinearization<double>(Variant::parse(variant), options);
+  lin->linearize(window);
+  EXPECT_TRUE(lin->eliminate().ok());
+  if (H != nullptr) *H = lin->reducedHessian();
+  if (b != nullptr) *b = lin->reducedGradient();
+  LinearStep<double> step;
+  EXPECT_TRUE(lin->solve(lambda, &step).ok());
+  return step.delta;
+}
+
 TEST(VoMixed, StepSolvesTheDoubleSystemToFloatBackwardError) {
   const Scenario scenario(40, true);
   SlidingWindowEstimator<double> estimator(testConfig(), Variant::parse("ns-qr-sqrt-f64"),
@@ -128,26 +144,12 @@ TEST(VoMixed, StepSolvesTheDoubleSystemToFloatBackwardError) {
     ASSERT_TRUE(estimator.processFrame(scenario.stream.frames[i]).status.ok());
   }
   const double lambda = 1e-4;
-  Linearization<double>::Options options;
-  options.lambda_min = testConfig().lambda_min;
   MatXd H;
   VecXd b;
-  auto step = [&](const char* name) {
-    auto lin = makeLinearization<double>(Variant::parse(name), options);
-    lin->linearize(estimator.window());
-    EXPECT_TRUE(lin->eliminate().ok());
-    if (H.size() == 0) {
-      H = lin->reducedHessian();
-      b = lin->reducedGradient();
-    }
-    LinearStep<double> s;
-    EXPECT_TRUE(lin->solve(lambda, &s).ok());
-    return s.delta;
-  };
-  const VecXd ref = step("ns-qr-sqrt-f64");
-  const VecXd mixed = step("ns-qr-sqrt-mixed");
+  const VecXd ref = dampedStep(estimator.window(), "ns-qr-sqrt-f64", lambda, &H, &b);
+  const VecXd mixed = dampedStep(estimator.window(), "ns-qr-sqrt-mixed", lambda, nullptr, nullptr);
   for (Eigen::Index i = 0; i < H.rows(); ++i) {
-    H(i, i) += std::max(lambda * H(i, i), options.lambda_min);
+    H(i, i) += std::max(lambda * H(i, i), testConfig().lambda_min);
   }
   auto backwardError = [&](const VecXd& delta) {
     return (H * delta + b).norm() / (H.norm() * delta.norm() + b.norm());

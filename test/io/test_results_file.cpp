@@ -172,12 +172,8 @@ void expectNanEqual(const A& a, const B& b) {
   }
 }
 
-TEST_F(ResultsFileTest, EveryDatasetAndAttributeRoundTrips) {
-  const std::string path = file("run.h5");
-  const SmallRun run = writeSmallRun(path);
-  EXPECT_EQ(entries(), 1u);  // the committed file only, no temporary
-  const ResultsReader r(path);
-
+// The root attributes, the metadata and /frames of a small run, as written.
+void expectInfoAndFrames(const ResultsReader& r, const SmallRun& run) {
   const RunInfo& info = r.info();
   EXPECT_EQ(info.schema_version, kResultsSchemaVersion);
   EXPECT_EQ(info.marglab_version, MARGLAB_VERSION_STRING);
@@ -218,43 +214,10 @@ TEST_F(ResultsFileTest, EveryDatasetAndAttributeRoundTrips) {
     expectNanEqual(f.p_gt[i], e.p_gt);
   }
   EXPECT_EQ(r.file().openDataset("frames/q_est").attr<std::string>("order"), "x y z w");
+}
 
-  // ATE: independent alignment with Eigen::umeyama over the frames that have GT.
-  std::vector<int> rows;
-  for (int i = 0; i < 8; ++i) {
-    if (i != 5) rows.push_back(i);
-  }
-  Eigen::Matrix3Xd S(3, rows.size()), D(3, rows.size());
-  for (std::size_t j = 0; j < rows.size(); ++j) {
-    S.col(j) = run.frames[rows[j]].p_est;
-    D.col(j) = run.frames[rows[j]].p_gt;
-  }
-  const Eigen::Matrix4d T = Eigen::umeyama(S, D, false);
-  double sum = 0.0;
-  for (std::size_t j = 0; j < rows.size(); ++j) {
-    const double e =
-        (D.col(j) - T.topLeftCorner<3, 3>() * S.col(j) - T.topRightCorner<3, 1>()).norm();
-    EXPECT_NEAR(f.ate_error[rows[j]], e, 1e-12);
-    sum += e * e;
-  }
-  EXPECT_TRUE(std::isnan(f.ate_error[5]));
-  const SummaryValues s = r.summary();
-  EXPECT_NEAR(s.ate_rmse, std::sqrt(sum / rows.size()), 1e-12);
-  EXPECT_GT(s.ate_rmse, 1e-3);  // the added noise is not aligned away
-  EXPECT_EQ(s.ate_rmse, run.summary.ate_rmse);
-  EXPECT_EQ(s.n_ate_pairs, 7);
-  EXPECT_EQ(s.n_frames, 8);
-  EXPECT_EQ(s.n_marg, 3);
-  EXPECT_DOUBLE_EQ(s.duration_s, 0.35);
-  double t_opt = 0.0;
-  for (const auto& fr : run.frames) t_opt += fr.t_opt_s;
-  EXPECT_DOUBLE_EQ(s.t_opt_total_s, t_opt);
-  EXPECT_DOUBLE_EQ(s.t_marg_total_s, 0.008);
-  EXPECT_EQ(s.wall_time_s, 0.25);
-  EXPECT_DOUBLE_EQ(s.realtime_factor, 0.35 / 0.25);
-  EXPECT_LT((s.R_gt_est - T.topLeftCorner<3, 3>()).norm(), 1e-12);
-  EXPECT_LT((s.t_gt_est - T.topRightCorner<3, 1>()).norm(), 1e-12);
-
+// /marg (with its eigenvalues) and /sparsify of a small run, as written.
+void expectMargAndSparsify(const ResultsReader& r, const SmallRun& run) {
   ASSERT_EQ(r.margCount(), 3u);
   const std::vector<MargRecord> margs = r.margs();
   for (std::size_t k = 0; k < 3; ++k) {
@@ -317,6 +280,54 @@ TEST_F(ResultsFileTest, EveryDatasetAndAttributeRoundTrips) {
     EXPECT_EQ(p->layout[i].frame_id, run.prior1.layout[i].frame_id);
     EXPECT_EQ(p->layout[i].offset, run.prior1.layout[i].offset);
   }
+}
+
+TEST_F(ResultsFileTest, EveryDatasetAndAttributeRoundTrips) {
+  const std::string path = file("run.h5");
+  const SmallRun run = writeSmallRun(path);
+  EXPECT_EQ(entries(), 1u);  // the committed file only, no temporary
+  const ResultsReader r(path);
+
+  expectInfoAndFrames(r, run);
+  const FrameColumns f = r.frames();
+
+  // ATE: independent alignment with Eigen::umeyama over the frames that have GT.
+  std::vector<int> rows;
+  for (int i = 0; i < 8; ++i) {
+    if (i != 5) rows.push_back(i);
+  }
+  Eigen::Matrix3Xd S(3, rows.size()), D(3, rows.size());
+  for (std::size_t j = 0; j < rows.size(); ++j) {
+    S.col(j) = run.frames[rows[j]].p_est;
+    D.col(j) = run.frames[rows[j]].p_gt;
+  }
+  const Eigen::Matrix4d T = Eigen::umeyama(S, D, false);
+  double sum = 0.0;
+  for (std::size_t j = 0; j < rows.size(); ++j) {
+    const double e =
+        (D.col(j) - T.topLeftCorner<3, 3>() * S.col(j) - T.topRightCorner<3, 1>()).norm();
+    EXPECT_NEAR(f.ate_error[rows[j]], e, 1e-12);
+    sum += e * e;
+  }
+  EXPECT_TRUE(std::isnan(f.ate_error[5]));
+  const SummaryValues s = r.summary();
+  EXPECT_NEAR(s.ate_rmse, std::sqrt(sum / rows.size()), 1e-12);
+  EXPECT_GT(s.ate_rmse, 1e-3);  // the added noise is not aligned away
+  EXPECT_EQ(s.ate_rmse, run.summary.ate_rmse);
+  EXPECT_EQ(s.n_ate_pairs, 7);
+  EXPECT_EQ(s.n_frames, 8);
+  EXPECT_EQ(s.n_marg, 3);
+  EXPECT_DOUBLE_EQ(s.duration_s, 0.35);
+  double t_opt = 0.0;
+  for (const auto& fr : run.frames) t_opt += fr.t_opt_s;
+  EXPECT_DOUBLE_EQ(s.t_opt_total_s, t_opt);
+  EXPECT_DOUBLE_EQ(s.t_marg_total_s, 0.008);
+  EXPECT_EQ(s.wall_time_s, 0.25);
+  EXPECT_DOUBLE_EQ(s.realtime_factor, 0.35 / 0.25);
+  EXPECT_LT((s.R_gt_est - T.topLeftCorner<3, 3>()).norm(), 1e-12);
+  EXPECT_LT((s.t_gt_est - T.topRightCorner<3, 1>()).norm(), 1e-12);
+
+  expectMargAndSparsify(r, run);
 }
 
 TEST_F(ResultsFileTest, SquaredStoragePriorAndVioLayoutRoundTrip) {
