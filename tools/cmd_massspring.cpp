@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "core/common/error.h"
+#include "core/common/source_dir.h"
 #include "core/io/hdf5.h"
 #include "core/massspring/mass_spring.h"
 #include "tools/command.h"
@@ -143,7 +144,7 @@ std::string findPythonWithMatplotlib() {
 // Returns a line to print (what was written, or why not).
 std::string writeFigure(const Options& opt, const MassSpringSystem& system,
                         const std::vector<double>& final_x) {
-  const std::string script = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts/plot_massspring.py";
+  const std::string script = std::string(sourceDir()) + "/tools/scripts/plot_massspring.py";
   if (access(script.c_str(), R_OK) != 0) return "figure skipped: " + script + " not found";
   const std::string python = findPythonWithMatplotlib();
   if (python.empty()) {

@@ -17,6 +17,7 @@
 #include <memory>
 
 #include "core/common/error.h"
+#include "core/common/source_dir.h"
 #include "core/experiment/sweep_index.h"
 #include "core/experiment/sweep_runner.h"
 #include "core/experiment/tables.h"
@@ -76,7 +77,7 @@ int runCommand(const std::vector<std::string>& args) {
 
 int runNotebooks(const NotebooksRequest& request) {
   requireSweepFolder(request.dir);
-  const std::string source = MARGLAB_SOURCE_DIR;
+  const std::string source = sourceDir();
   const std::string script = source + "/tools/scripts/run_notebooks.py";
   if (access(script.c_str(), R_OK) != 0) throw InputError(script, 0, "no such file");
   for (const char* name : {"run", "sweep", "precision"}) {

@@ -16,6 +16,7 @@
 #include <memory>
 
 #include "core/common/error.h"
+#include "core/common/source_dir.h"
 #include "core/experiment/plotting.h"
 #include "core/experiment/sweep_runner.h"
 #include "core/experiment/tables.h"
@@ -60,7 +61,7 @@ bool chromiumAvailable() {
 
 int runReport(const ReportRequest& request) {
   requireSweepFolder(request.dir);
-  const std::string scripts = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts";
+  const std::string scripts = std::string(sourceDir()) + "/tools/scripts";
   const std::string make_report = scripts + "/make_report.py";
   if (access(make_report.c_str(), R_OK) != 0) throw InputError(make_report, 0, "no such file");
   const std::string python = findPythonWith({"pandas", "h5py", "numpy"});

@@ -16,6 +16,7 @@
 #include <memory>
 
 #include "core/common/error.h"
+#include "core/common/source_dir.h"
 #include "core/experiment/plotting.h"
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_runner.h"
@@ -40,7 +41,7 @@ struct ReproduceArgs {
   int jobs = 0;
   bool resume = false;
   bool no_analysis = false;  // skip the notebooks and the report
-  std::string experiments = std::string(MARGLAB_SOURCE_DIR) + "/experiments";
+  std::string experiments = std::string(sourceDir()) + "/experiments";
   std::string results = "results";
   std::string figures = "notebooks-out";
   std::string backend = "local";

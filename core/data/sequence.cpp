@@ -9,6 +9,7 @@
 #include <tuple>
 
 #include "core/common/error.h"
+#include "core/common/source_dir.h"
 #include "core/data/parsers.h"
 #include "core/data/text_file.h"
 
@@ -236,7 +237,7 @@ Sequence loadFolder(const fs::path& dir, const std::string& name, const LoadOpti
 std::string datasetsRoot() {
   const char* env = std::getenv("MARGLAB_DATASETS");
   if (env != nullptr && env[0] != '\0') return env;
-  return MARGLAB_SOURCE_DIR "/datasets";
+  return std::string(sourceDir()) + "/datasets";
 }
 
 std::vector<std::string> listSequences() {

@@ -3,7 +3,7 @@
 //
 // Names. "euroc/MH_01_easy", "tumvi/room1" (alias "tumvi/dataset-room1_512_16"), "kitti/00" name a
 // sequence shipped in the datasets folder, which is
-//   $MARGLAB_DATASETS if set, else MARGLAB_SOURCE_DIR "/datasets" (fixed at compile time).
+//   $MARGLAB_DATASETS if set, else sourceDir() + "/datasets" (core/common/source_dir.h).
 // Anything else that is an existing directory is loaded as a user folder, in one of the layouts:
 //   shipped layout   <dir>/cam0_timestamps_ns.txt[.gz], gt_asl.csv / gt_tum.txt /
 //   estimate_*_tum.txt,

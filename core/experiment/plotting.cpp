@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "core/common/error.h"
+#include "core/common/source_dir.h"
 #include "core/experiment/sweep_runner.h"
 
 namespace marglab::experiment {
@@ -45,7 +46,7 @@ int runPlot(const PlotRequest& request) {
           "'");
     }
   }
-  const std::string script = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts/plot_paper.py";
+  const std::string script = std::string(sourceDir()) + "/tools/scripts/plot_paper.py";
   if (access(script.c_str(), R_OK) != 0) throw InputError(script, 0, "plotting script not found");
   const std::string python = findPlottingPython();
   if (python.empty()) {

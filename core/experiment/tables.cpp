@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "core/common/error.h"
+#include "core/common/source_dir.h"
 #include "core/io/results_file.h"
 
 namespace marglab::experiment {
@@ -769,7 +770,7 @@ const PaperTable::Row* PaperTable::row(const std::string& key) const {
 }
 
 std::string defaultPaperValuesPath() {
-  return std::string(MARGLAB_SOURCE_DIR) + "/experiments/paper_values.toml";
+  return std::string(sourceDir()) + "/experiments/paper_values.toml";
 }
 
 PaperValues loadPaperValues(const std::string& path) {

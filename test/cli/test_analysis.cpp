@@ -16,6 +16,8 @@
 #include <sstream>
 #include <string>
 
+#include "test_paths.h"
+#include "core/common/source_dir.h"
 #include "common/cli_runner.h"
 
 namespace marglab {
@@ -54,7 +56,7 @@ class AnalysisTest : public ::testing::Test {
       GTEST_SKIP() << "no python3 with h5py, numpy and pandas: install the Debian packages "
                       "python3-h5py python3-numpy python3-pandas";
     }
-    dir_ = fs::path(MARGLAB_BINARY_DIR) / "test_analysis" /
+    dir_ = fs::path(test::binaryDir()) / "test_analysis" /
            ::testing::UnitTest::GetInstance()->current_test_info()->name();
     fs::remove_all(dir_);
     fs::create_directories(dir_);
@@ -87,7 +89,7 @@ frames = 40
 };
 
 TEST_F(AnalysisTest, TablesPythonReaderAndCheckResultsAgreeOnEveryRun) {
-  const auto agree = runShell(python_ + " '" + MARGLAB_SOURCE_DIR +
+  const auto agree = runShell(python_ + " '" + sourceDir() +
                               "/test/cli/readers_agree.py' '" + sweep_ + "'");
   EXPECT_EQ(agree.exit_code, 0) << agree.output;
   EXPECT_NE(agree.output.find("AGREE 4 runs"), std::string::npos) << agree.output;
@@ -100,7 +102,7 @@ TEST_F(AnalysisTest, FrontendGroupOfSchemaVersion2) {
       (fs::path(sweep_) / "runs" / "vo__kitti-10__ns-qr-sqrt-f64__s1.h5").string();
   const std::string v2 = (dir_ / "v2.h5").string();
   fs::copy_file(run, v2);
-  const std::string scripts = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts";
+  const std::string scripts = std::string(sourceDir()) + "/tools/scripts";
   const auto add =
       runShell(python_ + " -c \"import h5py, numpy as np; f = h5py.File('" + v2 +
                "', 'r+'); n = f['frames/t_ns'].shape[0]; f.attrs['schema_version'] = 2; "
@@ -157,7 +159,7 @@ TEST_F(AnalysisTest, NotebooksExecuteOnTheSweep) {
   // The committed notebooks carry no outputs (only the executed copies do).
   const auto clean = runShell(
       python_ + " -c \"import json, glob, sys; cells = [c for p in glob.glob('" +
-      MARGLAB_SOURCE_DIR +
+      sourceDir() +
       "/notebooks/*.ipynb') for c in json.load(open(p))['cells'] if c['cell_type'] == 'code']; "
       "sys.exit(any(c['outputs'] or c['execution_count'] for c in cells) or not cells)\"");
   EXPECT_EQ(clean.exit_code, 0) << "notebooks/*.ipynb committed with outputs\n" << clean.output;
@@ -186,7 +188,7 @@ TEST_F(AnalysisTest, ReportOpensInHeadlessChromium) {
                 "<img alt=\"gone\" src=\"gone.png\"><script>console.error('broken')</script>");
   std::ofstream(out / "broken.html") << broken;
   const auto check =
-      runShell(std::string(pythonWith("websocket")) + " '" + MARGLAB_SOURCE_DIR +
+      runShell(std::string(pythonWith("websocket")) + " '" + sourceDir() +
                "/tools/scripts/check_report.py' '" + (out / "broken.html").string() + "' --report");
   EXPECT_EQ(check.exit_code, 1) << check.output;
   EXPECT_NE(check.output.find("console.error: broken"), std::string::npos) << check.output;
@@ -194,7 +196,7 @@ TEST_F(AnalysisTest, ReportOpensInHeadlessChromium) {
 }
 
 TEST(AnalysisCli, BadInputNamesTheFile) {
-  const fs::path dir = fs::path(MARGLAB_BINARY_DIR) / "test_analysis" / "not_a_sweep";
+  const fs::path dir = fs::path(test::binaryDir()) / "test_analysis" / "not_a_sweep";
   fs::create_directories(dir);
   for (const std::string verb : {"notebooks", "report"}) {
     const auto result = runCli(verb + " '" + dir.string() + "'");

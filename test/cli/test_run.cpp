@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "core/common/source_dir.h"
 #include "common/cli_runner.h"
 #include "core/io/results_file.h"
 
@@ -59,7 +60,7 @@ TEST_F(RunCliTest, WritesAResultsFileThatFollowsTheSchema) {
   if (python.empty()) {
     GTEST_SKIP() << "h5py not found (tried /usr/bin/python3 and python3): schema check skipped";
   }
-  const auto check = test::runShell(python + " '" + MARGLAB_SOURCE_DIR +
+  const auto check = test::runShell(python + " '" + sourceDir() +
                                     "/tools/scripts/check_results.py' '" + out + "'");
   EXPECT_EQ(check.exit_code, 0) << check.output;
   EXPECT_NE(check.output.find("OK"), std::string::npos) << check.output;
@@ -86,7 +87,7 @@ TEST_F(RunCliTest, VioRunOnEurocFollowsTheSchema) {
 
   const std::string python = test::findPythonWithH5py();
   if (python.empty()) GTEST_SKIP() << "h5py not found: schema check skipped";
-  const auto check = test::runShell(python + " '" + MARGLAB_SOURCE_DIR +
+  const auto check = test::runShell(python + " '" + sourceDir() +
                                     "/tools/scripts/check_results.py' '" + out + "'");
   EXPECT_EQ(check.exit_code, 0) << check.output;
 }

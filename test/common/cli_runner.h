@@ -1,5 +1,5 @@
 #pragma once
-// Runs the real `marglab` binary (path from the MARGLAB_CLI compile definition) in a shell and
+// Runs the real `marglab` binary (path from test_paths.h) in a shell and
 // captures its exit code and combined output, for the CLI tests of every module.
 
 #include <sys/wait.h>
@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+
+#include "test_paths.h"
 
 namespace marglab::test {
 
@@ -28,7 +30,7 @@ inline CliResult runShell(const std::string& command_line) {
 }
 
 inline CliResult runCli(const std::string& args) {
-  return runShell(std::string("'") + MARGLAB_CLI + "' " + args);
+  return runShell(std::string("'") + test::cliPath() + "' " + args);
 }
 
 // The first interpreter among /usr/bin/python3 and `python3` on PATH that imports h5py and numpy;

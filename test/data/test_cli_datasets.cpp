@@ -1,10 +1,12 @@
-// `marglab datasets list|check` through the real binary (MARGLAB_CLI): exit codes and messages.
+// `marglab datasets list|check` through the real binary (test::cliPath()): exit codes and messages.
 
 #include <gtest/gtest.h>
 
 #include <cstdio>
 #include <sstream>
 
+#include "test_paths.h"
+#include "core/common/source_dir.h"
 #include "common/cli_runner.h"
 #include "data_test_utils.h"
 
@@ -17,7 +19,7 @@ using test::TempDir;
 using test::CliResult;
 using test::runCli;
 
-const fs::path kShipped = fs::path(MARGLAB_SOURCE_DIR) / "datasets";
+const fs::path kShipped = fs::path(sourceDir()) / "datasets";
 
 TEST(CliDatasets, CheckAllSucceeds) {
   const CliResult result = runCli("datasets check --all");

@@ -6,6 +6,7 @@
 #include <fmt/core.h>
 #include <cstdlib>
 
+#include "core/common/source_dir.h"
 #include "core/data/parsers.h"
 #include "core/data/sequence.h"
 #include "data_test_utils.h"
@@ -18,7 +19,7 @@ using test::expectInputError;
 using test::TempDir;
 using test::writeFile;
 
-const fs::path kShipped = fs::path(MARGLAB_SOURCE_DIR) / "datasets";
+const fs::path kShipped = fs::path(sourceDir()) / "datasets";
 
 TEST(ShippedData, EurocWithAslGroundTruthAndImu) {
   const Sequence seq = loadSequence("euroc/MH_04_difficult");

@@ -20,6 +20,7 @@
 #include <sstream>
 #include <thread>
 
+#include "test_paths.h"
 #include "common/cli_runner.h"
 #include "core/experiment/sweep_index.h"
 #include "core/io/results_file.h"
@@ -252,7 +253,7 @@ pid_t startCli(const std::vector<std::string>& args, const fs::path& log) {
     dup2(fd, 1);
     dup2(fd, 2);
     std::vector<char*> argv;
-    std::vector<std::string> all = {MARGLAB_CLI};
+    std::vector<std::string> all = {test::cliPath()};
     all.insert(all.end(), args.begin(), args.end());
     for (auto& a : all) argv.push_back(a.data());
     argv.push_back(nullptr);

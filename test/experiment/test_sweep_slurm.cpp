@@ -20,6 +20,7 @@
 #include <sstream>
 #include <thread>
 
+#include "test_paths.h"
 #include "common/cli_runner.h"
 #include "core/experiment/slurm_backend.h"
 #include "core/experiment/slurm_client.h"
@@ -294,7 +295,7 @@ frames = 20
 
 // Starts the marglab CLI with stdout and stderr into log; returns its pid.
 pid_t startCli(const std::vector<std::string>& args, const fs::path& log) {
-  std::vector<std::string> argv = {MARGLAB_CLI};
+  std::vector<std::string> argv = {test::cliPath()};
   argv.insert(argv.end(), args.begin(), args.end());
   std::vector<char*> c_argv;
   for (std::string& a : argv) c_argv.push_back(a.data());

@@ -2,6 +2,7 @@
 // failed-run round trip, the independent h5py/numpy check (tools/scripts/check_results.py), and the
 // `marglab eigdump` CLI on the written file.
 
+#include "core/common/source_dir.h"
 #include "core/io/results_file.h"
 
 #include <gtest/gtest.h>
@@ -469,7 +470,7 @@ TEST_F(ResultsFileTest, PythonCheckerAgreesAndDetectsTampering) {
     GTEST_SKIP() << "no python3 with h5py and numpy (tried /usr/bin/python3, python3)";
   const std::string path = file("run.h5");
   writeSmallRun(path);
-  const std::string script = std::string(MARGLAB_SOURCE_DIR) + "/tools/scripts/check_results.py";
+  const std::string script = std::string(sourceDir()) + "/tools/scripts/check_results.py";
   EXPECT_EQ(std::system((python + " '" + script + "' '" + path + "' > /dev/null").c_str()), 0);
 
   const std::string failed = file("failed.h5");

@@ -1,4 +1,4 @@
-// `marglab datasets simulate` through the real binary (MARGLAB_CLI): exit codes, printed
+// `marglab datasets simulate` through the real binary (test::cliPath()): exit codes, printed
 // statistics, and the track file it writes.
 
 #include <gtest/gtest.h>
@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <string>
 
+#include "test_paths.h"
 #include "common/cli_runner.h"
 #include "core/sim/track_io.h"
 #include "data/data_test_utils.h"
