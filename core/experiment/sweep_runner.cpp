@@ -175,8 +175,12 @@ class Runner {
     const fs::path results = out / row.get("results");
     detail::removeTemporaries(results);
     const std::string log = (out / row.get("log")).string();
-    if (WIFSIGNALED(wait_status)) {
-      const int sig = WTERMSIG(wait_status);
+    // A run stopped by SIGINT/SIGTERM exits 128 + signal (core/common/interrupt.h).
+    const bool stopped = WIFEXITED(wait_status) && (WEXITSTATUS(wait_status) == 128 + SIGINT ||
+                                                    WEXITSTATUS(wait_status) == 128 + SIGTERM);
+    if (WIFSIGNALED(wait_status) || stopped) {
+      const int sig = stopped ? WEXITSTATUS(wait_status) - 128 : WTERMSIG(wait_status);
+      if (stopped) row.set("exit_code", std::to_string(WEXITSTATUS(wait_status)));
       row.set("signal", std::to_string(sig));
       row.set("status", "failed");
       if (slot.timed_out) {

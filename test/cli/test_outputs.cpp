@@ -137,6 +137,9 @@ TEST_F(OutputsCliTest, OutputsNeverReplaceAnInputOfTheSameCommand) {
 pid_t startRunAndWaitForTemporary(const fs::path& dir) {
   const pid_t pid = fork();
   if (pid == 0) {
+    // A shell without job control starts background commands with SIGINT ignored.
+    signal(SIGINT, SIG_DFL);
+    signal(SIGTERM, SIG_DFL);
     const int null_fd = open("/dev/null", O_WRONLY);
     dup2(null_fd, 1);
     dup2(null_fd, 2);
