@@ -7,10 +7,10 @@
 
 #include <climits>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 
 #include "core/bench/bench_report.h"
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "tools/command.h"
 
@@ -49,8 +49,8 @@ int runBenchCommand(const BenchArgs& a) {
   const std::string json = benchJson(report);
   const std::filesystem::path md_path = std::filesystem::path(a.out) / "bench.md";
   const std::filesystem::path json_path = std::filesystem::path(a.out) / "bench.json";
-  std::ofstream(md_path) << md;
-  std::ofstream(json_path) << json << "\n";
+  writeFileAtomically(md_path.string(), md);
+  writeFileAtomically(json_path.string(), json + "\n");
   if (a.json) {
     fmt::print("{}\n", json);
   } else {

@@ -27,6 +27,7 @@
 #include "core/sim/track_io.h"
 #include "core/sim/trajectory_spline.h"
 #include "tools/command.h"
+#include "tools/output_checks.h"
 
 namespace marglab::cli {
 namespace {
@@ -142,6 +143,8 @@ CommandRun setupSimulate(CLI::App& app) {
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   return [options] {
+    cli::refuseOverwritingInputs({options->output},
+                                 {{}, cli::datasetInputFolders(options->dataset)});
     const auto start = std::chrono::steady_clock::now();
     const Sequence seq = loadSequence(options->dataset, LoadOptions{false});
     if (!seq.hasTrajectory()) {
@@ -227,6 +230,8 @@ CommandRun setupTrack(CLI::App& app) {
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   return [options] {
+    cli::refuseOverwritingInputs({options->output},
+                                 {{}, cli::datasetInputFolders(options->dataset)});
     const ImageSequence images = loadImageSequence(options->dataset);
     ImageTracking tracking;
     double best_s = 0, best_cpu_s = 0;

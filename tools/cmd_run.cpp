@@ -11,10 +11,12 @@
 #include <optional>
 
 #include "core/common/error.h"
+#include "core/common/interrupt.h"
 #include "core/data/sequence.h"
 #include "core/pipeline/run.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
+#include "tools/output_checks.h"
 
 namespace marglab {
 namespace {
@@ -49,6 +51,19 @@ void checkDatasetArgument(const std::string& dataset) {
   if (std::find(names.begin(), names.end(), dataset) != names.end()) return;
   throw UsageError(fmt::format("unknown dataset '{}': expected a folder or one of {}", dataset,
                                fmt::join(names, ", ")));
+}
+
+// The results file, its TUM trajectory and the captured windows against the files and folders
+// the run reads.
+void refuseOverwritingInputs(const RunArgs& args) {
+  std::vector<std::string> outputs{args.output, tumPathFor(args.output)};
+  for (const int frame : args.dump_windows) {
+    outputs.push_back((std::filesystem::path(args.dump_dir) /
+                       windowFileName(args.dataset, Variant::parse(args.variant).name(), frame))
+                          .string());
+  }
+  cli::refuseOverwritingInputs(
+      outputs, {{args.config_file, args.tracks}, cli::datasetInputFolders(args.dataset)});
 }
 
 int runRun(const RunArgs& args) {
@@ -104,20 +119,33 @@ int runRun(const RunArgs& args) {
   }
   // A meaningless setting is refused here, never reported as a numerical failure of the run.
   config.validate();
+  refuseOverwritingInputs(args);
   if (!options.dump_windows.empty()) std::filesystem::create_directories(options.dump_dir);
 
   const auto start = std::chrono::steady_clock::now();
   const bool terminal = cli::stderrIsTerminal();
-  if (terminal) {
-    options.progress = [start](int done, int total) {
-      const double elapsed =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      const double rate = done / std::max(elapsed, 1e-9);
-      fmt::print(stderr, "\r  frame {:>6}/{:<6} {:7.1f} frames/s  ETA {:6.1f} s ", done, total,
-                 rate, (total - done) / std::max(rate, 1e-9));
-    };
+  // SIGINT/SIGTERM: once frames are being processed the loop stops after the current frame and
+  // unwinds (removing the results file's temporary); before, the handler removes it (interrupt.h).
+  std::optional<InterruptPolling> polling;
+  options.progress = [start, terminal, &polling](int done, int total) {
+    if (!polling) polling.emplace();
+    throwIfInterrupted();
+    if (!terminal) return;
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double rate = done / std::max(elapsed, 1e-9);
+    fmt::print(stderr, "\r  frame {:>6}/{:<6} {:7.1f} frames/s  ETA {:6.1f} s ", done, total, rate,
+               (total - done) / std::max(rate, 1e-9));
+  };
+  RunOutcome outcome;
+  try {
+    outcome = runSequence(options);
+    throwIfInterrupted();  // a signal after the last frame: the files are complete
+  } catch (const Interrupted& e) {
+    fmt::print(stderr, "{}marglab: {}: stopped, no results file written\n", terminal ? "\n" : "",
+               e.what());
+    return e.exitCode();
   }
-  const RunOutcome outcome = runSequence(options);
   if (terminal) fmt::print(stderr, "\n");
 
   const SummaryValues& s = outcome.summary;

@@ -14,6 +14,7 @@
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_runner.h"
 #include "tools/command.h"
+#include "tools/output_checks.h"
 
 namespace marglab {
 namespace cli {
@@ -61,6 +62,28 @@ struct SweepArgs {
   experiment::SlurmOptions slurm;
 };
 
+// The sweep writes index.csv and .lock and fills (or, with --force, empties) its subfolders: none
+// of them may hold the sweep file or a dataset of its runs.
+void refuseOverwritingInputs(const experiment::SweepPlan& plan, const std::string& file,
+                             const std::filesystem::path& out) {
+  std::vector<std::string> inputs{file};
+  for (const auto& run : plan.runs) {
+    if (std::filesystem::is_directory(run.dataset)) inputs.push_back(run.dataset);
+  }
+  for (const std::string& input : inputs) {
+    for (const char* sub : {"runs", "logs", "configs", "slurm", "tracks"}) {
+      if (cli::isInsideFolder(input, out / sub)) {
+        throw InputError(input, 0,
+                         fmt::format("an input of this sweep lies in {}, which the sweep writes "
+                                     "and --force empties: move it elsewhere",
+                                     (out / sub).string()));
+      }
+    }
+  }
+  cli::refuseOverwritingInputs({(out / "index.csv").string(), (out / ".lock").string()},
+                               {{file}, {}});
+}
+
 int runSweepCommand(SweepArgs args) {
   args.slurm.wait = args.wait;
   if (!args.status_dir.empty()) {
@@ -83,6 +106,7 @@ int runSweepCommand(SweepArgs args) {
     }
     return 0;
   }
+  refuseOverwritingInputs(plan, args.file, out);
   experiment::SweepOptions options;
   options.out_dir = out;
   options.jobs = args.jobs;

@@ -1,20 +1,16 @@
 #include "core/diagnostics/ate.h"
 
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <Eigen/SVD>
 
 #include <algorithm>
-#include <atomic>
-#include <cerrno>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <limits>
 #include <stdexcept>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 
 namespace marglab {
@@ -105,12 +101,6 @@ void writeTumTrajectory(const std::string& path, const std::vector<std::int64_t>
   if (t_ns.size() != positions.size() || t_ns.size() != quaternions.size()) {
     throw std::invalid_argument("writeTumTrajectory: size mismatch");
   }
-  static std::atomic<int> counter{0};
-  const std::string tmp =
-      path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
-  std::FILE* f = std::fopen(tmp.c_str(), "w");
-  if (f == nullptr)
-    throw InputError(path, 0, std::string("cannot create: ") + std::strerror(errno));
   std::string text;
   for (std::size_t i = 0; i < t_ns.size(); ++i) {
     const std::int64_t t = t_ns[i];
@@ -121,13 +111,9 @@ void writeTumTrajectory(const std::string& path, const std::vector<std::int64_t>
                         t < 0 ? "-" : "", magnitude / 1'000'000'000, magnitude % 1'000'000'000,
                         p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
   }
-  const bool written = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-  const bool closed = std::fclose(f) == 0;
-  if (!written || !closed || std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string reason = std::strerror(errno);
-    std::remove(tmp.c_str());
-    throw InputError(path, 0, "cannot write: " + reason);
-  }
+  AtomicFile file(path);
+  file.write(text);
+  file.commit();
 }
 
 }  // namespace marglab

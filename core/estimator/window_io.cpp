@@ -1,13 +1,17 @@
 #include "core/estimator/window_io.h"
 
 #include <fmt/core.h>
+#include <unistd.h>
 #include <zlib.h>
+
+#include <cerrno>
 
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <string_view>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 
 namespace marglab {
@@ -297,30 +301,28 @@ void writeAfter(Writer& out, const WindowSnapshot& w) {
   out.newline();
 }
 
-// The text, gzip-compressed for a .gz path, under a temporary name renamed into place.
+// The text, gzip-compressed for a .gz path, through an AtomicFile (gzip writes to a duplicate
+// of its descriptor, so that the AtomicFile still syncs and renames it).
 void writeText(const std::string& text, const std::string& path) {
-  const std::string tmp = path + ".tmp";
+  AtomicFile file(path);
   if (endsWith(path, ".gz")) {
-    gzFile f = gzopen(tmp.c_str(), "wb9");
-    if (f == nullptr) throw InputError(path, 0, "cannot write the window file");
+    const int fd = ::dup(file.fd());
+    gzFile f = fd < 0 ? nullptr : gzdopen(fd, "wb9");
+    if (f == nullptr) {
+      if (fd >= 0) ::close(fd);
+      throw InputError(path, 0, "cannot write the window file " + file.temporaryPath());
+    }
     const int n = gzwrite(f, text.data(), static_cast<unsigned>(text.size()));
+    const int error = errno;
     if (gzclose(f) != Z_OK || n != static_cast<int>(text.size())) {
-      std::remove(tmp.c_str());
-      throw InputError(path, 0, "cannot write the window file");
+      throw InputError(path, 0,
+                       "cannot write the window file " + file.temporaryPath() + ": " +
+                           std::strerror(error != 0 ? error : EIO));
     }
   } else {
-    std::FILE* f = std::fopen(tmp.c_str(), "wb");
-    if (f == nullptr) throw InputError(path, 0, "cannot write the window file");
-    const size_t n = std::fwrite(text.data(), 1, text.size(), f);
-    if (std::fclose(f) != 0 || n != text.size()) {
-      std::remove(tmp.c_str());
-      throw InputError(path, 0, "cannot write the window file");
-    }
+    file.write(text);
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw InputError(path, 0, "cannot rename the window file into place");
-  }
+  file.commit();
 }
 
 void readHeader(Reader& in, const std::string& path, WindowSnapshot& w) {

@@ -402,6 +402,7 @@ int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
         "{} already holds a sweep: continue it with --resume, or start over with --force",
         out.string()));
   }
+  const detail::SweepLock lock(out);
   std::map<std::string, IndexRow> queued;
   if (options.resume || options.force) queued = queuedEarlier(out);
   checkQueuedMayStay(out, plan, queued, options.force);
@@ -435,6 +436,8 @@ int slurmSweepStatus(const std::string& dir, const SweepOptions& options) {
   const auto start = Clock::now();
   const fs::path out = fs::absolute(dir).lexically_normal();
   const std::string index_path = (out / "index.csv").string();
+  readIndex(index_path);  // a folder without a sweep is refused before it is locked (created)
+  const detail::SweepLock lock(out);
   std::vector<IndexRow> rows = readIndex(index_path);
   const Provenance binary = readProvenance(out);
   const std::string name = out.filename().string();

@@ -3,7 +3,12 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -124,6 +129,39 @@ void removeTemporaries(const fs::path& results) {
   }
 }
 
+SweepLock::SweepLock(const fs::path& out) {
+  fs::create_directories(out);
+  const std::string path = (out / ".lock").string();
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw InputError(path, 0, std::string("cannot open the lock: ") + strerror(errno));
+  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+    const int error = errno;
+    ::close(fd_);
+    fd_ = -1;
+    if (error != EWOULDBLOCK) {
+      throw InputError(path, 0, std::string("cannot lock the sweep folder: ") + strerror(error));
+    }
+    std::string owner = readTextFile(path);
+    owner.erase(owner.find_last_not_of(" \n") + 1);
+    throw InputError(path, 0,
+                     fmt::format("the sweep folder {} is in use by another marglab sweep ({}); "
+                                 "wait for it to end or stop it",
+                                 out.string(), owner.empty() ? "owner unknown" : owner));
+  }
+  char host[256] = {};
+  ::gethostname(host, sizeof(host) - 1);
+  const std::string owner =
+      fmt::format("pid {} host {} since {}\n", ::getpid(), host, utcNowIso8601());
+  // Without the owner's name the lock still holds; a second sweep then says "owner unknown".
+  [[maybe_unused]] const bool named =
+      ::ftruncate(fd_, 0) == 0 &&
+      ::pwrite(fd_, owner.data(), owner.size(), 0) == static_cast<ssize_t>(owner.size());
+}
+
+SweepLock::~SweepLock() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
 void prepareSweepFolder(const fs::path& out, const std::string& sweep_file_text, bool resume,
                         bool force) {
   if (fs::exists(out / "index.csv") && !resume) {
@@ -132,7 +170,8 @@ void prepareSweepFolder(const fs::path& out, const std::string& sweep_file_text,
           "{} already holds a sweep: continue it with --resume, or start over with --force",
           out.string()));
     }
-    for (const char* sub : {"runs", "logs", "configs", "slurm", "tracks"}) fs::remove_all(out / sub);
+    for (const char* sub : {"runs", "logs", "configs", "slurm", "tracks"})
+      fs::remove_all(out / sub);
     fs::remove(out / "index.csv");
   }
   for (const char* sub : {"runs", "logs", "configs"}) fs::create_directories(out / sub);

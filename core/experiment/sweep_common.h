@@ -31,6 +31,24 @@ void clearOutcome(IndexRow* row);
 // Removes what a killed writer may leave behind: <results>.tmp-<pid>-<n>.
 void removeTemporaries(const std::filesystem::path& results);
 
+// The sweep folder's advisory lock: flock(2) on <out>/.lock, held while the object lives, so that
+// two sweeps never fill one folder at once (each would remove the other's temporaries and
+// rewrite its index). The file holds the owner's "pid <PID> host <HOST> since <UTC>" for the
+// message of a second sweep, which throws InputError naming them. The kernel releases the lock
+// when its owner dies, even by SIGKILL, so a stale lock is taken over without any check; the file
+// stays (removing it would let two processes lock different files). Descriptors are close-on-exec:
+// the runs never hold the lock.
+class SweepLock {
+ public:
+  explicit SweepLock(const std::filesystem::path& out);
+  ~SweepLock();
+  SweepLock(const SweepLock&) = delete;
+  SweepLock& operator=(const SweepLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
 // Creates the folder (runs/, logs/, configs/, sweep.toml); with force, removes an earlier sweep.
 // Throws UsageError when out holds a sweep and neither resume nor force is set.
 void prepareSweepFolder(const std::filesystem::path& out, const std::string& sweep_file_text,

@@ -3,14 +3,9 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
-#include <unistd.h>
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
-#include <cstring>
-#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -18,8 +13,6 @@
 #include "core/common/error.h"
 
 namespace marglab::experiment {
-
-namespace fs = std::filesystem;
 
 const std::string& IndexRow::get(const std::string& column) const {
   static const std::string kEmpty;
@@ -140,24 +133,6 @@ std::vector<std::vector<std::string>> parseCsv(const std::string& text, const st
     rows.push_back(std::move(row));
   }
   return rows;
-}
-
-void writeFileAtomically(const std::string& path, const std::string& text) {
-  const fs::path target(path);
-  if (target.has_parent_path()) fs::create_directories(target.parent_path());
-  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(path, 0, "cannot write " + tmp + ": " + std::strerror(errno));
-    out << text;
-    out.flush();
-    if (!out) throw InputError(path, 0, "cannot write " + tmp);
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    std::remove(tmp.c_str());
-    throw InputError(path, 0, "cannot rename " + tmp + ": " + why);
-  }
 }
 
 void writeIndex(const std::string& path, const std::vector<IndexRow>& rows) {

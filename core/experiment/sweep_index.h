@@ -23,6 +23,8 @@
 #include <string>
 #include <vector>
 
+#include "core/common/atomic_file.h"  // writeFileAtomically, for the index and the tables
+
 namespace marglab::experiment {
 
 struct IndexRow {
@@ -46,8 +48,5 @@ std::vector<IndexRow> readIndex(const std::string& path);
 // CSV helpers (shared with the tables' CSV output).
 std::string csvField(const std::string& value);
 std::vector<std::vector<std::string>> parseCsv(const std::string& text, const std::string& name);
-
-// Writes text to path through a temporary sibling and rename (creates parent folders).
-void writeFileAtomically(const std::string& path, const std::string& text);
 
 }  // namespace marglab::experiment

@@ -5,6 +5,7 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -53,6 +54,7 @@ class Runner {
   SweepSummary run(const std::string& sweep_file_text) {
     const fs::path out(options_.out_dir);
     index_path_ = (out / "index.csv").string();
+    const detail::SweepLock lock(out);
     prepareFolder(out, sweep_file_text);
     exe_ = options_.executable.empty() ? fs::read_symlink("/proc/self/exe").string()
                                        : options_.executable;
@@ -129,9 +131,13 @@ class Runner {
     const std::string log_path = log.string();
 
     std::fflush(nullptr);
+    const pid_t parent = getpid();
     const pid_t pid = fork();
     if (pid == 0) {
-      // Child: only async-signal-safe calls from here on.
+      // Child: only async-signal-safe calls from here on. It dies with the sweep (even a SIGKILLed
+      // one), so that a --resume never runs beside an orphan of the same run; getppid() catches a
+      // parent that died before prctl.
+      if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || getppid() != parent) _exit(126);
       signal(SIGINT, SIG_DFL);
       signal(SIGTERM, SIG_DFL);
       const int fd = open(log_path.c_str(), O_WRONLY | O_APPEND | O_CREAT, 0644);
@@ -169,8 +175,12 @@ class Runner {
     const fs::path results = out / row.get("results");
     detail::removeTemporaries(results);
     const std::string log = (out / row.get("log")).string();
-    if (WIFSIGNALED(wait_status)) {
-      const int sig = WTERMSIG(wait_status);
+    // A run stopped by SIGINT/SIGTERM exits 128 + signal (core/common/interrupt.h).
+    const bool stopped = WIFEXITED(wait_status) && (WEXITSTATUS(wait_status) == 128 + SIGINT ||
+                                                    WEXITSTATUS(wait_status) == 128 + SIGTERM);
+    if (WIFSIGNALED(wait_status) || stopped) {
+      const int sig = stopped ? WEXITSTATUS(wait_status) - 128 : WTERMSIG(wait_status);
+      if (stopped) row.set("exit_code", std::to_string(WEXITSTATUS(wait_status)));
       row.set("signal", std::to_string(sig));
       row.set("status", "failed");
       if (slot.timed_out) {

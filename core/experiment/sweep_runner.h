@@ -9,7 +9,10 @@
 //   <out>/configs/<id>.toml  config overrides of the run (only when it has some)
 //   <out>/logs/<id>.log      stdout and stderr of the run
 //
+//   <out>/.lock              the folder's lock (sweep_common.h, SweepLock): one sweep at a time
+//
 // Runs start in <out>, so the index's `command` column can be pasted there to repeat one run.
+// They die with the sweep (PR_SET_PDEATHSIG): a killed sweep leaves no orphan run behind.
 // Longest runs (by frames) start first. Scheduling order does not change any result: each run
 // is deterministic for its seed.
 //

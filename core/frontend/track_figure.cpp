@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <unordered_map>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/track_io.h"
@@ -108,7 +109,10 @@ std::string drawTrackFigure(const TrackFigureRequest& request) {
   for (char& c : name) c = c == '/' ? '-' : c;
   const std::string path =
       (fs::path(request.out_dir) / fmt::format("tracks_{}_{:04d}.png", name, k)).string();
-  if (!cv::imwrite(path, canvas)) throw InputError(path, 0, "cannot write the figure");
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", canvas, png)) throw InputError(path, 0, "cannot encode the figure");
+  writeFileAtomically(path,
+                      std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   return path;
 }
 

@@ -1,10 +1,5 @@
 #include "core/io/hdf5.h"
 
-#include <unistd.h>
-
-#include <atomic>
-#include <cerrno>
-#include <cstdio>
 #include <cstring>
 #include <filesystem>
 
@@ -428,21 +423,20 @@ Dataset Group::write(const std::string& name, const std::vector<T>& values) cons
 
 File File::create(const std::string& path) {
   detail::silenceErrors();
-  static std::atomic<int> counter{0};
   File f;
   f.path_ = path;
-  const std::string tmp_path =
-      path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
+  // The temporary now, so that an unwritable folder fails before the work, not after it.
+  f.out_ = std::make_unique<AtomicFile>(path);
+  // In memory (core driver, no backing store): HDF5 never writes to the disk itself, so a full
+  // disk fails in AtomicFile with errno, never inside H5Fclose (which leaves HDF5 1.10's state
+  // broken and crashed at exit).
   const PropId fapl(H5Pcreate(H5P_FILE_ACCESS));
   H5Pset_fclose_degree(fapl.get(), H5F_CLOSE_STRONG);
-  const hid_t file = H5Fcreate(tmp_path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
-  if (file < 0) {
-    const std::string detail = errorDetail();
-    std::remove(tmp_path.c_str());
-    throw InputError(path, 0, "cannot create " + tmp_path + " (HDF5: " + detail + ")");
-  }
+  constexpr std::size_t kIncrement = 1 << 20;
+  H5Pset_fapl_core(fapl.get(), kIncrement, false);
+  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
+  if (file < 0) throw InputError(path, 0, "cannot create (HDF5: " + errorDetail() + ")");
   f.file_ = FileId(file);
-  f.tmp_path_ = tmp_path;
   f.id_ = ObjectId(check(H5Gopen2(file, "/", H5P_DEFAULT), file, "/", "cannot open root group"));
   return f;
 }
@@ -468,7 +462,7 @@ File::File(File&& other) noexcept
     : Group(std::move(other)),
       file_(std::move(other.file_)),
       path_(std::move(other.path_)),
-      tmp_path_(std::exchange(other.tmp_path_, std::string())) {}
+      out_(std::move(other.out_)) {}
 
 File& File::operator=(File&& other) noexcept {
   if (this != &other) {
@@ -476,7 +470,7 @@ File& File::operator=(File&& other) noexcept {
     Group::operator=(std::move(other));
     file_ = std::move(other.file_);
     path_ = std::move(other.path_);
-    tmp_path_ = std::exchange(other.tmp_path_, std::string());
+    out_ = std::move(other.out_);
   }
   return *this;
 }
@@ -484,25 +478,26 @@ File& File::operator=(File&& other) noexcept {
 void File::discard() noexcept {
   id_.reset();
   file_.reset();
-  if (!tmp_path_.empty()) std::remove(tmp_path_.c_str());
-  tmp_path_.clear();
+  out_.reset();
 }
 
 void File::commit() {
-  if (tmp_path_.empty()) throw InputError(path_, 0, "commit: the file is not being written");
+  if (!out_) throw InputError(path_, 0, "commit: the file is not being written");
   detail::silenceErrors();
   id_.reset();
-  if (H5Fflush(file_.get(), H5F_SCOPE_GLOBAL) < 0 || H5Fclose(file_.release()) < 0) {
+  const hid_t file = file_.get();
+  const ssize_t size =
+      H5Fflush(file, H5F_SCOPE_GLOBAL) < 0 ? -1 : H5Fget_file_image(file, nullptr, 0);
+  std::vector<char> image(size > 0 ? static_cast<std::size_t>(size) : 0);
+  if (size < 0 || H5Fget_file_image(file, image.data(), image.size()) != size ||
+      H5Fclose(file_.release()) < 0) {
     const std::string detail = errorDetail();
     discard();
-    throw InputError(path_, 0, "cannot flush and close " + tmp_path_ + " (HDF5: " + detail + ")");
+    throw InputError(path_, 0, "cannot build the file image (HDF5: " + detail + ")");
   }
-  if (std::rename(tmp_path_.c_str(), path_.c_str()) != 0) {
-    const std::string reason = std::strerror(errno);
-    discard();
-    throw InputError(path_, 0, "cannot rename " + tmp_path_ + " onto it: " + reason);
-  }
-  tmp_path_.clear();
+  out_->write(image.data(), image.size());
+  out_->commit();
+  out_.reset();
 }
 
 // ---- Appendable, ragged arrays ------------------------------------------------------------------

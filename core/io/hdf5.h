@@ -3,15 +3,18 @@
 //
 // What maps to which HDF5 construct:
 //   h5::File            an HDF5 file; a File is also its root group "/" (attributes on the file are
-//                       attributes of "/"). File::create(path) writes "<path>.tmp-<pid>-<n>" and
-//                       commit() flushes, closes and rename(2)s it onto <path>. rename is atomic
-//                       on POSIX, so <path> is either absent, the previous file, or the complete
-//                       new one: a sweep that counts a run as done when <path> exists never sees
-//                       a half-written file. A File destroyed without commit() (exception, early
-//                       return) deletes its temporary; only a killed process can leave a
-//                       "*.tmp-*" behind, never <path>. commit() closes every object of the file
-//                       (fclose degree H5F_CLOSE_STRONG): handles taken from it become invalid
-//                       and any later use throws.
+//                       attributes of "/"). File::create(path) builds the file in memory (HDF5's
+//                       core driver) and creates its temporary "<path>.tmp-<pid>-<n>" at once
+//                       (AtomicFile, atomic_file.h); commit() writes the image there, fsyncs and
+//                       rename(2)s it onto <path>. So <path> is either absent, the previous file,
+//                       or the complete new one (a sweep that counts a run as done when <path>
+//                       exists never sees a half-written file), and a full disk is a clear
+//                       InputError at commit, never a failure inside HDF5. A File destroyed
+//                       without commit() (exception, early return, interrupt) deletes its
+//                       temporary; only SIGKILL can leave a "*.tmp-*" behind, never <path>.
+//                       commit() closes every object of the file (fclose degree
+//                       H5F_CLOSE_STRONG): handles taken from it become invalid and any later use
+//                       throws. Files are a few MB (docs/design.md §6), so memory is no concern.
 //   h5::Group           an HDF5 group; nested paths ("marg/eigenvalues") create intermediates.
 //   h5::Dataset         a dataset. Group::write stores a whole 1-D vector or 2-D row-major matrix
 //                       (contiguous layout); Dataset::read* convert to the requested element type.
@@ -40,10 +43,13 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <initializer_list>
+#include <memory>
 #include <string>
 #include <type_traits>
 #include <utility>
 #include <vector>
+
+#include "core/common/atomic_file.h"
 
 namespace marglab::h5 {
 
@@ -218,7 +224,7 @@ class File : public Group {
   void discard() noexcept;
   FileId file_;
   std::string path_;
-  std::string tmp_path_;  // non-empty while an uncommitted temporary exists
+  std::unique_ptr<AtomicFile> out_;  // the temporary, until commit()
 };
 
 // An extendible chunked dataset: 1-D (cols == 0) or n×cols. append() writes through at once.

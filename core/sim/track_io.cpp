@@ -13,6 +13,7 @@
 #include <unordered_set>
 #include <vector>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/io/hdf5.h"
 
@@ -199,8 +200,7 @@ TrackStream readTracksHdf5(const std::string& path) {
 // ---- Text ---------------------------------------------------------------------------------------
 
 void writeTracksText(const std::string& path, const TrackStream& stream) {
-  std::ofstream out(path, std::ios::binary);
-  if (!out) throw InputError(path, 0, "cannot open for writing");
+  AtomicFile out(path);
   fmt::memory_buffer buffer;
   fmt::format_to(std::back_inserter(buffer),
                  "# {} text {}\n# sequence: {}\n# seed: {}\n"
@@ -216,12 +216,12 @@ void writeTracksText(const std::string& path, const TrackStream& stream) {
                      o.track_id, o.uv0.x(), o.uv0.y(), u1, v1, o.landmark_id, o.is_outlier ? 1 : 0);
     }
     if (buffer.size() > (1 << 20)) {
-      out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+      out.write(buffer.data(), buffer.size());
       buffer.clear();
     }
   }
-  out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-  if (!out) throw InputError(path, 0, "write failed");
+  out.write(buffer.data(), buffer.size());
+  out.commit();
 }
 
 namespace {

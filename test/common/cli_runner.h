@@ -1,12 +1,16 @@
 #pragma once
 // Runs the real `marglab` binary (path from test_paths.h) in a shell and
-// captures its exit code and combined output, for the CLI tests of every module.
+// captures its exit code and combined output, for the CLI tests of every module; or starts it in
+// the background (startCli) for the tests that signal it.
 
+#include <fcntl.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 #include "test_paths.h"
 
@@ -31,6 +35,24 @@ inline CliResult runShell(const std::string& command_line) {
 
 inline CliResult runCli(const std::string& args) {
   return runShell(std::string("'") + test::cliPath() + "' " + args);
+}
+
+// Starts the CLI in the background; stdout and stderr go to `log`.
+inline pid_t startCli(const std::vector<std::string>& args, const std::string& log) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(fd, 1);
+    dup2(fd, 2);
+    std::vector<char*> argv;
+    std::vector<std::string> all = {test::cliPath()};
+    all.insert(all.end(), args.begin(), args.end());
+    for (auto& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  return pid;
 }
 
 // The first interpreter among /usr/bin/python3 and `python3` on PATH that imports h5py and numpy;

@@ -20,16 +20,17 @@
 #include <sstream>
 #include <thread>
 
-#include "test_paths.h"
 #include "common/cli_runner.h"
 #include "core/experiment/sweep_index.h"
 #include "core/io/results_file.h"
+#include "test_paths.h"
 
 namespace marglab::experiment {
 namespace {
 
 namespace fs = std::filesystem;
 using test::runCli;
+using test::startCli;
 
 std::string readText(const fs::path& path) {
   std::ifstream in(path);
@@ -243,24 +244,6 @@ TEST_F(SweepEndToEnd, PlotScriptWritesNonEmptyFigures) {
   }
   // PNG signature.
   EXPECT_EQ(readText(figures / "fig6_sigma_min_kitti-10.png").substr(1, 3), "PNG");
-}
-
-// Starts the CLI in the background; stdout and stderr go to `log`.
-pid_t startCli(const std::vector<std::string>& args, const fs::path& log) {
-  const pid_t pid = fork();
-  if (pid == 0) {
-    const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    dup2(fd, 1);
-    dup2(fd, 2);
-    std::vector<char*> argv;
-    std::vector<std::string> all = {test::cliPath()};
-    all.insert(all.end(), args.begin(), args.end());
-    for (auto& a : all) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    execv(argv[0], argv.data());
-    _exit(127);
-  }
-  return pid;
 }
 
 struct FileStamp {

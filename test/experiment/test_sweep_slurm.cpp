@@ -20,12 +20,13 @@
 #include <sstream>
 #include <thread>
 
-#include "test_paths.h"
 #include "common/cli_runner.h"
 #include "core/experiment/slurm_backend.h"
 #include "core/experiment/slurm_client.h"
+#include "core/experiment/sweep_common.h"
 #include "core/experiment/sweep_index.h"
 #include "core/io/results_file.h"
+#include "test_paths.h"
 
 namespace marglab::experiment {
 namespace {
@@ -290,6 +291,30 @@ frames = 20
   ASSERT_EQ(resume.exit_code, 0) << resume.output;
   rows = readIndex((out / "index.csv").string());
   for (const IndexRow& row : rows) EXPECT_EQ(row.get("status"), "ok") << row.get("id");
+  fs::remove_all(dir);
+}
+
+// The Slurm backend takes the sweep folder's lock too (sweep_common.h): a folder held by another
+// sweep (here this test process) is refused before anything is submitted or written.
+TEST(SlurmSweep, LockedFolderIsRefusedNamingTheOwner) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("lock");
+  std::ofstream(dir / "l.toml") << R"(name = "l"
+[[group]]
+name = "vo"
+datasets = ["kitti/04"]
+variants = ["ns-qr-sqrt-f64"]
+frames = 20
+)";
+  const fs::path out = dir / "out";
+  const detail::SweepLock lock(out);
+  const auto refused =
+      runCli("sweep " + quote(dir / "l.toml") + " --backend slurm --out " + quote(out));
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_NE(refused.output.find("in use by another marglab sweep (pid " + std::to_string(getpid())),
+            std::string::npos)
+      << refused.output;
+  EXPECT_FALSE(fs::exists(out / "index.csv"));
   fs::remove_all(dir);
 }
 

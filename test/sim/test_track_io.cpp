@@ -3,9 +3,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
 #include <limits>
 
+#include "common/fault_injection.h"
 #include "core/io/hdf5.h"
 #include "core/sim/track_io.h"
 #include "data/data_test_utils.h"
@@ -91,6 +96,38 @@ TEST(TrackIo, TextRoundTripIsExact) {
   const TrackStream back = readTrackFile(path);
   expectSameStream(stream, back, false);
   EXPECT_TRUE(back.landmarks_w.empty());
+}
+
+// Issue 18 item 4: a write failure (here the file size limit; a full disk alike) left a truncated
+// file at the final name whose last line still parsed. Now the previous file stays, whole.
+TEST(TrackIo, FailedWriteKeepsThePreviousFile) {
+  TempDir dir;
+  TrackStream big = sampleStream();
+  for (int copy = 0; copy < 4000; ++copy) {  // pixels that do not compress: ~1 MB in HDF5 too
+    TrackFrame frame = big.frames[copy % 6];
+    frame.t_ns = big.frames.back().t_ns + 50'000'000;
+    for (StereoObservation& o : frame.observations) {
+      o.uv0 += Eigen::Vector2d(std::fmod(copy * 0.6180339887, 1.0), std::fmod(copy * 0.41421, 1.0));
+    }
+    big.frames.push_back(frame);
+  }
+  for (const char* name : {"tracks.txt", "tracks.h5"}) {
+    const std::string path = dir.file(name);
+    writeTrackFile(path, sampleStream());
+    const auto size = std::filesystem::file_size(path);
+    {
+      const test::FileSizeLimit limit(16 * 1024);
+      expectInputError([&] { writeTrackFile(path, big); }, path, 0, std::strerror(EFBIG));
+    }
+    EXPECT_EQ(std::filesystem::file_size(path), size) << name;
+    expectSameStream(sampleStream(), readTrackFile(path), false);
+  }
+  std::vector<std::string> names;
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
+    names.push_back(entry.path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"tracks.h5", "tracks.txt"}));  // no temporary
 }
 
 TEST(TrackIo, TextMinimalSixColumnsFromExternalFrontEnd) {

@@ -26,6 +26,7 @@ try:
     import numpy as np
     import pandas as pd  # noqa: F401
     sys.path.insert(0, HERE)
+    import atomic_save
     import marglab_results as mr
 except ImportError as e:
     print("make_report.py: %s. Install the Debian packages: sudo apt-get install python3-numpy "
@@ -312,10 +313,7 @@ def main():
     parts.append("</main></body></html>\n")
 
     path = os.path.join(out, "report.html")
-    tmp = path + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write("\n".join(parts))
-    os.replace(tmp, path)
+    atomic_save.write_text(path, "\n".join(parts))
     print("report: %s (%d figures, %d notebooks linked)" % (path, len(figures), len(notebooks)))
     return 0
 

@@ -19,6 +19,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import atomic_save  # noqa: E402
+
 
 def draw(ax, state, x, energies, title, e_max, cmap):
     x = np.asarray(x).reshape(-1, 2)
@@ -67,8 +70,8 @@ def main():
     fig.suptitle(f"Mass-spring grid {n}x{n}: dashed = nonlinear springs (p = 4), "
                  "outlined = masses kept in stage 1")
     fig.tight_layout()
-    fig.savefig(prefix + ".png", dpi=150)
-    fig.savefig(prefix + ".pdf")
+    atomic_save.savefig(fig, prefix + ".png", dpi=150)
+    atomic_save.savefig(fig, prefix + ".pdf")
 
 
 if __name__ == "__main__":

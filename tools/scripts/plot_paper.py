@@ -40,6 +40,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import atomic_save  # noqa: E402
 import marglab_results as mr  # noqa: E402  (the results schema on the Python side)
 from marglab_results import HEADLINE, slug  # noqa: E402
 
@@ -305,7 +306,7 @@ def plot_dEm(fig, runs, title):
 def save(fig, out, name, written):
     for ext in ("png", "pdf"):
         path = os.path.join(out, "%s.%s" % (name, ext))
-        fig.savefig(path, dpi=150, bbox_inches="tight")
+        atomic_save.savefig(fig, path, dpi=150, bbox_inches="tight")
         written.append(path)
     plt.close(fig)
 

@@ -44,6 +44,7 @@ except ImportError as e:
     sys.exit(3)
 
 sys.path.insert(0, HERE)
+import atomic_save  # noqa: E402
 import marglab_results as mr  # noqa: E402
 
 
@@ -90,10 +91,10 @@ def execute(task):
     finally:
         log.close()
     os.makedirs(os.path.dirname(out_base), exist_ok=True)
-    nbformat.write(nb, out_base + ".ipynb")
+    text = nbformat.writes(nb)
+    atomic_save.write_text(out_base + ".ipynb", text if text.endswith("\n") else text + "\n")
     body, _ = html_exporter().from_notebook_node(nb)
-    with open(out_base + ".html", "w", encoding="utf-8") as f:
-        f.write(body)
+    atomic_save.write_text(out_base + ".html", body)
     entry["seconds"] = round(time.monotonic() - start, 2)
     return entry
 
@@ -169,8 +170,7 @@ def main():
         dict(e, ipynb=os.path.relpath(e["ipynb"], out), html=os.path.relpath(e["html"], out))
         for e in entries]}
     os.makedirs(out, exist_ok=True)
-    with open(os.path.join(out, "notebooks.json"), "w") as f:
-        json.dump(manifest, f, indent=1)
+    atomic_save.write_text(os.path.join(out, "notebooks.json"), json.dumps(manifest, indent=1))
     print("notebooks: %d executed, %d failed, %.1f s" % (len(entries), len(failed), total))
     return 1 if failed else 0
 
