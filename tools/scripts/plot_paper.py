@@ -40,6 +40,7 @@ import os
 import sys
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -361,6 +362,7 @@ def plot_noise_sigma(runs, out, written):
                         label="%s (median of %d runs)" % (profile, len(curves)))
         ax.set_yscale("log" if j == 3 else "symlog", **({} if j == 3 else dict(linthresh=LINTHRESH)))
         ax.set_xlabel("marginalization event")
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
         ax.set_ylabel(name + " of the prior")
         ax.grid(True, which="major", alpha=0.3)
         ax.legend(fontsize=8, loc="best")
