@@ -1237,6 +1237,9 @@ std::string claimNumber(double v, int decimals) {
   return std::isfinite(v) ? fmt::format("{:.{}f}", v, decimals) : "–";
 }
 
+// Differences can be far below the ATE's 4 decimals: two significant digits.
+std::string claimDifference(double v) { return std::isfinite(v) ? fmt::format("{:.1e}", v) : "–"; }
+
 std::string claimPercent(double v) {
   return std::isfinite(v) ? fmt::format("{:.2f} %", 100 * v) : "–";
 }
@@ -1263,8 +1266,8 @@ std::string renderMarkdown(const SeedClaim& claim) {
     out += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", r.label,
                        claimSeeds(r.seeds_64, r.failed_64), claimSpread(r.mean_64, r.std_64, " ± "),
                        claimSeeds(r.seeds_32, r.failed_32), claimSpread(r.mean_32, r.std_32, " ± "),
-                       claimNumber(r.delta, 4), claimPercent(r.relative), claimNumber(r.paired, 4),
-                       r.verdict);
+                       claimDifference(r.delta), claimPercent(r.relative),
+                       claimDifference(r.paired), r.verdict);
   }
   out += "\n";
   for (const std::string& note : claim.notes) out += note + "\n";
@@ -1283,7 +1286,7 @@ std::string renderLatex(const SeedClaim& claim) {
         "{} & {} & {} & {} & {} & {} & {} & {} & {} \\\\\n", texEscape(r.label),
         claimSeeds(r.seeds_64, r.failed_64), claimSpread(r.mean_64, r.std_64, " $\\pm$ "),
         claimSeeds(r.seeds_32, r.failed_32), claimSpread(r.mean_32, r.std_32, " $\\pm$ "),
-        claimNumber(r.delta, 4), texEscape(claimPercent(r.relative)), claimNumber(r.paired, 4),
+        claimDifference(r.delta), texEscape(claimPercent(r.relative)), claimDifference(r.paired),
         r.verdict == "–" ? "--" : r.verdict);
   }
   out += "\\bottomrule\n\\end{tabular}\n\\caption{" + texNote(claim.title) + ". ";
