@@ -25,7 +25,9 @@ const bool kRegistered = cli::registerCommand(
        sub.add_option("--figure", request->figures,
                       "Figures, comma-separated: fig1 (trajectories + sigma_min, VIO), fig4 (dEm, "
                       "VIO), fig5 (dEm, VO), fig6 (sigma_min, VO), fig7 (trajectories, VO), "
-                      "sparsify (Hsiung et al. Fig. 6a/6b and KLD of nfr runs); tracks (one "
+                      "sparsify (Hsiung et al. Fig. 6a/6b and KLD of nfr runs), noise_sigma "
+                      "(prior sigma_max / sigma_min at the first 20 marginalizations per IMU "
+                      "noise profile, VIO); tracks (one "
                       "stereo frame with its feature tracks, needs --dataset, no folders)")
            ->capture_default_str();
        sub.add_option("-o,--out", request->out,

@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include <memory>
+#include <string>
 
 #include "core/experiment/tables.h"
 #include "tools/command.h"
@@ -28,8 +29,15 @@ const bool kRegistered = cli::registerCommand(
        sub.add_option("--paper-values", request->paper_values,
                       "The paper's values (default: experiments/paper_values.toml of the source)")
            ->check(CLI::ExistingFile);
+       auto seeds = std::make_shared<std::string>("auto");
+       sub.add_option("--seeds", *seeds,
+                      "Tables 1 and 2 as mean ± std over seeds with the failure count (x k/n), "
+                      "and the seed claim table: auto (when a cell holds several seeds), on, off")
+           ->check(CLI::IsMember({"auto", "on", "off"}))
+           ->capture_default_str();
        sub.add_flag("--print", request->print, "Also print the Markdown tables");
-       return [request] {
+       return [request, seeds] {
+         experiment::parseSeedStats(*seeds, &request->seeds);
          std::string md;
          experiment::writeTables(*request, &md);
          if (request->print) fmt::print("\n{}", md);

@@ -17,6 +17,8 @@
 //                   VIO; see MargStrategy), nfr_topology ("paper"|"joint-states", see
 //                   SparsifyTopology)
 //   [failure]       max_position_error_m (−1: dataset default)
+//   [imu]           noise_profile ("kalibr"|"basalt": the IMU densities of VIO runs, for the
+//                   synthetic IMU and the estimator's weights; see core/imu/noise_profile.h)
 //   [diagnostics]   enabled, store_prior_every (0: never; k: every k-th event, default 25), seed
 //
 // Validation (docs/design.md §9): every key has a range; a value outside it, a non-finite number
@@ -32,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "core/imu/noise_profile.h"
 #include "core/linalg/flat_qr.h"
 
 namespace marglab {
@@ -121,6 +124,8 @@ struct EstimatorConfig {
   SparsifyTopology nfr_topology = SparsifyTopology::kPaper;
   // failure
   double max_position_error_m = -1;
+  // imu
+  ImuNoiseProfile imu_noise_profile = ImuNoiseProfile::kKalibr;
   // diagnostics
   bool diagnostics = true;
   int store_prior_every = 25;

@@ -40,10 +40,11 @@ int runPlot(const PlotRequest& request) {
   std::stringstream list(request.figures);
   for (std::string f; std::getline(list, f, ',');) {
     if (f != "fig1" && f != "fig4" && f != "fig5" && f != "fig6" && f != "fig7" &&
-        f != "sparsify") {
+        f != "sparsify" && f != "noise_sigma") {
       throw UsageError(
-          "--figure takes fig1, fig4, fig5, fig6, fig7, sparsify (comma-separated), not '" + f +
-          "'");
+          "--figure takes fig1, fig4, fig5, fig6, fig7, sparsify, noise_sigma (comma-separated), "
+          "not '" +
+          f + "'");
     }
   }
   const std::string script = std::string(sourceDir()) + "/tools/scripts/plot_paper.py";

@@ -12,6 +12,8 @@
 #include <optional>
 #include <set>
 #include <sstream>
+#include <tuple>
+#include <utility>
 
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
@@ -27,6 +29,10 @@ int lineOf(const toml::node& node) { return static_cast<int>(node.source().begin
 const std::vector<std::string> kHeadline = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64",
                                             "sc-sc-sq-f32"};
 const std::string kMixed = "ns-qr-sqrt-mixed";
+const char* const kSeedNote =
+    "Seeds: mean ± sample standard deviation of the ATE over the seeds whose run finished ok; "
+    "`x k/n`: k of the n finished seeds failed (left out of the mean); the paper's value is one "
+    "run.";
 const std::vector<std::string> kAblation = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-qr-sqrt-f64",
                                             "sc-qr-sqrt-f32", "ns-sc-sqrt-f64", "ns-sc-sqrt-f32",
                                             "sc-sc-sqrt-f64", "sc-sc-sqrt-f32"};
@@ -182,6 +188,41 @@ TableCell meanCell(const Selection& sel, const std::vector<RunValue>& quantities
     std::vector<double> v;
     for (const RunRecord* r : sel.runs) v.push_back(value(*r));
     cell.numbers.push_back(mean(v));
+  }
+  return cell;
+}
+
+// Sample standard deviation (n − 1); NaN for fewer than two values.
+double sampleStd(const std::vector<double>& v) {
+  if (v.size() < 2) return std::numeric_limits<double>::quiet_NaN();
+  const double m = mean(v);
+  double deviations = 0;
+  for (double x : v) deviations += (x - m) * (x - m);
+  return std::sqrt(deviations / static_cast<double>(v.size() - 1));
+}
+
+// A cell of ours with seed statistics (TableCell::seed_stats): the ok seeds give the mean and
+// spread, the failed ones the count; unfinished runs are left out.
+TableCell seedCell(const Selection& sel, const std::vector<RunValue>& quantities) {
+  TableCell cell;
+  cell.seed_stats = true;
+  std::vector<const RunRecord*> ok;
+  for (const RunRecord* r : sel.runs) {
+    if (r->state == "ok") ok.push_back(r);
+    if (r->state == "failed") ++cell.n_failed;
+  }
+  cell.n_runs = static_cast<int>(ok.size()) + cell.n_failed;
+  if (cell.n_runs == 0) return cell;
+  if (ok.empty()) {
+    cell.state = TableCell::State::kFailed;
+    return cell;
+  }
+  cell.state = TableCell::State::kValue;
+  for (const RunValue& value : quantities) {
+    std::vector<double> v;
+    for (const RunRecord* r : ok) v.push_back(value(*r));
+    cell.numbers.push_back(mean(v));
+    cell.spread.push_back(sampleStd(v));
   }
   return cell;
 }
@@ -381,8 +422,17 @@ class Builder {
                        fmt::join(modes, ", "));
   }
 
-  // Tables 1, 2 (ATE) and 3, 5 (runtime).
-  std::optional<Table> perSequence(int number, bool vio) const {
+  // Whether a cell of Table 1 (vio) or 2 holds more than one seed.
+  bool severalSeeds(bool vio) const {
+    for (const auto& [key, sel] : by_cell_) {
+      const std::string dataset = key.substr(0, key.find('|'));
+      if ((vio ? isVioDataset : isVoDataset)(dataset) && sel.runs.size() > 1) return true;
+    }
+    return false;
+  }
+
+  // Tables 1, 2 (ATE; with seed statistics when seed_stats) and 3, 5 (runtime).
+  std::optional<Table> perSequence(int number, bool vio, bool seed_stats = false) const {
     const std::string id = fmt::format("table{}", number);
     const PaperTable* paper = paperTable(id);
     const bool ate = number == 1 || number == 2;
@@ -412,9 +462,11 @@ class Builder {
       row.frames = framesLabel(dataset, kHeadline);
       row.ours_decimals = ate ? 4 : 2;
       row.paper_decimals = ate ? (vio ? 3 : 2) : 1;
+      const std::vector<RunValue> quantities = ate ? std::vector<RunValue>{ate_m} : runtime;
       for (const TableColumn& column : t.columns) {
-        row.ours.push_back(meanCell(select(dataset, column.variant),
-                                    ate ? std::vector<RunValue>{ate_m} : runtime));
+        const Selection& runs = select(dataset, column.variant);
+        row.ours.push_back(seed_stats && ate ? seedCell(runs, quantities)
+                                             : meanCell(runs, quantities));
         row.paper.push_back(paperCell(paper, dataset, column.variant, t.quantities));
       }
       markBest(row.ours, t.quantities.size(), row.ours_decimals, false);
@@ -431,6 +483,7 @@ class Builder {
     for (const TableRow& r : t.rows) keys.push_back(r.key);
     t.notes.push_back(modeNote(keys));
     t.notes.push_back(oursNote(ate ? "" : "a 12-thread Xeon W-2133"));
+    if (seed_stats && ate) t.notes.push_back(kSeedNote);
     if (any_estimate) {
       t.notes.push_back(
           "*: the shipped reference trajectory is a VIO estimate, not ground truth; our ATE is "
@@ -438,6 +491,33 @@ class Builder {
     }
     addCommonNotes(&t, paper, vio ? isVioDataset : isVoDataset);
     return t;
+  }
+
+  // The seed claim over the sequences with √-f64 and √-f32 runs (VIO, then VO).
+  std::optional<SeedClaim> seedClaim() const {
+    SeedClaim claim;
+    claim.title =
+        "Seed claim: is |ATE(√-f32) − ATE(√-f64)| within the seed-to-seed spread of √-f64?";
+    const std::vector<std::string> pair = {kHeadline[0], kHeadline[1]};
+    using Family = std::pair<bool (*)(const std::string&), const char*>;
+    for (const auto& [family, id] :
+         std::initializer_list<Family>{{isVioDataset, "table1"}, {isVoDataset, "table2"}}) {
+      for (const std::string& dataset : rowsFor(family, paperTable(id), pair)) {
+        bool estimate = false;
+        claim.rows.push_back(claimRow(dataset, rowLabel(paperTable(id), dataset, &estimate), pair));
+      }
+    }
+    if (claim.rows.empty()) return std::nullopt;
+    claim.notes = {
+        "Per sequence over the seeds: mean ± sample std of the ATE [m] of √-f64 (ns-qr-sqrt-f64) "
+        "and √-f32 (ns-qr-sqrt-f32) over their seeds that finished ok; |Δ| = |mean √-f32 − mean "
+        "√-f64|, also relative to mean √-f64 (the paper's \"within 1 %\"); paired = mean over "
+        "the seeds where both finished ok of |ATE √-f32 − ATE √-f64| (one seed: the same "
+        "simulated measurements).",
+        "within: yes when |Δ| ≤ std √-f64 (the f32 difference is no larger than what another "
+        "seed does to f64); no when larger or when √-f32 failed on a seed; – without two ok "
+        "√-f64 seeds. Seeds: `ok/finished` per variant."};
+    return claim;
   }
 
   // Tables 4 and 6.
@@ -713,6 +793,45 @@ class Builder {
                               : "x: failed; –: no run.");
   }
 
+  SeedClaimRow claimRow(const std::string& dataset, const std::string& label,
+                        const std::vector<std::string>& pair) const {
+    constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+    SeedClaimRow row;
+    row.key = dataset;
+    row.label = label;
+    std::map<std::string, double> ate_64, ate_32;  // seed → ATE of the ok runs
+    using Column = std::tuple<std::string, std::map<std::string, double>*, int*, int*>;
+    for (const auto& [variant, ate, seeds, failed] :
+         std::initializer_list<Column>{{pair[0], &ate_64, &row.seeds_64, &row.failed_64},
+                                       {pair[1], &ate_32, &row.seeds_32, &row.failed_32}}) {
+      for (const RunRecord* r : select(dataset, variant).runs) {
+        if (r->state == "ok") (*ate)[r->row.get("seed")] = r->ate_rmse;
+        *failed += r->state == "failed";
+        *seeds += r->state == "ok" || r->state == "failed";
+      }
+    }
+    auto values = [](const std::map<std::string, double>& m) {
+      std::vector<double> v;
+      for (const auto& [seed, x] : m) v.push_back(x);
+      return v;
+    };
+    row.mean_64 = ate_64.empty() ? kNaN : mean(values(ate_64));
+    row.std_64 = sampleStd(values(ate_64));
+    row.mean_32 = ate_32.empty() ? kNaN : mean(values(ate_32));
+    row.std_32 = sampleStd(values(ate_32));
+    row.delta = std::abs(row.mean_32 - row.mean_64);
+    row.relative = row.delta / row.mean_64;
+    std::vector<double> paired;
+    for (const auto& [seed, x] : ate_32) {
+      if (ate_64.count(seed)) paired.push_back(std::abs(x - ate_64.at(seed)));
+    }
+    row.paired = paired.empty() ? kNaN : mean(paired);
+    row.verdict = !std::isfinite(row.std_64) || ate_32.empty()  ? "–"
+                  : row.failed_32 > 0 || row.delta > row.std_64 ? "no"
+                                                                : "yes";
+    return row;
+  }
+
   const PaperValues& paper_;
   std::map<std::string, Selection> by_cell_;
   std::set<std::string> datasets_;
@@ -725,29 +844,48 @@ int decimalsOf(const TableRow& row, const TableColumn& column, bool ours) {
   return ours ? row.ours_decimals : row.paper_decimals;
 }
 
+// Seed statistics after a cell's value: " ± std" (with two or more ok seeds) per quantity.
+std::string spreadText(const TableCell& cell, std::size_t q, int decimals, const char* pm) {
+  if (!cell.seed_stats || q >= cell.spread.size() || !std::isfinite(cell.spread[q])) return "";
+  return fmt::format("{}{:.{}f}", pm, cell.spread[q], decimals);
+}
+
+// The failure count of a seed-statistics cell: "x k/n" ("" when none failed).
+std::string failedText(const TableCell& cell, const char* space) {
+  if (!cell.seed_stats || cell.n_failed == 0) return "";
+  return fmt::format("x{}{}/{}", space, cell.n_failed, cell.n_runs);
+}
+
 std::string cellMarkdown(const TableCell& cell, const TableRow& row, const TableColumn& column,
                          bool ours) {
   const int decimals = decimalsOf(row, column, ours);
+  if (cell.state == TableCell::State::kFailed && cell.seed_stats) return failedText(cell, " ");
   if (cell.state != TableCell::State::kValue) return formatCell(cell, 0, decimals, row.suffix);
   std::vector<std::string> parts;
   for (std::size_t q = 0; q < cell.numbers.size(); ++q) {
     const std::string text = formatCell(cell, q, decimals, row.suffix);
-    parts.push_back(cell.best.size() > q && cell.best[q] ? "**" + text + "**" : text);
+    parts.push_back((cell.best.size() > q && cell.best[q] ? "**" + text + "**" : text) +
+                    spreadText(cell, q, decimals, " ± "));
   }
-  return fmt::format("{}", fmt::join(parts, " / "));
+  const std::string failed = failedText(cell, " ");
+  return fmt::format("{}", fmt::join(parts, " / ")) + (failed.empty() ? "" : " " + failed);
 }
 
 std::string cellLatex(const TableCell& cell, const TableRow& row, const TableColumn& column,
                       bool ours) {
   const int decimals = decimalsOf(row, column, ours);
   if (cell.state == TableCell::State::kMissing) return "--";
-  if (cell.state == TableCell::State::kFailed) return "x";
+  if (cell.state == TableCell::State::kFailed) {
+    return cell.seed_stats ? failedText(cell, "~") : "x";
+  }
   std::vector<std::string> parts;
   for (std::size_t q = 0; q < cell.numbers.size(); ++q) {
     const std::string text = formatCell(cell, q, decimals, row.suffix);
-    parts.push_back(cell.best.size() > q && cell.best[q] ? "\\textbf{" + text + "}" : text);
+    parts.push_back((cell.best.size() > q && cell.best[q] ? "\\textbf{" + text + "}" : text) +
+                    spreadText(cell, q, decimals, " $\\pm$ "));
   }
-  return fmt::format("{}", fmt::join(parts, " / "));
+  const std::string failed = failedText(cell, "~");
+  return fmt::format("{}", fmt::join(parts, " / ")) + (failed.empty() ? "" : " " + failed);
 }
 
 std::string csvNumber(double v) { return std::isfinite(v) ? fmt::format("{:.17g}", v) : ""; }
@@ -904,7 +1042,17 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
 
 // ---- tables -------------------------------------------------------------------------------------
 
-std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& paper) {
+bool parseSeedStats(const std::string& text, SeedStats* mode) {
+  const std::map<std::string, SeedStats> names = {
+      {"auto", SeedStats::kAuto}, {"on", SeedStats::kOn}, {"off", SeedStats::kOff}};
+  const auto it = names.find(text);
+  if (it == names.end()) return false;
+  *mode = it->second;
+  return true;
+}
+
+std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& paper,
+                                  SeedStats seeds) {
   std::set<std::string> overrides;
   for (const RunRecord& r : results.runs) overrides.insert(r.row.get("override"));
   std::vector<TableSet> sets;
@@ -922,8 +1070,12 @@ std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& p
         set.skipped.push_back(why);
       }
     };
-    add(builder.perSequence(1, true), "Table 1: no EuRoC / TUM-VI runs");
-    add(builder.perSequence(2, false), "Table 2: no KITTI runs");
+    const auto seed_stats = [&](bool vio) {
+      return seeds == SeedStats::kOn || (seeds == SeedStats::kAuto && builder.severalSeeds(vio));
+    };
+    add(builder.perSequence(1, true, seed_stats(true)), "Table 1: no EuRoC / TUM-VI runs");
+    add(builder.perSequence(2, false, seed_stats(false)), "Table 2: no KITTI runs");
+    if (seed_stats(true) || seed_stats(false)) set.claim = builder.seedClaim();
     add(builder.perSequence(3, true), "Table 3: no EuRoC / TUM-VI runs");
     std::string why;
     add(builder.ablation(4, isEurocDataset, "EuRoC", &why), why);
@@ -1032,7 +1184,7 @@ std::string renderLatex(const Table& table) {
 std::string renderCsv(const std::vector<Table>& tables, const std::string& override_name) {
   std::string out =
       "table,override,row,label,frames,column,variant,quantity,ours,ours_state,ours_best,n_runs,"
-      "paper,paper_state,paper_best\n";
+      "paper,paper_state,paper_best,ours_std,ours_failed\n";
   for (const Table& t : tables) {
     for (const TableRow& row : t.rows) {
       for (std::size_t c = 0; c < t.columns.size(); ++c) {
@@ -1050,21 +1202,24 @@ std::string renderCsv(const std::vector<Table>& tables, const std::string& overr
           const auto best = [&](const TableCell& cell) {
             return cell.best.size() > q && cell.best[q] ? "1" : "0";
           };
-          const std::vector<std::string> fields = {t.id,
-                                                   override_name,
-                                                   row.key,
-                                                   row.label,
-                                                   row.frames,
-                                                   t.columns[c].label_md,
-                                                   t.columns[c].variant,
-                                                   quantity,
-                                                   number(ours),
-                                                   stateName(ours.state),
-                                                   best(ours),
-                                                   std::to_string(ours.n_runs),
-                                                   number(paper),
-                                                   stateName(paper.state),
-                                                   best(paper)};
+          const std::vector<std::string> fields = {
+              t.id,
+              override_name,
+              row.key,
+              row.label,
+              row.frames,
+              t.columns[c].label_md,
+              t.columns[c].variant,
+              quantity,
+              number(ours),
+              stateName(ours.state),
+              best(ours),
+              std::to_string(ours.n_runs),
+              number(paper),
+              stateName(paper.state),
+              best(paper),
+              ours.seed_stats && q < ours.spread.size() ? csvNumber(ours.spread[q]) : std::string(),
+              ours.seed_stats ? std::to_string(ours.n_failed) : std::string()};
           for (std::size_t f = 0; f < fields.size(); ++f) {
             out += (f ? "," : "") + csvField(fields[f]);
           }
@@ -1072,6 +1227,96 @@ std::string renderCsv(const std::vector<Table>& tables, const std::string& overr
         }
       }
     }
+  }
+  return out;
+}
+
+namespace {
+
+std::string claimNumber(double v, int decimals) {
+  return std::isfinite(v) ? fmt::format("{:.{}f}", v, decimals) : "–";
+}
+
+// Differences can be far below the ATE's 4 decimals: two significant digits.
+std::string claimDifference(double v) { return std::isfinite(v) ? fmt::format("{:.1e}", v) : "–"; }
+
+std::string claimPercent(double v) {
+  return std::isfinite(v) ? fmt::format("{:.2f} %", 100 * v) : "–";
+}
+
+// "mean ± std" of one variant's ok seeds.
+std::string claimSpread(double mean, double std, const char* pm) {
+  return claimNumber(mean, 4) + (std::isfinite(std) ? pm + claimNumber(std, 4) : "");
+}
+
+// "ok/finished" seeds of one variant.
+std::string claimSeeds(int finished, int failed) {
+  return fmt::format("{}/{}", finished - failed, finished);
+}
+
+}  // namespace
+
+std::string renderMarkdown(const SeedClaim& claim) {
+  std::string out = "### " + claim.title + "\n\n";
+  out +=
+      "| sequence | seeds √-f64 | √-f64 ATE [m] | seeds √-f32 | √-f32 ATE [m] | abs(Δ) [m] | "
+      "abs(Δ) / √-f64 | paired abs(Δ) [m] | within |\n|---|---:|---:|---:|---:|---:|---:|---:|:"
+      "---:|\n";
+  for (const SeedClaimRow& r : claim.rows) {
+    out += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", r.label,
+                       claimSeeds(r.seeds_64, r.failed_64), claimSpread(r.mean_64, r.std_64, " ± "),
+                       claimSeeds(r.seeds_32, r.failed_32), claimSpread(r.mean_32, r.std_32, " ± "),
+                       claimDifference(r.delta), claimPercent(r.relative),
+                       claimDifference(r.paired), r.verdict);
+  }
+  out += "\n";
+  for (const std::string& note : claim.notes) out += note + "\n";
+  return out + "\n";
+}
+
+std::string renderLatex(const SeedClaim& claim) {
+  std::string out =
+      "% " + claim.title + " (marglab tables; needs \\usepackage{booktabs,amsmath})\n";
+  out += "\\begin{table}[t]\n\\centering\n\\small\n\\begin{tabular}{lrrrrrrrc}\n\\toprule\n";
+  out +=
+      "sequence & seeds & $\\sqrt{\\text{f64}}$ ATE [m] & seeds & $\\sqrt{\\text{f32}}$ ATE [m] & "
+      "$|\\Delta|$ [m] & $|\\Delta|$ / f64 & paired $|\\Delta|$ [m] & within \\\\\n\\midrule\n";
+  for (const SeedClaimRow& r : claim.rows) {
+    out += fmt::format(
+        "{} & {} & {} & {} & {} & {} & {} & {} & {} \\\\\n", texEscape(r.label),
+        claimSeeds(r.seeds_64, r.failed_64), claimSpread(r.mean_64, r.std_64, " $\\pm$ "),
+        claimSeeds(r.seeds_32, r.failed_32), claimSpread(r.mean_32, r.std_32, " $\\pm$ "),
+        claimDifference(r.delta), texEscape(claimPercent(r.relative)), claimDifference(r.paired),
+        r.verdict == "–" ? "--" : r.verdict);
+  }
+  out += "\\bottomrule\n\\end{tabular}\n\\caption{" + texNote(claim.title) + ". ";
+  for (const std::string& note : claim.notes) out += texNote(note) + " ";
+  return out + "}\n\\label{tab:marglab-" + claim.id + "}\n\\end{table}\n\n";
+}
+
+std::string renderCsv(const SeedClaim& claim, const std::string& override_name) {
+  std::string out =
+      "table,override,row,label,seeds_f64,failed_f64,mean_f64,std_f64,seeds_f32,failed_f32,"
+      "mean_f32,std_f32,delta,relative,paired,within\n";
+  for (const SeedClaimRow& r : claim.rows) {
+    const std::vector<std::string> fields = {claim.id,
+                                             override_name,
+                                             r.key,
+                                             r.label,
+                                             std::to_string(r.seeds_64),
+                                             std::to_string(r.failed_64),
+                                             csvNumber(r.mean_64),
+                                             csvNumber(r.std_64),
+                                             std::to_string(r.seeds_32),
+                                             std::to_string(r.failed_32),
+                                             csvNumber(r.mean_32),
+                                             csvNumber(r.std_32),
+                                             csvNumber(r.delta),
+                                             csvNumber(r.relative),
+                                             csvNumber(r.paired),
+                                             r.verdict == "–" ? "" : r.verdict};
+    for (std::size_t f = 0; f < fields.size(); ++f) out += (f ? "," : "") + csvField(fields[f]);
+    out += "\n";
   }
   return out;
 }
@@ -1100,7 +1345,7 @@ std::vector<std::string> writeTables(const TablesRequest& request, std::string* 
   const std::string out =
       request.out.empty() ? (fs::path(request.dirs.front()) / "tables").string() : request.out;
   std::vector<std::string> written;
-  for (const TableSet& set : buildTables(results, paper)) {
+  for (const TableSet& set : buildTables(results, paper, request.seeds)) {
     const std::string suffix = set.override_name.empty() ? "" : "__" + set.override_name;
     std::string md =
         set.override_name.empty() ? std::string() : "## Override " + set.override_name + "\n\n";
@@ -1116,6 +1361,19 @@ std::vector<std::string> writeTables(const TablesRequest& request, std::string* 
         writeFileAtomically(path, f == "md"    ? one_md
                                   : f == "tex" ? one_tex
                                                : renderCsv({t}, set.override_name));
+      }
+    }
+    if (set.claim) {
+      const std::string one_md = renderMarkdown(*set.claim);
+      const std::string one_tex = renderLatex(*set.claim);
+      md += one_md;
+      tex += one_tex;
+      const std::string base = (fs::path(out) / (set.claim->id + suffix)).string();
+      for (const std::string& f : formats) {
+        writeFileAtomically(base + "." + f, f == "md" ? one_md
+                                            : f == "tex"
+                                                ? one_tex
+                                                : renderCsv(*set.claim, set.override_name));
       }
     }
     for (const std::string& why : set.skipped) md += "_Not produced: " + why + "._\n\n";

@@ -14,7 +14,9 @@
 // the index. Rules, also stated under each table:
 //   - a cell is `x` when any of its runs failed (numerically, or the process died), `–` when it
 //     has no run (not planned, or not finished);
-//   - several seeds: the mean over seeds;
+//   - several seeds: the mean over seeds; Tables 1 and 2 with seed statistics (SeedStats, automatic
+//     when a cell holds several seeds): mean ± sample std over the seeds that finished ok, and
+//     `x k/n` when k of the n finished seeds failed (a cell is `x n/n` only when all failed);
 //   - ablation averages are over the sequences that have all eight variants; a variant that
 //     failed on one of them is `x`; real-time factor = Σ duration / Σ (t_opt + t_marg);
 //     t total = t_opt + t_marg (the front-end is simulated, so it is not timed);
@@ -23,6 +25,10 @@
 //   - when the same dataset × variant × seed × override was run more than once (several groups or
 //     folders), the run with more requested frames is used.
 // One table set per override name of the sweep ("" = runs without override).
+//
+// Seed claim (issue #19, with seed statistics): the paper's "√-f32 ATE within 1 % of f64"
+// restated per sequence as a test a reader can check over seeds — is |mean ATE(√-f32) −
+// mean ATE(√-f64)| within the seed-to-seed spread (sample std) of √-f64? (seed_claim.md/tex/csv)
 //
 // Marginalization strategies (issue #9; Hsiung et al., Information Sparsification in
 // Visual-Inertial Odometry, IROS 2018), produced when some run's results attribute marg_strategy
@@ -39,6 +45,7 @@
 // seeds as above.
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -108,6 +115,12 @@ struct TableCell {
   std::vector<double> numbers;  // one per quantity
   std::vector<bool> best;       // one per quantity
   int n_runs = 0;
+  // Seed statistics (Tables 1, 2): numbers are the means over the seeds that finished ok, spread
+  // their sample std per quantity (NaN with one ok seed), n_failed of the n_runs finished seeds
+  // failed; the state is kFailed only when every finished seed failed.
+  bool seed_stats = false;
+  std::vector<double> spread;
+  int n_failed = 0;
 };
 
 struct TableRow {
@@ -140,17 +153,50 @@ struct Table {
   std::vector<std::string> notes;
 };
 
+// One sequence of the seed claim. Means and stds over the seeds that finished ok (NaN when
+// none / fewer than two); paired: mean over the seeds where both finished ok of
+// |ATE(√-f32) − ATE(√-f64)| (same seed: same simulated measurements).
+struct SeedClaimRow {
+  std::string key, label;
+  int seeds_64 = 0, failed_64 = 0, seeds_32 = 0, failed_32 = 0;  // finished seeds, failed ones
+  double mean_64 = 0, std_64 = 0, mean_32 = 0, std_32 = 0;
+  double delta = 0;     // |mean_32 − mean_64|
+  double relative = 0;  // delta / mean_64 (the paper's "within 1 %")
+  double paired = 0;
+  // "yes": delta ≤ std_64; "no": delta > std_64, or √-f32 failed on a seed; "–": fewer than two
+  // ok √-f64 seeds (no spread) or no ok √-f32 seed.
+  std::string verdict;
+};
+
+struct SeedClaim {
+  std::string id = "seed_claim";
+  std::string title;
+  std::vector<SeedClaimRow> rows;
+  std::vector<std::string> notes;
+};
+
 struct TableSet {
   std::string override_name;         // "" for runs without override
   std::vector<Table> tables;         // only tables with at least one row of ours
   std::vector<std::string> skipped;  // why a table is absent
+  std::optional<SeedClaim> claim;    // when Table 1 or 2 has seed statistics
 };
 
-std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& paper);
+// Seed statistics of Tables 1 and 2: kAuto turns them on for a table when one of its cells holds
+// more than one seed.
+enum class SeedStats { kAuto, kOn, kOff };
+// False for a name other than "auto", "on", "off".
+bool parseSeedStats(const std::string& text, SeedStats* mode);
+
+std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& paper,
+                                  SeedStats seeds = SeedStats::kAuto);
 
 std::string renderMarkdown(const Table& table);
 std::string renderLatex(const Table& table);
 std::string renderCsv(const std::vector<Table>& tables, const std::string& override_name);
+std::string renderMarkdown(const SeedClaim& claim);
+std::string renderLatex(const SeedClaim& claim);
+std::string renderCsv(const SeedClaim& claim, const std::string& override_name);
 // A number as the tables print it: fixed decimals, "x" for failures, "–" for missing.
 std::string formatCell(const TableCell& cell, std::size_t component, int decimals,
                        const std::string& suffix);
@@ -162,6 +208,7 @@ struct TablesRequest {
   std::string formats = "md,tex,csv";
   std::string out;           // default <first dir>/tables  // default <first dir>/tables
   std::string paper_values;  // default defaultPaperValuesPath()
+  SeedStats seeds = SeedStats::kAuto;
   bool print = false;
 };
 

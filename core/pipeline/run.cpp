@@ -9,12 +9,13 @@
 #include <limits>
 #include <optional>
 
-#include "core/estimator/window_io.h"
 #include "core/common/error.h"
 #include "core/data/sequence.h"
 #include "core/diagnostics/ate.h"
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
+#include "core/estimator/window_io.h"
+#include "core/imu/noise_profile.h"
 #include "core/pipeline/records.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/imu_synth.h"
@@ -68,14 +69,14 @@ TrackSourceOptions trackSourceOptions(const RunOptions& options) {
 // The synthetic IMU's random stream is separate from the world's and the tracks'.
 std::uint64_t imuSeed(std::uint64_t seed) { return seed ^ 0x9e3779b97f4a7c15ULL; }
 
-// The IMU stream and first state of a VIO run: the first state is the ground truth at the first
-// frame (pose and velocity from the spline) with zero biases, or the recorded ground-truth biases
-// for the real IMU where the sequence has them — the same for every variant.
-ImuSetup imuSetup(const RunOptions& options, const Sequence& sequence,
-                  const TrajectoryFunction& trajectory, std::int64_t t0_ns,
-                  std::map<std::string, std::string>* provenance) {
+}  // namespace
+
+ImuSetup vioImuSetup(const RunOptions& options, const Sequence& sequence,
+                     const TrajectoryFunction& trajectory, std::int64_t t0_ns,
+                     std::map<std::string, std::string>* provenance) {
   ImuSetup setup;
-  setup.noise = sequence.imu_noise;
+  // One set of densities for the synthetic IMU and the estimator's weights.
+  setup.noise = profileImuNoise(sequence, options.config.imu_noise_profile);
   setup.g_w = gravityWorld(sequence.kind);
   const TrajectorySample first = trajectory.evaluate(t0_ns);
   setup.initial.t_ns = t0_ns;
@@ -109,15 +110,21 @@ ImuSetup imuSetup(const RunOptions& options, const Sequence& sequence,
     ImuSynthOptions synth_options;
     synth_options.gravity_w = setup.g_w;
     setup.imu =
-        synthesizeImu(trajectory, sequence.imu_noise, 200.0, imuSeed(options.seed), synth_options)
-            .imu;
+        synthesizeImu(trajectory, setup.noise, 200.0, imuSeed(options.seed), synth_options).imu;
     setup.sample_period_s = 1.0 / 200.0;
     (*provenance)["imu"] = "synthetic 200 Hz from the spline (white noise + bias random walk)";
     (*provenance)["initial_biases"] = "zero (the synthetic biases start at zero)";
   }
   (*provenance)["initial_state"] = "ground-truth pose and velocity at the first frame";
+  (*provenance)["imu_noise"] = fmt::format(
+      "{} profile: gyro {:g} rad/s/sqrt(Hz), gyro bias walk {:g}, accel {:g} m/s^2/sqrt(Hz), "
+      "accel bias walk {:g}",
+      toString(options.config.imu_noise_profile), setup.noise.gyro_noise_density,
+      setup.noise.gyro_random_walk, setup.noise.accel_noise_density, setup.noise.accel_random_walk);
   return setup;
 }
+
+namespace {
 
 // The root attributes of a run's results file: what ran, on what, with which settings.
 template <typename Scalar>
@@ -210,7 +217,7 @@ RunOutcome runWith(const RunOptions& options, const TrackSource& source,
   std::map<std::string, std::string> imu_provenance;
   std::optional<ImuSetup> imu;
   if (vio) {
-    imu = imuSetup(options, sequence, trajectory, stream.frames.front().t_ns, &imu_provenance);
+    imu = vioImuSetup(options, sequence, trajectory, stream.frames.front().t_ns, &imu_provenance);
   }
 
   ResultsWriter writer = ResultsWriter::create(

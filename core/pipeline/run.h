@@ -14,15 +14,18 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
 #include "core/data/types.h"
 #include "core/estimator/config.h"
 #include "core/estimator/variant.h"
+#include "core/estimator/window.h"
 #include "core/frontend/track_source.h"
 #include "core/geometry/camera.h"
 #include "core/io/results_file.h"
+#include "core/sim/trajectory_spline.h"
 
 namespace marglab {
 
@@ -72,6 +75,16 @@ struct RunOutcome {
 // Throws InputError for bad input (unknown dataset, sequence without trajectory, unwritable
 // output); numerical failure is a result (status failed), not an exception.
 RunOutcome runSequence(const RunOptions& options);
+
+// The IMU stream and first state of a VIO run, and what they are (provenance: root attributes
+// imu, initial_biases, initial_state, imu_noise). The densities are those of
+// options.config.imu_noise_profile, for the synthetic IMU and the estimator's weights alike. The
+// first state is the ground truth at t0_ns (pose and velocity from the trajectory) with zero
+// biases, or the recorded ground-truth biases for the real IMU where the sequence has them — the
+// same for every variant. Throws InputError (a profile without calibration, too few real samples).
+ImuSetup vioImuSetup(const RunOptions& options, const Sequence& sequence,
+                     const TrajectoryFunction& trajectory, std::int64_t t0_ns,
+                     std::map<std::string, std::string>* provenance);
 
 // The estimator's rig from a calibration: pinhole intrinsics (images are undistorted) and the
 // body-to-camera extrinsics T_i_c0, T_i_c1.

@@ -25,6 +25,12 @@ and, from runs whose results attribute marg_strategy is nfr (Hsiung et al., IROS
                          t_recovery_s, t_insert_s of the events whose factors were recovered
   sparsify_kld           D_KL (eq. 10, /sparsify kld) of every recovered event over time, every nfr
                          run (lowest seed, most frames per sequence)
+and, from VIO runs of the IMU noise profiles (results attribute config_toml, [imu]
+noise_profile; issue #19), figure `noise_sigma`:
+  noise_sigma            sigma_max and sigma_min (/marg) of the prior at the first 20
+                         marginalizations, one thin line per sequence and profile (kalibr, basalt),
+                         the median over sequences bold; the values plotted also go to
+                         noise_sigma.csv (dataset, profile, variant, event, sigma_max, sigma_min)
 The family label (VIO / VO) comes from each results file's `mode` attribute, so the figures say what
 the estimator actually ran. A run that failed is drawn up to its failure and marked with an x.
 Needs matplotlib, h5py and numpy (Debian: python3-matplotlib python3-h5py python3-numpy).
@@ -34,6 +40,7 @@ import os
 import sys
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -303,6 +310,77 @@ def plot_dEm(fig, runs, title):
     fig.suptitle(title)
 
 
+PROFILE_COLORS = {"kalibr": "tab:blue", "basalt": "tab:orange"}
+NOISE_EVENTS = 20
+
+
+def noise_profile(config_toml):
+    """[imu] noise_profile of a results file's config ("kalibr" before the key existed)."""
+    section = ""
+    for line in config_toml.splitlines():
+        line = line.strip()
+        if line.startswith("["):
+            section = line.strip("[]").strip()
+        elif section == "imu" and line.split("=")[0].strip() == "noise_profile":
+            return line.split("=", 1)[1].strip().strip("'\"")
+    return "kalibr"
+
+
+def noise_sigma_runs(rows):
+    """[(dataset, profile, variant, sigma_max, sigma_min)] of the VIO runs: the first NOISE_EVENTS
+    /marg events, lowest seed per (dataset, profile, variant)."""
+    chosen = {}
+    for r in rows:
+        if not r["dataset"].startswith(("euroc/", "tumvi/")) or not os.path.isfile(r["_path"]):
+            continue
+        try:
+            run = mr.read_run(r["_path"])
+        except (OSError, KeyError, mr.SchemaError) as e:
+            print("warning: cannot read %s: %s" % (r["_path"], e), file=sys.stderr)
+            continue
+        if run.mode != "vio":
+            continue
+        key = (r["dataset"], noise_profile(run.attrs.get("config_toml", "")), run.variant)
+        if key in chosen and int(chosen[key][0]) <= int(r["seed"]):
+            continue
+        sig_max = np.asarray(run.marg["sigma_max"], float)[:NOISE_EVENTS]
+        sig_min = np.asarray(run.marg["sigma_min"], float)[:NOISE_EVENTS]
+        chosen[key] = (r["seed"], sig_max, sig_min)
+    return [(d, p, v, mx, mn) for (d, p, v), (_, mx, mn) in sorted(chosen.items())]
+
+
+def plot_noise_sigma(runs, out, written):
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for ax, j, name in ((axes[0], 3, r"$\sigma_{\max}(H_m)$"), (axes[1], 4, r"$\sigma_{\min}(H_m)$")):
+        for profile, color in PROFILE_COLORS.items():
+            curves = [r[j] for r in runs if r[1] == profile and len(r[j])]
+            for c in curves:
+                ax.plot(np.arange(1, len(c) + 1), c, color=color, lw=0.6, alpha=0.45)
+            if curves:
+                n = min(len(c) for c in curves)
+                median = np.median(np.vstack([c[:n] for c in curves]), axis=0)
+                ax.plot(np.arange(1, n + 1), median, color=color, lw=2.2,
+                        label="%s (median of %d runs)" % (profile, len(curves)))
+        ax.set_yscale("log" if j == 3 else "symlog", **({} if j == 3 else dict(linthresh=LINTHRESH)))
+        ax.set_xlabel("marginalization event")
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
+        ax.set_ylabel(name + " of the prior")
+        ax.grid(True, which="major", alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+    variants = sorted({r[2] for r in runs})
+    fig.suptitle("Prior eigenvalues at the first %d marginalizations, IMU noise profiles (%s, %d "
+                 "sequences)" % (NOISE_EVENTS, ", ".join(variants), len({r[0] for r in runs})))
+    fig.tight_layout()
+    save(fig, out, "noise_sigma", written)
+    path = os.path.join(out, "noise_sigma.csv")
+    with open(path, "w") as f:
+        f.write("dataset,profile,variant,event,sigma_max,sigma_min\n")
+        for d, p, v, mx, mn in runs:
+            for k in range(len(mx)):
+                f.write("%s,%s,%s,%d,%.17g,%.17g\n" % (d, p, v, k + 1, mx[k], mn[k]))
+    written.append(path)
+
+
 def save(fig, out, name, written):
     for ext in ("png", "pdf"):
         path = os.path.join(out, "%s.%s" % (name, ext))
@@ -371,6 +449,13 @@ def main():
             plot_sparsify(runs, args.out, written)
         else:
             print("skipped sparsify: no nfr runs (results attribute marg_strategy)")
+
+    if "noise_sigma" in figures:
+        runs = noise_sigma_runs(rows)
+        if runs:
+            plot_noise_sigma(runs, args.out, written)
+        else:
+            print("skipped noise_sigma: no VIO runs")
 
     for path in written:
         print("wrote", path)

@@ -1,0 +1,251 @@
+// Seed statistics of Tables 1 and 2 and the seed claim table (issue #19) from a small synthetic
+// sweep: every mean, std and failure count equals the one computed here from the ATEs the results
+// files hold, a cell is `x n/n` only when every seed failed, the statistics switch on by themselves
+// only for a table with several seeds per cell, and `--seeds off` keeps the single-value tables.
+
+#include <gtest/gtest.h>
+
+#include <fmt/core.h>
+
+#include <unistd.h>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "core/experiment/sweep_index.h"
+#include "core/experiment/tables.h"
+#include "core/io/results_file.h"
+
+namespace marglab::experiment {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string readText(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+double meanOf(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x;
+  return s / static_cast<double>(v.size());
+}
+
+// Sample standard deviation, two-pass.
+double sampleStdOf(const std::vector<double>& v) {
+  const double m = meanOf(v);
+  double s = 0;
+  for (double x : v) s += (x - m) * (x - m);
+  return std::sqrt(s / static_cast<double>(v.size() - 1));
+}
+
+class SeedTables : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("marglab_seed_tables_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_ / "sweep" / "runs");
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // A run with a trajectory error that depends on the salt; its index row. Returns the ATE the
+  // results file holds (/summary ate_rmse).
+  double addRun(const std::string& dataset, const std::string& variant, int seed, double salt,
+                RunStatus status = RunStatus::kOk) {
+    const std::string sequence = dataset.substr(dataset.find('/') + 1);
+    const std::string id = fmt::format("g__{}__{}__s{}", sequence, variant, seed);
+    const std::string results = "runs/" + id + ".h5";
+    RunMetadata m;
+    m.dataset = dataset.substr(0, dataset.find('/'));
+    m.sequence = sequence;
+    m.variant = variant;
+    m.precision = variant.substr(variant.size() - 3);
+    m.mode = m.dataset == "kitti" ? "vo" : "vio";
+    m.seed = static_cast<std::uint64_t>(seed);
+    m.config_toml = "[window]\nmax_kfs = 7\n";
+    ResultsWriter w = ResultsWriter::create((dir_ / "sweep" / results).string(), m);
+    for (int i = 0; i < 20; ++i) {
+      FrameRecord f;
+      f.t_ns = 1'000'000'000LL + i * 50'000'000LL;
+      f.p_gt = Eigen::Vector3d(0.1 * i, std::sin(0.2 * i), 0.05 * i * i);
+      f.p_est = f.p_gt + salt * Eigen::Vector3d(std::cos(i), std::sin(3 * i), 0.3);
+      w.appendFrame(f);
+    }
+    const double ate =
+        w.finish(RunSummary{}, status, status == RunStatus::kOk ? -1 : 19, "test").ate_rmse;
+    IndexRow row;
+    row.set("id", id);
+    row.set("group", "g");
+    row.set("dataset", dataset);
+    row.set("variant", variant);
+    row.set("seed", std::to_string(seed));
+    row.set("frames", "0");
+    row.set("override", "");
+    row.set("status", status == RunStatus::kOk ? "ok" : "failed");
+    row.set("results", results);
+    rows_.push_back(row);
+    return ate;
+  }
+
+  fs::path writeTablesOf(SeedStats seeds) {
+    writeIndex((dir_ / "sweep" / "index.csv").string(), rows_);
+    TablesRequest request;
+    request.dirs = {(dir_ / "sweep").string()};
+    request.out = (dir_ / "tables").string();
+    request.seeds = seeds;
+    writeTables(request, nullptr);
+    return dir_ / "tables";
+  }
+
+  // (table, row, variant) → CSV fields of a tables*.csv; `col` gives a column's index.
+  struct Csv {
+    std::vector<std::string> header;
+    std::map<std::string, std::vector<std::string>> rows;
+    std::size_t col(const std::string& name) const {
+      const auto it = std::find(header.begin(), header.end(), name);
+      EXPECT_NE(it, header.end()) << name;
+      return static_cast<std::size_t>(it - header.begin());
+    }
+    const std::string& at(const std::string& key, const std::string& column) const {
+      static const std::string kNone = "<none>";
+      const auto it = rows.find(key);
+      EXPECT_NE(it, rows.end()) << key;
+      return it == rows.end() ? kNone : it->second[col(column)];
+    }
+  };
+  static Csv readCsv(const fs::path& path, const std::vector<std::string>& key_columns) {
+    const auto csv = parseCsv(readText(path), path.string());
+    Csv out;
+    out.header = csv.front();
+    for (std::size_t r = 1; r < csv.size(); ++r) {
+      std::string key;
+      for (const std::string& c : key_columns) key += (key.empty() ? "" : "|") + csv[r][out.col(c)];
+      out.rows[key] = csv[r];
+    }
+    return out;
+  }
+
+  fs::path dir_;
+  std::vector<IndexRow> rows_;
+};
+
+TEST_F(SeedTables, CellsAreMeanStdAndFailureCountsOfTheResultsFiles) {
+  const std::string mh = "euroc/MH_03_medium", room = "tumvi/room1", kitti = "kitti/10";
+  std::map<std::string, std::vector<double>> ate;  // dataset|variant → ATE of the ok seeds
+  for (int s = 1; s <= 3; ++s) {
+    ate[mh + "|ns-qr-sqrt-f64"].push_back(addRun(mh, "ns-qr-sqrt-f64", s, 1e-3 * s));
+    // √-f32 close to f64 on MH_03, far from it on room1; its seed 3 fails on room1.
+    ate[mh + "|ns-qr-sqrt-f32"].push_back(addRun(mh, "ns-qr-sqrt-f32", s, 1e-3 * s + 1e-5));
+    ate[room + "|ns-qr-sqrt-f64"].push_back(addRun(room, "ns-qr-sqrt-f64", s, 2e-3 + 1e-4 * s));
+    if (s < 3) ate[room + "|ns-qr-sqrt-f32"].push_back(addRun(room, "ns-qr-sqrt-f32", s, 9e-3 * s));
+    addRun(mh, "sc-sc-sq-f32", s, 0.1, RunStatus::kFailed);
+  }
+  addRun(room, "ns-qr-sqrt-f32", 3, 0.1, RunStatus::kFailed);
+  // KITTI: one seed per cell, so Table 2 keeps single values under --seeds auto.
+  const double kitti_64 = addRun(kitti, "ns-qr-sqrt-f64", 1, 0.02);
+  const fs::path tables = writeTablesOf(SeedStats::kAuto);
+
+  const Csv csv = readCsv(tables / "tables.csv", {"table", "row", "variant"});
+  for (const auto& [key, values] : ate) {
+    SCOPED_TRACE(key);
+    const std::string k = "table1|" + key;
+    EXPECT_DOUBLE_EQ(std::stod(csv.at(k, "ours")), meanOf(values));
+    EXPECT_NEAR(std::stod(csv.at(k, "ours_std")), sampleStdOf(values), 1e-15);
+    EXPECT_EQ(csv.at(k, "ours_state"), "ok");
+  }
+  EXPECT_EQ(csv.at("table1|" + room + "|ns-qr-sqrt-f32", "ours_failed"), "1");
+  EXPECT_EQ(csv.at("table1|" + room + "|ns-qr-sqrt-f32", "n_runs"), "3");
+  EXPECT_EQ(csv.at("table1|" + mh + "|ns-qr-sqrt-f64", "ours_failed"), "0");
+  EXPECT_EQ(csv.at("table1|" + mh + "|sc-sc-sq-f32", "ours_state"), "failed");
+  EXPECT_EQ(csv.at("table1|" + mh + "|sc-sc-sq-f32", "ours_failed"), "3");
+  EXPECT_EQ(csv.at("table1|" + mh + "|sc-sc-sq-f64", "ours_state"), "missing");
+  // The paper's single value beside (Table 1, MH03, √VIO-64: 0.051 in paper_values.toml).
+  EXPECT_EQ(csv.at("table1|" + mh + "|ns-qr-sqrt-f64", "paper_state"), "ok");
+  // Table 2 without seed statistics: no std, no failure count.
+  EXPECT_DOUBLE_EQ(std::stod(csv.at("table2|" + kitti + "|ns-qr-sqrt-f64", "ours")), kitti_64);
+  EXPECT_EQ(csv.at("table2|" + kitti + "|ns-qr-sqrt-f64", "ours_std"), "");
+  EXPECT_EQ(csv.at("table2|" + kitti + "|ns-qr-sqrt-f64", "ours_failed"), "");
+
+  // Markdown: mean ± std with the row's 4 decimals, and the failure counts.
+  const std::string md = readText(tables / "table1.md");
+  const std::vector<double>& room32 = ate.at(room + "|ns-qr-sqrt-f32");
+  EXPECT_NE(md.find(fmt::format("{:.4f} ± {:.4f} x 1/3", meanOf(room32), sampleStdOf(room32))),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| x 3/3 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("Seeds: mean ± sample standard deviation"), std::string::npos) << md;
+  EXPECT_NE(readText(tables / "table1.tex").find("$\\pm$"), std::string::npos);
+  EXPECT_EQ(readText(tables / "table2.md").find(" ± "), std::string::npos);
+}
+
+TEST_F(SeedTables, ClaimTableComparesTheF32DifferenceWithTheF64Spread) {
+  const std::string mh = "euroc/MH_03_medium", room = "tumvi/room1";
+  std::map<std::string, std::map<int, double>> ate;  // dataset|bits → seed → ATE
+  for (int s = 1; s <= 3; ++s) {
+    ate[mh + "|64"][s] = addRun(mh, "ns-qr-sqrt-f64", s, 1e-3 * s);
+    ate[mh + "|32"][s] = addRun(mh, "ns-qr-sqrt-f32", s, 1e-3 * s + 1e-5);
+    ate[room + "|64"][s] = addRun(room, "ns-qr-sqrt-f64", s, 2e-3 + 1e-4 * s);
+    ate[room + "|32"][s] = addRun(room, "ns-qr-sqrt-f32", s, 9e-3 * s);
+  }
+  const fs::path tables = writeTablesOf(SeedStats::kAuto);
+  ASSERT_TRUE(fs::is_regular_file(tables / "seed_claim.md"));
+  ASSERT_TRUE(fs::is_regular_file(tables / "seed_claim.tex"));
+  const Csv csv = readCsv(tables / "seed_claim.csv", {"row"});
+  for (const std::string& d : {mh, room}) {
+    SCOPED_TRACE(d);
+    std::vector<double> v64, v32, paired;
+    for (const auto& [seed, x] : ate.at(d + "|64")) {
+      v64.push_back(x);
+      v32.push_back(ate.at(d + "|32").at(seed));
+      paired.push_back(std::abs(ate.at(d + "|32").at(seed) - x));
+    }
+    const double delta = std::abs(meanOf(v32) - meanOf(v64));
+    EXPECT_DOUBLE_EQ(std::stod(csv.at(d, "mean_f64")), meanOf(v64));
+    EXPECT_NEAR(std::stod(csv.at(d, "std_f64")), sampleStdOf(v64), 1e-15);
+    EXPECT_DOUBLE_EQ(std::stod(csv.at(d, "mean_f32")), meanOf(v32));
+    EXPECT_NEAR(std::stod(csv.at(d, "delta")), delta, 1e-15);
+    EXPECT_NEAR(std::stod(csv.at(d, "relative")), delta / meanOf(v64), 1e-12);
+    EXPECT_NEAR(std::stod(csv.at(d, "paired")), meanOf(paired), 1e-15);
+    EXPECT_EQ(csv.at(d, "seeds_f64"), "3");
+    EXPECT_EQ(csv.at(d, "within"), delta <= sampleStdOf(v64) ? "yes" : "no");
+  }
+  // The constructed cases: √-f32 within the f64 spread on MH_03, far outside on room1.
+  EXPECT_EQ(csv.at(mh, "within"), "yes");
+  EXPECT_EQ(csv.at(room, "within"), "no");
+}
+
+TEST_F(SeedTables, OffKeepsSingleValuesAndOnWorksWithOneSeed) {
+  const std::string mh = "euroc/MH_03_medium";
+  std::vector<double> v;
+  for (int s = 1; s <= 2; ++s) v.push_back(addRun(mh, "ns-qr-sqrt-f64", s, 1e-3 * s));
+  addRun(mh, "ns-qr-sqrt-f32", 1, 1e-3);
+  addRun(mh, "ns-qr-sqrt-f32", 2, 0.1, RunStatus::kFailed);
+  const fs::path off = writeTablesOf(SeedStats::kOff);
+  Csv csv = readCsv(off / "tables.csv", {"table", "row", "variant"});
+  EXPECT_DOUBLE_EQ(std::stod(csv.at("table1|" + mh + "|ns-qr-sqrt-f64", "ours")), meanOf(v));
+  EXPECT_EQ(csv.at("table1|" + mh + "|ns-qr-sqrt-f64", "ours_std"), "");
+  // Without seed statistics any failed seed fails the cell, as before.
+  EXPECT_EQ(csv.at("table1|" + mh + "|ns-qr-sqrt-f32", "ours_state"), "failed");
+  EXPECT_FALSE(fs::exists(off / "seed_claim.md"));
+
+  fs::remove_all(dir_ / "tables");
+  const fs::path on = writeTablesOf(SeedStats::kOn);
+  csv = readCsv(on / "tables.csv", {"table", "row", "variant"});
+  EXPECT_EQ(csv.at("table1|" + mh + "|ns-qr-sqrt-f32", "ours_state"), "ok");
+  EXPECT_EQ(csv.at("table1|" + mh + "|ns-qr-sqrt-f32", "ours_failed"), "1");
+  // One ok seed: a mean without spread, and no verdict in the claim.
+  EXPECT_EQ(csv.at("table1|" + mh + "|ns-qr-sqrt-f32", "ours_std"), "");
+  const Csv claim = readCsv(on / "seed_claim.csv", {"row"});
+  EXPECT_EQ(claim.at(mh, "within"), "no");  // √-f32 failed on a seed
+  EXPECT_EQ(claim.at(mh, "failed_f32"), "1");
+}
+
+}  // namespace
+}  // namespace marglab::experiment
