@@ -86,7 +86,10 @@ def main():
     out_dir = os.path.join(sweep, "tables")
     os.makedirs(out_dir, exist_ok=True)
     lines = ["# lm.stop_rule: marglab (default) vs basalt", "",
-             f"Sweep `{sweep}` ({len(runs)} runs). ATE RMSE in m, LM iterations = linearizations "
+             f"Sweep `{sweep}`: {len(runs)} runs, "
+             + ", ".join(f"{sum(r['status'] == st for r in runs.values())} {st}"
+                         for st in sorted({r["status"] for r in runs.values()}))
+             + ". ATE RMSE in m, LM iterations = linearizations "
              "per frame, opt = optimization time per frame (ms; machine shared and loaded, "
              "compare within a row only).", "",
              "| group | variant | ok marglab | ATE marglab | it/frame marglab | opt ms marglab | "
