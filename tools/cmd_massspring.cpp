@@ -19,6 +19,7 @@
 
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
+#include "core/experiment/tables.h"
 #include "core/io/hdf5.h"
 #include "core/massspring/mass_spring.h"
 #include "tools/command.h"
@@ -28,6 +29,9 @@ namespace {
 
 using ceres_marg::Method;
 using massspring::MassSpringSystem;
+using experiment::PaperCell;
+using experiment::PaperTable;
+using experiment::PaperValues;
 
 struct Options {
   int grid = 5;
@@ -171,6 +175,52 @@ std::string writeFigure(const Options& opt, const MassSpringSystem& system,
   return message;
 }
 
+// The primer's Table 1 (experiments/paper_values.toml [massspring_table1]): per-iteration solve
+// times, single stage and two-stage, ms. Absent file: nothing to compare (installed binary).
+struct PrimerTable {
+  bool present = false;
+  double single_ms = 0, two_ms = 0;
+};
+
+PrimerTable loadPrimerTable() {
+  PrimerTable primer;
+  const std::string path = experiment::defaultPaperValuesPath();
+  if (access(path.c_str(), R_OK) != 0) return primer;
+  const PaperValues paper = experiment::loadPaperValues(path);
+  const auto it = paper.tables.find("massspring_table1");
+  const PaperTable::Row* row =
+      it == paper.tables.end() ? nullptr : it->second.row("solve_time_per_iteration");
+  if (row == nullptr || row->cells.count("time_ms") == 0) {
+    throw InputError(path, 0, "[massspring_table1] needs the row solve_time_per_iteration");
+  }
+  const std::vector<PaperCell>& cells = row->cells.at("time_ms");
+  primer.present = cells.size() == 2 && cells[0].state == PaperCell::State::kValue &&
+                   cells[1].state == PaperCell::State::kValue;
+  if (primer.present) {
+    primer.single_ms = cells[0].value;
+    primer.two_ms = cells[1].value;
+  }
+  return primer;
+}
+
+// Per Gauss–Newton iteration, as the primer reports: the two-stage time (marginalization, stage 1
+// and recovery) over the iterations.
+void printPrimerTable(const PrimerTable& primer, int grid, int iterations, double single_ms,
+                      double two_ms) {
+  if (!primer.present) return;
+  fmt::print(
+      "\nprimer Table 1 beside ours: solve time per Gauss-Newton iteration, ms (ours: {0}x{0} "
+      "grid, the whole solve / {1} iterations)\n\n",
+      grid, iterations);
+  fmt::print("| {:<12} | {:>9} | {:>9} |\n", "method", "primer", "marglab");
+  fmt::print("|{:-<14}|{:->11}|{:->11}|\n", "", "", "");
+  fmt::print("| {:<12} | {:>9.1f} | {:>9.3f} |\n", "single stage", primer.single_ms,
+             single_ms / iterations);
+  fmt::print("| {:<12} | {:>9.1f} | {:>9.3f} |\n", "two-stage", primer.two_ms, two_ms / iterations);
+  fmt::print("| {:<12} | {:>8.1f}x | {:>8.1f}x |\n", "speedup", primer.single_ms / primer.two_ms,
+             single_ms / two_ms);
+}
+
 struct ScalingRow {
   int n = 0;
   int masses = 0;
@@ -239,6 +289,7 @@ int runMassSpring(const Options& opt, bool sizes_given, bool grid_given) {
   if (!opt.no_plot) figure = writeFigure(opt, system, main_two.last.x);
 
   const double speedup = single.ms / main_two.total_ms;
+  const PrimerTable primer = loadPrimerTable();
   if (opt.json) {
     std::vector<std::string> methods, rows;
     for (const TwoRow& t : twos) {
@@ -262,10 +313,14 @@ int runMassSpring(const Options& opt, bool sizes_given, bool grid_given) {
         "{{\"grid\":{},\"masses\":{},\"nonlinear_masses\":{},\"iterations\":{},\"reps\":{},"
         "\"method\":\"{}\",\"single_stage_ms\":{:.6g},\"two_stage_ms\":{:.6g},\"speedup\":{:.6g},"
         "\"max_abs_diff\":{:.3e},\"final_energy\":{:.12g},\"two_stage\":{{{}}},\"scaling\":[{}]"
-        "}}\n",
+        "{}}}\n",
         opt.grid, system.num_masses, system.nonlinearMasses(), opt.iterations, reps,
         ceres_marg::toString(method), single.ms, main_two.total_ms, speedup, main_two.max_abs_diff,
-        single.last.final_cost, fmt::join(methods, ","), fmt::join(rows, ","));
+        single.last.final_cost, fmt::join(methods, ","), fmt::join(rows, ","),
+        primer.present ? fmt::format(",\"primer_table1\":{{\"single_stage_ms_per_iteration\":{},"
+                                     "\"two_stage_ms_per_iteration\":{}}}",
+                                     primer.single_ms, primer.two_ms)
+                       : std::string());
     if (!figure.empty()) fmt::print(stderr, "{}\n", figure);
   } else {
     fmt::print(
@@ -300,6 +355,7 @@ int runMassSpring(const Options& opt, bool sizes_given, bool grid_given) {
         "\nfinal energy {:.10g} (single) vs {:.10g} (two-stage); max|dx| is the largest coordinate "
         "difference of the two final states. * = --method\n",
         single.last.final_cost, main_two.last.final_cost);
+    printPrimerTable(primer, opt.grid, opt.iterations, single.ms, main_two.total_ms);
     if (!scaling.empty()) {
       fmt::print("\nscaling (two-stage with {}):\n\n", ceres_marg::toString(method));
       fmt::print(

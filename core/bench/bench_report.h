@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "core/bench/ceres_window.h"
+
 namespace marglab {
 
 struct BenchOptions {
@@ -22,15 +24,35 @@ struct BenchOptions {
   bool verbose = false;
 };
 
+// One Ceres linear solver to convergence on one window, its best round.
+struct CeresSolverTimes {
+  std::string solver;  // "DENSE_SCHUR", "SPARSE_SCHUR", "ITERATIVE_SCHUR", "DENSE_QR"
+  int iterations = 0;
+  double seconds = 0;  // Solver::Summary total
+  double cost = 0;
+  CeresTimeSplit split;  // of the best round
+};
+
+// One Ceres solver over all windows.
+struct CeresSolverTotals {
+  std::string solver;
+  int iterations = 0;
+  double seconds = 0;
+  double per_iteration_s = 0;  // Σ over windows of seconds / iterations
+  double speedup = 0;          // per_iteration_s / marglab's
+  CeresTimeSplit split;        // summed over windows
+};
+
 struct WindowTimes {
   std::string name;
   int landmarks = 0;
   // LM iteration (linearize + eliminate + solve), seconds.
   double ns_f32 = 0, ns_f64 = 0, sc_f32 = 0, sc_f64 = 0, ns_mixed = 0;
   // To convergence with the window's LM settings, f64 (FEJ as captured).
-  int marglab_iterations = 0, dense_iterations = 0, sparse_iterations = 0;
-  double marglab_s = 0, dense_s = 0, sparse_s = 0;
-  double marglab_cost = 0, dense_cost = 0, sparse_cost = 0;
+  int marglab_iterations = 0;
+  double marglab_s = 0;
+  double marglab_cost = 0;
+  std::vector<CeresSolverTimes> ceres;  // one per solver of the comparison
   // Marginalization event, seconds.
   double marg_qr_f32 = 0, marg_sc_f32 = 0, marg_qr_f64 = 0, marg_sc_f64 = 0;
   // Landmark-block QR kernel.
@@ -56,6 +78,9 @@ struct BenchReport {
   double speedup_ns_f32_over_sc_f64 = 0;
   double speedup_over_ceres_dense_schur = 0;  // per iteration, ns-f64 vs DENSE_SCHUR
   double speedup_over_ceres_sparse_schur = 0;
+  double speedup_over_ceres_best = 0;  // over the fastest Ceres solver per iteration
+  std::string ceres_best_solver;
+  std::vector<CeresSolverTotals> ceres;
   double qr_gflops_f32 = 0, qr_gflops_f64 = 0;
   double qr_kernel_peak_fraction = 0;  // f32 kernel / f32 machine peak
 };

@@ -283,7 +283,7 @@ CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindo
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
-  auto* ordering = new ceres::ParameterBlockOrdering;
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
   for (auto& [id, x] : poses) {
     problem.AddParameterBlock(x.data(), 7, new PoseManifold);
     ordering->AddElementToGroup(x.data(), 1);
@@ -360,7 +360,12 @@ CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindo
   o.minimizer_type = ceres::TRUST_REGION;
   o.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   o.linear_solver_type = opt.linear_solver;
-  o.linear_solver_ordering.reset(ordering);
+  o.preconditioner_type = opt.preconditioner;
+  // The elimination groups concern the Schur solvers only; the others keep Ceres' default.
+  if (opt.linear_solver == ceres::DENSE_SCHUR || opt.linear_solver == ceres::SPARSE_SCHUR ||
+      opt.linear_solver == ceres::ITERATIVE_SCHUR) {
+    o.linear_solver_ordering = ordering;
+  }
   o.initial_trust_region_radius = 1.0 / cfg.lambda_init;
   o.max_trust_region_radius = 1.0 / cfg.lambda_min;
   o.min_trust_region_radius = 1.0 / cfg.lambda_max;
@@ -386,6 +391,12 @@ CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindo
   out.iterations = static_cast<int>(summary.iterations.size()) - 1;
   out.successful_iterations = summary.num_successful_steps;
   out.seconds = summary.total_time_in_seconds;
+  out.split.preprocessor_s = summary.preprocessor_time_in_seconds;
+  out.split.minimizer_s = summary.minimizer_time_in_seconds;
+  out.split.linear_solver_s = summary.linear_solver_time_in_seconds;
+  out.split.residual_s = summary.residual_evaluation_time_in_seconds;
+  out.split.jacobian_s = summary.jacobian_evaluation_time_in_seconds;
+  out.split.postprocessor_s = summary.postprocessor_time_in_seconds;
   out.cost_initial = summary.initial_cost;
   out.cost_final = summary.final_cost;
   out.num_residual_blocks = residual_blocks;

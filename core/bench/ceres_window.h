@@ -1,6 +1,7 @@
 #pragma once
 // The peer of issue #8: a captured window (WindowSnapshot) as a ceres::Problem with the estimator's
-// energy term by term, solved by Ceres' Levenberg–Marquardt with DENSE_SCHUR or SPARSE_SCHUR.
+// energy term by term, solved by Ceres' Levenberg–Marquardt with any of its linear solvers (the
+// bench tries DENSE_SCHUR, SPARSE_SCHUR, ITERATIVE_SCHUR with SCHUR_JACOBI, and DENSE_QR).
 //
 //   reprojection  residual (π_c(T_ct_h ℓ) − z)/σ with ceres::HuberLoss(k/σ): Ceres' cost ½ρ(s),
 //                 s = ‖r‖², is then ½e²/σ² for e ≤ k and (k e − ½k²)/σ² above — the estimator's
@@ -17,7 +18,8 @@
 // (T ⊞ δ = (exp(δφ)R, t + δt), δ = [δt; δφ]); the cost functions return the tangent Jacobian in
 // the first six ambient columns and the manifold's PlusJacobian is [I₆; 0], so Ceres works with
 // exactly the estimator's 6-column Jacobians. Speed-bias blocks 9 doubles, landmarks (u, v, ρ)
-// with ρ ≥ 0 as a bound (the estimator clamps). Landmarks are eliminated first (ordering group 0).
+// with ρ ≥ 0 as a bound (the estimator clamps). For the Schur solvers landmarks are eliminated
+// first (ordering group 0); DENSE_QR factors the whole Jacobian.
 //
 // LM settings mapped from the estimator config: initial trust region 1/λ_init, radius range
 // [1/λ_max, 1/λ_min], max_num_iterations = lm.max_iterations, function_tolerance =
@@ -35,11 +37,24 @@ namespace marglab {
 
 struct CeresWindowOptions {
   ceres::LinearSolverType linear_solver = ceres::DENSE_SCHUR;
+  // ITERATIVE_SCHUR only (the others are direct).
+  ceres::PreconditionerType preconditioner = ceres::SCHUR_JACOBI;
   // Overrides of the window's LM stopping rules (≤ 0: from the window's config).
   int max_iterations = 0;
   double function_tolerance = -1;
   double parameter_tolerance = -1;
   double gradient_tolerance = 1e-10;
+};
+
+// Where Ceres' time went (Solver::Summary). minimizer_s contains linear_solver_s, residual_s and
+// jacobian_s; total = preprocessor_s + minimizer_s + postprocessor_s.
+struct CeresTimeSplit {
+  double preprocessor_s = 0;
+  double minimizer_s = 0;
+  double linear_solver_s = 0;
+  double residual_s = 0;
+  double jacobian_s = 0;
+  double postprocessor_s = 0;
 };
 
 struct CeresWindowResult {
@@ -48,6 +63,7 @@ struct CeresWindowResult {
   int iterations = 0;             // Ceres iterations (successful and unsuccessful)
   int successful_iterations = 0;  // accepted steps
   double seconds = 0;             // Solver::Summary::total_time_in_seconds
+  CeresTimeSplit split;
   double cost_initial = 0, cost_final = 0;
   int num_residual_blocks = 0;
   WindowSnapshot::Step step;  // states after the solve

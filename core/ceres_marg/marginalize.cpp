@@ -55,6 +55,7 @@ struct SqrtPriorResult {
   VecXd r;
   int marg_rank = 0;
   Status status;
+  std::shared_ptr<const SparseNormalCholesky> factor;  // kSparseSchur: of Λ_mm
 };
 
 // Eigenvalue cut-off for the Hessian-based methods. Absolute: τ². Relative: t · s with
@@ -122,40 +123,54 @@ SqrtPriorResult viaSchur(const MatXd& J, const VecXd& f, int n_m,
   return out;
 }
 
-SqrtPriorResult viaSparseSchur(const ceres::CRSMatrix& crs, const VecXd& f, int n_m,
-                               const MarginalizationOptions& opt) {
-  SqrtPriorResult out;
-  const int n_b = crs.num_cols - n_m;
-  std::vector<Eigen::Triplet<double, int>> triplets;
-  triplets.reserve(crs.values.size());
-  MatXd J_b = MatXd::Zero(crs.num_rows, n_b);
+// J_m and J_b as two compressed sparse matrices (columns < n_m and the rest of the CRS).
+void splitColumns(const ceres::CRSMatrix& crs, int n_m, SparseRowMatrix* J_m,
+                  SparseRowMatrix* J_b) {
+  std::vector<Eigen::Triplet<double, int>> m, b;
+  m.reserve(crs.values.size());
   for (int row = 0; row < crs.num_rows; ++row) {
     for (int k = crs.rows[row]; k < crs.rows[row + 1]; ++k) {
       const int col = crs.cols[k];
       if (col < n_m) {
-        triplets.emplace_back(row, col, crs.values[k]);
+        m.emplace_back(row, col, crs.values[k]);
       } else {
-        J_b(row, col - n_m) = crs.values[k];
+        b.emplace_back(row, col - n_m, crs.values[k]);
       }
     }
   }
-  VecXd column_norms_sq = VecXd::Zero(n_m);
-  SparseRowMatrix J_m(crs.num_rows, n_m);
-  J_m.setFromTriplets(triplets.begin(), triplets.end());
-  J_m.makeCompressed();
-  SparseNormalCholesky cholesky;
-  out.status = cholesky.factorize(J_m);
+  *J_m = SparseRowMatrix(crs.num_rows, n_m);
+  J_m->setFromTriplets(m.begin(), m.end());
+  J_m->makeCompressed();
+  *J_b = SparseRowMatrix(crs.num_rows, crs.num_cols - n_m);
+  J_b->setFromTriplets(b.begin(), b.end());
+  J_b->makeCompressed();
+}
+
+// Λ_mm = Pᵀ L Lᵀ P by one sparse Cholesky; with [Y_b | y_g] = L⁻¹ P [Λ_mb | g_m] (the forward half
+// of a solve) Λ_bm Λ_mm⁻¹ Λ_mb = Y_bᵀY_b and Λ_bm Λ_mm⁻¹ g_m = Y_bᵀ y_g. J_b stays sparse: only
+// the rows of the residuals that touch the blanket are nonzero.
+SqrtPriorResult viaSparseSchur(const ceres::CRSMatrix& crs, const VecXd& f, int n_m,
+                               const MarginalizationOptions& opt) {
+  SqrtPriorResult out;
+  const int n_b = crs.num_cols - n_m;
+  SparseRowMatrix J_m, J_b;
+  splitColumns(crs, n_m, &J_m, &J_b);
+  auto cholesky = std::make_shared<SparseNormalCholesky>();
+  out.status = cholesky->factorize(J_m);
   if (!out.status.ok()) return out;
+  out.factor = cholesky;
   out.marg_rank = n_m;
   MatXd rhs(n_m, n_b + 1);
   rhs.leftCols(n_b) = J_m.transpose() * J_b;  // Λ_mb
   rhs.col(n_b) = J_m.transpose() * f;         // g_m
-  MatXd X;
-  out.status = cholesky.solve(rhs, &X);
+  MatXd Y;
+  out.status = cholesky->solveForward(rhs, &Y);
   if (!out.status.ok()) return out;
-  const MatXd Lambda_t = J_b.transpose() * J_b - rhs.leftCols(n_b).transpose() * X.leftCols(n_b);
-  const VecXd g_t = J_b.transpose() * f - rhs.leftCols(n_b).transpose() * X.col(n_b);
-  double hessian_scale = J_b.size() > 0 ? J_b.colwise().squaredNorm().maxCoeff() : 0.0;
+  const MatXd Lambda_bb = MatXd(J_b.transpose() * J_b);
+  const MatXd Lambda_t = Lambda_bb - Y.leftCols(n_b).transpose() * Y.leftCols(n_b);
+  const VecXd g_t = J_b.transpose() * f - Y.leftCols(n_b).transpose() * Y.col(n_b);
+  double hessian_scale = n_b > 0 ? Lambda_bb.diagonal().maxCoeff() : 0.0;
+  VecXd column_norms_sq = VecXd::Zero(n_m);
   for (int row = 0; row < J_m.outerSize(); ++row) {
     for (SparseRowMatrix::InnerIterator it(J_m, row); it; ++it) {
       column_norms_sq[it.col()] += it.value() * it.value();
@@ -380,6 +395,7 @@ MarginalizationSummary marginalize(ceres::Problem* problem, const std::vector<do
   summary.prior_rank = static_cast<int>(prior.R.rows());
   summary.prior_rows = summary.prior_rank;
   summary.condition_number = conditionNumber(prior.R);
+  if (options.keep_factor) summary.factor = std::move(prior.factor);
 
   // 6. The problem changes only now: x_m and ∂x_m out, the prior in.
   for (double* block : blocks) problem->RemoveParameterBlock(block);

@@ -51,10 +51,12 @@
 #include <ceres/problem.h>
 
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "core/ceres_marg/prior_cost.h"
+#include "core/ceres_marg/sparse_cholesky.h"
 #include "core/common/status.h"
 #include "core/linalg/flat_qr.h"
 
@@ -72,6 +74,10 @@ struct MarginalizationOptions {
   // Linearization point x̌_b of blanket blocks (by block pointer, ambient values); blocks not
   // listed are linearized at their current value.
   std::map<const double*, std::vector<double>> linearization_points;
+  // kSparseSchur: hand the Cholesky of Λ_mm = J_mᵀJ_m back in the summary (columns: x_m in the
+  // order of `blocks`), e.g. to recover x_m later by back-substitution without a second
+  // factorization.
+  bool keep_factor = false;
 };
 
 struct MarginalizationSummary {
@@ -96,6 +102,7 @@ struct MarginalizationSummary {
   std::vector<double*> blanket;                  // x_b in the prior's parameter order
   ceres::ResidualBlockId prior_block = nullptr;  // null when there is no prior (empty blanket
   const MarginalizationPriorCost* prior_cost = nullptr;  // or rank 0)
+  std::shared_ptr<const SparseNormalCholesky> factor;    // options.keep_factor, kSparseSchur
 };
 
 MarginalizationSummary marginalize(ceres::Problem* problem, const std::vector<double*>& blocks,

@@ -29,6 +29,7 @@ cholmod_sparse transposeView(const SparseRowMatrix& A) {
 SparseNormalCholesky::SparseNormalCholesky() : common_(new cholmod_common) {
   cholmod_start(common_);
   common_->print = 0;
+  common_->final_ll = 1;  // LLᵀ also when CHOLMOD picks a simplicial LDLᵀ (solveForward)
 }
 
 SparseNormalCholesky::~SparseNormalCholesky() {
@@ -63,6 +64,16 @@ Status SparseNormalCholesky::factorize(const SparseRowMatrix& A) {
 }
 
 Status SparseNormalCholesky::solve(const MatXd& B, MatXd* X) const {
+  return solveSystem(CHOLMOD_A, B, X);
+}
+
+Status SparseNormalCholesky::solveForward(const MatXd& B, MatXd* Y) const {
+  MatXd PB;
+  if (Status s = solveSystem(CHOLMOD_P, B, &PB); !s.ok()) return s;
+  return solveSystem(CHOLMOD_L, PB, Y);
+}
+
+Status SparseNormalCholesky::solveSystem(int sys, const MatXd& B, MatXd* X) const {
   if (factor_ == nullptr || B.rows() != static_cast<Eigen::Index>(factor_->n)) {
     return Status::Error(Status::Code::kInvalidArgument,
                          "sparse Cholesky: no factorization or right-hand side of the wrong size");
@@ -75,7 +86,7 @@ Status SparseNormalCholesky::solve(const MatXd& B, MatXd* X) const {
   rhs.x = const_cast<double*>(B.data());
   rhs.xtype = CHOLMOD_REAL;
   rhs.dtype = CHOLMOD_DOUBLE;
-  cholmod_dense* solution = cholmod_solve(CHOLMOD_A, factor_, &rhs, common_);
+  cholmod_dense* solution = cholmod_solve(sys, factor_, &rhs, common_);
   if (solution == nullptr) {
     return Status::Error(Status::Code::kSolveFailed,
                          fmt::format("CHOLMOD solve failed (status {})", common_->status));

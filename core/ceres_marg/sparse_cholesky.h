@@ -6,7 +6,9 @@
 // CHOLMOD factorizes P (Aᵀ)(Aᵀ)ᵀ Pᵀ = L Lᵀ when handed the unsymmetric Aᵀ, so AᵀA is never
 // formed by the caller (CHOLMOD forms it internally, sparse). Fill-reducing ordering P is
 // CHOLMOD's default (AMD, or the best of its tried methods). AᵀA must be positive definite; a
-// semi-definite one fails with kRankDeficient and the index of the first non-positive pivot.
+// semi-definite one fails with kRankDeficient and the index of the first non-positive pivot. The
+// factor is always LLᵀ (final_ll), so that AᵀA = Pᵀ L Lᵀ P and Bᵀ(AᵀA)⁻¹B = YᵀY with
+// Y = L⁻¹ P B: a Schur complement needs only the forward half of a solve (solveForward).
 
 #include <Eigen/SparseCore>
 
@@ -31,10 +33,14 @@ class SparseNormalCholesky {
   Status factorize(const SparseRowMatrix& A);
   // Solves (AᵀA) X = B for the last factorization; B is n × k.
   Status solve(const MatXd& B, MatXd* X) const;
+  // Y = L⁻¹ P B (n × k), the forward half of solve(): Bᵀ(AᵀA)⁻¹C = (L⁻¹PB)ᵀ(L⁻¹PC).
+  Status solveForward(const MatXd& B, MatXd* Y) const;
 
  private:
   cholmod_common_struct* common_;
   cholmod_factor_struct* factor_ = nullptr;
+  // X = op(B) for one CHOLMOD system (CHOLMOD_A, _P, _L, ...).
+  Status solveSystem(int sys, const MatXd& B, MatXd* X) const;
 };
 
 }  // namespace marglab::ceres_marg

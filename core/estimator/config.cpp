@@ -150,6 +150,8 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
   D("lm", "lambda_max", &c.lambda_max, above(0));
   D("lm", "stop_relative_cost", &c.stop_relative_cost, atLeast(0));
   D("lm", "stop_max_step", &c.stop_max_step, atLeast(0));
+  list.push_back(
+      choice("lm", "stop_rule", &c.lm_stop_rule, parseLmStopRule, "\"marglab\" or \"basalt\""));
   I("lm", "max_failed_solves", &c.max_failed_solves, between(1, 1000));
   list.push_back({"lm", "landmark_damping", nullptr, nullptr, &c.lm_landmark_damping});
   I("lm", "threads", &c.lm_threads, between(1, kMaxLmThreads));
@@ -279,6 +281,12 @@ const char* toString(SparsifyTopology topology) {
 
 bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology) {
   return parseByName(text, {SparsifyTopology::kPaper, SparsifyTopology::kJointStates}, topology);
+}
+
+const char* toString(LmStopRule rule) { return rule == LmStopRule::kBasalt ? "basalt" : "marglab"; }
+
+bool parseLmStopRule(const std::string& text, LmStopRule* rule) {
+  return parseByName(text, {LmStopRule::kMarglab, LmStopRule::kBasalt}, rule);
 }
 
 bool parseMargStrategy(const std::string& text, MargStrategy* strategy) {

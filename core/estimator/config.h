@@ -11,7 +11,8 @@
 //   [keyframes]     connected_ratio, min_frames_after_kf (−1: dataset default), min_baseline_m,
 //                   marg_connected_share
 //   [lm]            max_iterations, lambda_init, lambda_min, lambda_max, stop_relative_cost,
-//                   stop_max_step, max_failed_solves, landmark_damping, threads
+//                   stop_max_step, stop_rule ("marglab"|"basalt", see LmStopRule),
+//                   max_failed_solves, landmark_damping, threads
 //   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
 //                   scalar type), strategy ("discard"|"dense"|"nfr", keyframe marginalization of
 //                   VIO; see MargStrategy), nfr_topology ("paper"|"joint-states", see
@@ -65,6 +66,18 @@ enum class SparsifyTopology { kPaper, kJointStates };
 const char* toString(SparsifyTopology topology);
 bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology);
 
+// When a frame's Levenberg–Marquardt stops (docs/design.md §3, Levenberg–Marquardt):
+//   marglab — at most max_iterations linearizations, each with as many λ trials as it takes; stop
+//             on a relative cost decrease < stop_relative_cost or max|δ| < stop_max_step;
+//   basalt  — Basalt's rule (sqrt_keypoint_vio.cpp): at most max_iterations + 1 cost evaluations
+//             in all (rejected λ trials count); stop on an absolute cost decrease < 1e-6
+//             (kBasaltStopCost) or max|δ| < stop_max_step.
+enum class LmStopRule { kMarglab, kBasalt };
+const char* toString(LmStopRule rule);
+bool parseLmStopRule(const std::string& text, LmStopRule* rule);
+// Basalt's absolute cost-decrease tolerance (its optimize() hard-codes 1e-6).
+inline constexpr double kBasaltStopCost = 1e-6;
+
 // Upper bound of lm.threads (and --threads): more threads than landmark chunks only thrash.
 inline constexpr int kMaxLmThreads = 256;
 
@@ -108,6 +121,7 @@ struct EstimatorConfig {
   double lambda_max = 1e2;
   double stop_relative_cost = 1e-6;
   double stop_max_step = 1e-4;
+  LmStopRule lm_stop_rule = LmStopRule::kMarglab;
   int max_failed_solves = 3;
   // Damping of the landmark blocks too (H_ll += λ…). Off as in the paper's estimator (§5: "we skip
   // Jacobian scaling and landmark damping"), which lets the reduced system be formed once per

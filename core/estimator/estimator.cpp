@@ -124,10 +124,9 @@ int SlidingWindowEstimator<Scalar>::addFrame(int64_t id, const TrackFrame& track
     const int64_t previous = window_.frames.rbegin()->first;
     window_.frames[id] = frame;
     addImuLink(previous, id);
-    const ImuState<Scalar> s_j =
-        predictState<Scalar>(window_.stateOf(previous, false),
-                             window_.imu_links.at(previous).factor.preintegration(),
-                             window_.imu()->g_w.template cast<Scalar>());
+    const ImuState<Scalar> s_j = predictState<Scalar>(
+        window_.stateOf(previous, false), window_.imu_links.at(previous).factor.preintegration(),
+        window_.imu()->g_w.template cast<Scalar>());
     Frame& added = window_.frames.at(id);
     added.T_w_i = s_j.T_w_i;
     added.T_w_i_lin = s_j.T_w_i;
@@ -242,8 +241,12 @@ Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
   if (!std::isfinite(cost)) {
     return Status::Error(Status::Code::kNotFinite, "the cost of the window is not finite");
   }
+  // Basalt counts every cost evaluation (`it <= vio_max_iterations`), rejected λ trials too.
+  const bool basalt = config_.lm_stop_rule == LmStopRule::kBasalt;
+  evaluations_left_ = basalt ? config_.lm_max_iterations + 1 : std::numeric_limits<int>::max();
+  const int max_linearizations = basalt ? evaluations_left_ : config_.lm_max_iterations;
   const std::unique_ptr<Linearization<Scalar>> lin = makeVariantLinearization();
-  for (int it = 0; it < config_.lm_max_iterations; ++it) {
+  for (int it = 0; it < max_linearizations; ++it) {
     lin->linearize(window_);
     if (Status s = lin->eliminate(); !s.ok()) return s;
     bool stop = false;
@@ -274,6 +277,7 @@ Status SlidingWindowEstimator<Scalar>::lmIteration(Linearization<Scalar>& lin, S
     StepBackup backup;
     const Scalar max_step = applyStep(lin, step, &backup);
     const Scalar new_cost = window_.totalCost();
+    --evaluations_left_;
     if (std::isfinite(new_cost) && new_cost < *cost) {
       const Scalar model_change = step.model_change;
       const Scalar rho = model_change < 0 ? (*cost - new_cost) / -model_change : Scalar(1);
@@ -281,19 +285,31 @@ Status SlidingWindowEstimator<Scalar>::lmIteration(Linearization<Scalar>& lin, S
       lambda_ *= std::max(Scalar(1) / Scalar(3), Scalar(1) - f * f * f);
       lambda_ = std::clamp(lambda_, lambda_min, lambda_max);
       nu_ = Scalar(2);
-      const Scalar relative_decrease = (*cost - new_cost) / *cost;
+      *stop = converged(*cost, new_cost, max_step);
       *cost = new_cost;
-      *stop = relative_decrease < static_cast<Scalar>(config_.stop_relative_cost) ||
-              max_step < static_cast<Scalar>(config_.stop_max_step);
       return Status::Ok();
     }
     undoStep(lin, std::move(backup));
-    if (lambda_ >= lambda_max) {
-      *stop = true;  // no decrease even with maximal damping: converged as far as LM can tell
+    // No decrease even with maximal damping (converged as far as LM can tell), or the evaluation
+    // budget of the basalt rule spent.
+    if (lambda_ >= lambda_max || evaluations_left_ <= 0) {
+      *stop = true;
       return Status::Ok();
     }
     increaseDamping();
   }
+}
+
+template <typename Scalar>
+bool SlidingWindowEstimator<Scalar>::converged(Scalar cost, Scalar new_cost,
+                                               Scalar max_step) const {
+  const bool small_step = max_step < static_cast<Scalar>(config_.stop_max_step);
+  if (config_.lm_stop_rule == LmStopRule::kBasalt) {
+    return cost - new_cost < static_cast<Scalar>(kBasaltStopCost) || small_step ||
+           evaluations_left_ <= 0;
+  }
+  const Scalar relative_decrease = (cost - new_cost) / cost;
+  return relative_decrease < static_cast<Scalar>(config_.stop_relative_cost) || small_step;
 }
 
 template <typename Scalar>
@@ -363,7 +379,8 @@ Status SlidingWindowEstimator<Scalar>::computeStep(OptElimination elimination, S
   typename Linearization<Scalar>::Options options;
   options.damp_landmarks = true;
   options.lambda_min = static_cast<Scalar>(config_.lambda_min);
-  const std::unique_ptr<Linearization<Scalar>> lin = makeLinearization<Scalar>(elimination, options);
+  const std::unique_ptr<Linearization<Scalar>> lin =
+      makeLinearization<Scalar>(elimination, options);
   lin->linearize(window_);
   if (Status s = lin->eliminate(); !s.ok()) return s;
   LinearStep<Scalar> step;
@@ -483,9 +500,10 @@ Status SlidingWindowEstimator<Scalar>::marginalizeShadow(const MargPlan& plan,
   if (!status.ok()) return status;
   MargEvent event = shadowEvent();
   event.qr_rank = shadow_rank;
-  event.n_marg_frames = static_cast<int>(std::count_if(
-      plan.vars.begin(), plan.vars.end(),
-      [](const VarKey& var) { return var.block == StateBlock::kPose; }));
+  event.n_marg_frames =
+      static_cast<int>(std::count_if(plan.vars.begin(), plan.vars.end(), [](const VarKey& var) {
+        return var.block == StateBlock::kPose;
+      }));
   event.n_marg_landmarks = static_cast<int>(plan.landmarks.size());
   event.t_shadow_s = secondsSince(t1);
   result->marg_event = std::move(event);
@@ -529,8 +547,8 @@ MargEvent SlidingWindowEstimator<Scalar>::shadowEvent() const {
 }
 
 template <typename Scalar>
-Status SlidingWindowEstimator<Scalar>::trialMarginalization(const MargPlan& plan,
-                                                            MargMethod method, MatXd* H_m) const {
+Status SlidingWindowEstimator<Scalar>::trialMarginalization(const MargPlan& plan, MargMethod method,
+                                                            MatXd* H_m) const {
   MargPrior<Scalar> prior = shadow_prior_;
   const PriorStorage storage =
       method == MargMethod::kQr ? PriorStorage::kSqrt : PriorStorage::kHessian;

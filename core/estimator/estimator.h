@@ -18,8 +18,8 @@
 // through the variant's Linearization (linearization.h: landmarks eliminated per landmark, the
 // reduced system with the IMU terms and the prior damped H_ii += max(λH_ii, λ_min) and solved by
 // LDLT); the gain ratio ρ = actual / model decrease updates λ ← λ·max(1/3, 1 − (2ρ − 1)³) on
-// success, λ ← λν, ν ← 2ν on failure. Stop on relative decrease < stop_relative_cost or
-// max|δ| < stop_max_step.
+// success, λ ← λν, ν ← 2ν on failure. Stop (lm.stop_rule = marglab) on relative decrease <
+// stop_relative_cost or max|δ| < stop_max_step; basalt: Basalt's rule (config.h, LmStopRule).
 //
 // First-estimate Jacobians. A variable in the prior keeps its linearization point: reprojection
 // and IMU Jacobians are evaluated there (residuals at the current estimate), which keeps the
@@ -51,8 +51,8 @@
 #include "core/diagnostics/gauge.h"
 #include "core/estimator/config.h"
 #include "core/estimator/linearization.h"
-#include "core/estimator/marg_prior.h"
 #include "core/estimator/marg_policy.h"
+#include "core/estimator/marg_prior.h"
 #include "core/estimator/marginalizer.h"
 #include "core/estimator/prior_sparsifier.h"
 #include "core/estimator/variant.h"
@@ -158,8 +158,8 @@ class SlidingWindowEstimator {
   // The states changed by one LM step, to undo it.
   struct StepBackup {
     std::map<int64_t, Frame> frames;
-    std::vector<Vec3S> params;             // eliminated landmarks, in the linearization's order
-    std::map<int64_t, Vec3S> reduced;      // landmarks of a dense prior
+    std::vector<Vec3S> params;         // eliminated landmarks, in the linearization's order
+    std::map<int64_t, Vec3S> reduced;  // landmarks of a dense prior
   };
 
   // Frame intake: the new frame's state (VIO: predicted through its IMU factor; VO: constant
@@ -178,6 +178,8 @@ class SlidingWindowEstimator {
   Scalar applyStep(const Linearization<Scalar>& lin, const LinearStep<Scalar>& step,
                    StepBackup* backup);
   void undoStep(const Linearization<Scalar>& lin, StepBackup&& backup);
+  // The stop rule (lm.stop_rule) after a successful step from `cost` to `new_cost`.
+  bool converged(Scalar cost, Scalar new_cost, Scalar max_step) const;
   void increaseDamping();
   Status checkFinite() const;
 
@@ -200,6 +202,7 @@ class SlidingWindowEstimator {
   bool has_previous_pose_ = false;
   Scalar lambda_;
   Scalar nu_ = Scalar(2);
+  int evaluations_left_ = 0;  // of the frame's cost evaluations (stop rule basalt)
   int failed_solves_ = 0;
   bool capture_next_ = false;
   std::optional<WindowSnapshot> captured_;

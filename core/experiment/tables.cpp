@@ -925,9 +925,11 @@ PaperValues loadPaperValues(const std::string& path) {
     const std::string id(key.str());
     if (id == "source") continue;
     const toml::table* table = node.as_table();
-    if (table == nullptr || !(startsWith(id, "table") || startsWith(id, "sparsify_table"))) {
-      throw InputError(path, lineOf(node),
-                       "expected source = \"...\" or [tableN] / [sparsify_tableN] tables");
+    if (table == nullptr || !(startsWith(id, "table") || startsWith(id, "sparsify_table") ||
+                              startsWith(id, "massspring_table"))) {
+      throw InputError(
+          path, lineOf(node),
+          "expected source = \"...\" or [tableN] / [sparsify_tableN] / [massspring_tableN] tables");
     }
     PaperTable t;
     t.id = id;

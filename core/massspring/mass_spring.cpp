@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <random>
 
 #include "core/ceres_marg/sparse_cholesky.h"
@@ -246,6 +247,7 @@ TwoStageResult solveTwoStage(const MassSpringSystem& system, int iterations,
   const Clock::time_point start = Clock::now();
   ceres_marg::MarginalizationOptions marg_options;
   marg_options.method = method;
+  marg_options.keep_factor = true;  // stage 2 solves with Λ_mm = J_mᵀJ_m, already factorized
   result.marginalization = ceres_marg::marginalize(&problem, marg_blocks, marg_options);
   result.marginalize_ms = msSince(start);
   if (!result.marginalization.status.ok()) {
@@ -285,10 +287,16 @@ TwoStageResult solveTwoStage(const MassSpringSystem& system, int iterations,
   J_m.setFromTriplets(triplets.begin(), triplets.end());
   J_m.makeCompressed();
   const Eigen::Map<const VecXd> f(f_values.data(), row);
-  ceres_marg::SparseNormalCholesky cholesky;
-  result.status = cholesky.factorize(J_m);
+  // J_m is constant (linear springs): the marginalization's factor of J_mᵀJ_m serves here
+  // (sparse-schur); the dense methods keep none, so factorize.
+  std::shared_ptr<const ceres_marg::SparseNormalCholesky> factor = result.marginalization.factor;
+  if (factor == nullptr) {
+    auto cholesky = std::make_shared<ceres_marg::SparseNormalCholesky>();
+    result.status = cholesky->factorize(J_m);
+    factor = cholesky;
+  }
   MatXd delta;
-  if (result.status.ok()) result.status = cholesky.solve(-(J_m.transpose() * f), &delta);
+  if (result.status.ok()) result.status = factor->solve(-(J_m.transpose() * f), &delta);
   if (!result.status.ok()) return result;
   for (std::size_t b = 0; b < marg_blocks.size(); ++b) {
     marg_blocks[b][0] += delta(2 * static_cast<Eigen::Index>(b), 0);

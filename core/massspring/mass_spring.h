@@ -19,7 +19,9 @@
 // prior is exact because the eliminated residuals are linear; (2) Gauss–Newton on the 12 masses of
 // 𝒩 (prior + nonlinear springs + anchors) for the same number of iterations, dense normal
 // Cholesky; (3) recover the eliminated masses with 𝒩 fixed: one linear least-squares solve
-// (J_mᵀJ_m) δ = −J_mᵀ f by CHOLMOD. The Gauss–Newton iterates of 𝒩 in (2) equal those of the
+// (J_mᵀJ_m) δ = −J_mᵀ f by CHOLMOD — with the marginalization's factor of J_mᵀJ_m for
+// sparse-schur (the eliminated residuals are linear, so J_m is the same matrix), a fresh
+// factorization for the dense methods. The Gauss–Newton iterates of 𝒩 in (2) equal those of the
 // single stage (the linear block is minimized exactly in both), so the final states agree to
 // rounding even when 10 iterations have not fully converged (Gauss–Newton converges only linearly
 // on p = 4 springs) — provided no step is rejected, which the results report.

@@ -17,6 +17,9 @@
 
 #include <cmath>
 #include <map>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "core/bench/ceres_window.h"
 #include "core/bench/perf_suite.h"
@@ -74,7 +77,8 @@ WindowSnapshot::Step startOf(const WindowSnapshot& w) {
 
 struct Converged {
   ReplayResult marglab;
-  CeresWindowResult dense, sparse;
+  // DENSE_SCHUR, SPARSE_SCHUR, ITERATIVE_SCHUR (SCHUR_JACOBI), DENSE_QR: the solvers of the bench.
+  std::vector<std::pair<std::string, CeresWindowResult>> ceres;
 };
 
 Converged solveToConvergence(const WindowSnapshot& w) {
@@ -89,10 +93,11 @@ Converged solveToConvergence(const WindowSnapshot& w) {
   options.function_tolerance = 1e-16;
   options.parameter_tolerance = 1e-14;
   options.gradient_tolerance = 1e-16;
-  options.linear_solver = ceres::DENSE_SCHUR;
-  c.dense = solveWindowWithCeres(w, options);
-  options.linear_solver = ceres::SPARSE_SCHUR;
-  c.sparse = solveWindowWithCeres(w, options);
+  for (auto solver :
+       {ceres::DENSE_SCHUR, ceres::SPARSE_SCHUR, ceres::ITERATIVE_SCHUR, ceres::DENSE_QR}) {
+    options.linear_solver = solver;
+    c.ceres.emplace_back(ceres::LinearSolverTypeToString(solver), solveWindowWithCeres(w, options));
+  }
   return c;
 }
 
@@ -109,12 +114,13 @@ TEST(CeresPeer, SameSolutionAsMarglabF64OnEveryShippedWindow) {
     const Converged c = solveToConvergence(w);
     ASSERT_TRUE(c.marglab.result.status.ok());
     const double cost0 = c.marglab.result.cost_initial;
-    for (const CeresWindowResult* r : {&c.dense, &c.sparse}) {
-      ASSERT_TRUE(r->ok) << r->message;
+    for (const auto& [solver, r] : c.ceres) {
+      SCOPED_TRACE(solver);
+      ASSERT_TRUE(r.ok) << r.message;
       // The same energy at the start (summation order only).
-      EXPECT_NEAR(r->cost_initial, cost0, 1e-12 * cost0);
+      EXPECT_NEAR(r.cost_initial, cost0, 1e-12 * cost0);
       std::string where;
-      const double diff = maxRelativeDifference(c.marglab.step, r->step, &where);
+      const double diff = maxRelativeDifference(c.marglab.step, r.step, &where);
       EXPECT_LE(diff, 1e-6) << where;
     }
     // Not trivially equal: the solution is far from the start.
@@ -130,11 +136,12 @@ TEST(CeresPeer, WithFirstEstimatesBothStallAtTheSameCost) {
     const Converged c = solveToConvergence(nw.window);
     ASSERT_TRUE(c.marglab.result.status.ok());
     const double cost0 = c.marglab.result.cost_initial;
-    for (const CeresWindowResult* r : {&c.dense, &c.sparse}) {
-      ASSERT_TRUE(r->ok) << r->message;
-      EXPECT_NEAR(r->cost_initial, cost0, 1e-12 * cost0);
+    for (const auto& [solver, r] : c.ceres) {
+      SCOPED_TRACE(solver);
+      ASSERT_TRUE(r.ok) << r.message;
+      EXPECT_NEAR(r.cost_initial, cost0, 1e-12 * cost0);
       // Both endpoints lie in the FEJ stall region; its cost spread is far below the decrease.
-      EXPECT_LT(std::abs(r->cost_final - c.marglab.result.cost_final),
+      EXPECT_LT(std::abs(r.cost_final - c.marglab.result.cost_final),
                 1e-6 * (cost0 - c.marglab.result.cost_final));
     }
   }

@@ -65,7 +65,9 @@ TEST(MassSpringCli, JsonHasTheComparison) {
   const test::CliResult r = test::runCli("massspring --grid 5 --reps 1 --json --no-plot");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   for (const char* key : {"\"single_stage_ms\"", "\"two_stage_ms\"", "\"speedup\"",
-                          "\"max_abs_diff\"", "\"scaling\":[]"}) {
+                          "\"max_abs_diff\"", "\"scaling\":[]",
+                          "\"primer_table1\":{\"single_stage_ms_per_iteration\":14.2,"
+                          "\"two_stage_ms_per_iteration\":1.4}"}) {
     EXPECT_NE(r.output.find(key), std::string::npos) << key << " in " << r.output;
   }
 }
@@ -75,6 +77,10 @@ TEST(MassSpringCli, TablesWithScaling) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("two-stage, qr"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("6x6"), std::string::npos) << r.output;
+  // The primer's Table 1 (experiments/paper_values.toml) beside ours.
+  EXPECT_NE(r.output.find("primer Table 1 beside ours"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("| single stage |      14.2 |"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("| two-stage    |       1.4 |"), std::string::npos) << r.output;
 }
 
 TEST(MassSpringCli, UsageErrors) {

@@ -217,5 +217,27 @@ TEST(ConfigValidation, CheckValueTextForCommandLineOptions) {
   EXPECT_THROW(EstimatorConfig::checkValueText("lm.no_such_key", "1"), std::logic_error);
 }
 
+// lm.stop_rule (issue #21): the two rule names parse and print back; anything else is an input
+// error naming the file, line, key and the accepted names.
+TEST(ConfigValidation, StopRuleIsMarglabOrBasalt) {
+  EstimatorConfig config;
+  EXPECT_EQ(config.lm_stop_rule, LmStopRule::kMarglab);
+  config.loadTomlString("[lm]\nstop_rule = \"basalt\"\n", "basalt.toml");
+  EXPECT_EQ(config.lm_stop_rule, LmStopRule::kBasalt);
+  EstimatorConfig round_trip;
+  round_trip.loadTomlString(config.toToml(), "round_trip.toml");
+  EXPECT_EQ(round_trip.lm_stop_rule, LmStopRule::kBasalt);
+  try {
+    EstimatorConfig bad;
+    bad.loadTomlString("[lm]\nstop_rule = \"ceres\"\n", "cfg.toml");
+    FAIL() << "accepted stop_rule = \"ceres\"";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), "cfg.toml");
+    EXPECT_EQ(e.line(), 2);
+    EXPECT_TRUE(contains(e.what(), "expected \"marglab\" or \"basalt\" for lm.stop_rule"))
+        << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace marglab

@@ -212,6 +212,49 @@ TEST(VoStorage, HessianAndSquareRootPriorsGiveTheSameCosts) {
   }
 }
 
+// lm.stop_rule = basalt counts cost evaluations, not linearizations: with max_iterations = 1 the
+// default rule linearizes once per frame, Basalt's rule allows max_iterations + 1 = 2 evaluations,
+// so a frame whose first step is accepted without converging linearizes a second time. Both
+// rules only ever accept cost decreases, and on noise-free tracks both recover the truth.
+TEST(VoStopRule, BasaltRuleCountsEvaluationsAndRecoversTheTruth) {
+  const Scenario noisy(60, true);
+  auto run = [&](const Scenario& scenario, LmStopRule rule, int max_iterations, double* error) {
+    EstimatorConfig config = testConfig();
+    config.lm_stop_rule = rule;
+    config.lm_max_iterations = max_iterations;
+    SlidingWindowEstimator<double> estimator(config, Variant::parse("ns-qr-sqrt-f64"),
+                                             rigFromCalib(scenario.calib), scenario.truth(0));
+    std::vector<FrameResult> results;
+    for (const TrackFrame& frame : scenario.stream.frames) {
+      results.push_back(estimator.processFrame(frame));
+      EXPECT_TRUE(results.back().status.ok()) << results.back().status.toString();
+      EXPECT_LE(results.back().cost_final, results.back().cost_initial);
+      *error = std::max(
+          *error,
+          (results.back().T_w_i.translation() - scenario.truth(frame.t_ns).translation()).norm());
+    }
+    return results;
+  };
+  double error = 0;
+  int second_linearizations = 0;
+  for (const FrameResult& r : run(noisy, LmStopRule::kBasalt, 1, &error)) {
+    EXPECT_GE(r.lm_iterations, 1);
+    EXPECT_LE(r.lm_iterations, 2);
+    second_linearizations += r.lm_iterations == 2 ? 1 : 0;
+  }
+  EXPECT_GT(second_linearizations, 0);
+  for (const FrameResult& r : run(noisy, LmStopRule::kMarglab, 1, &error)) {
+    EXPECT_EQ(r.lm_iterations, 1);
+  }
+  for (const FrameResult& r : run(noisy, LmStopRule::kBasalt, 7, &error)) {
+    EXPECT_LE(r.lm_iterations, 8);
+  }
+  static const Scenario noise_free(200);
+  double noise_free_error = 0;
+  run(noise_free, LmStopRule::kBasalt, 7, &noise_free_error);
+  EXPECT_LT(noise_free_error, 1e-3);
+}
+
 // The LM loop over landmark blocks in several threads: the same estimate as one thread up to the
 // order of the sums, and the same bits in every run with the same thread count.
 TEST(VoThreads, ThreadedLmLoopMatchesOneThreadAndIsReproducible) {
