@@ -246,12 +246,48 @@ class PriorCost : public ceres::CostFunction {
   MargPrior<double> prior_;
 };
 
-}  // namespace
+// The window as a Ceres problem: the parameter storage (stable addresses) and the problem that
+// points into it, with the Schur elimination groups (landmarks first).
+struct CeresWindowProblem {
+  std::map<int64_t, std::array<double, 7>> poses;
+  std::map<int64_t, std::array<double, 9>> sbs;
+  std::map<int64_t, std::array<double, 3>> landmarks;
+  std::map<int64_t, FrameLin> lin;
+  std::map<int64_t, const WindowSnapshot::FrameState*> frame_of;
+  std::unique_ptr<ceres::Problem> problem;
+  std::shared_ptr<ceres::ParameterBlockOrdering> ordering =
+      std::make_shared<ceres::ParameterBlockOrdering>();
+  int residual_blocks = 0;
+};
 
-CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindowOptions& opt) {
-  if (w.prior_storage != PriorStorage::kSqrt && !w.prior_blocks.empty()) {
-    throw InputError("", 0, "Ceres peer: the window's prior must be in square-root storage");
+void addStates(const WindowSnapshot& w, CeresWindowProblem& p) {
+  for (const auto& f : w.frames) {
+    poseTo(f.T_w_i, p.poses[f.id].data());
+    p.frame_of[f.id] = &f;
+    FrameLin fl;
+    if (f.linearized) fl.T_lin = &f.T_w_i_lin;
+    if (f.has_speed_bias) {
+      std::copy(f.speed_bias.data(), f.speed_bias.data() + 9, p.sbs[f.id].data());
+      if (f.speed_bias_linearized) fl.sb_lin = &f.speed_bias_lin;
+    }
+    p.lin[f.id] = fl;
   }
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
+  p.problem = std::make_unique<ceres::Problem>(problem_options);
+  for (auto& [id, x] : p.poses) {
+    p.problem->AddParameterBlock(x.data(), 7, new PoseManifold);
+    p.ordering->AddElementToGroup(x.data(), 1);
+  }
+  for (auto& [id, x] : p.sbs) {
+    p.problem->AddParameterBlock(x.data(), 9);
+    p.ordering->AddElementToGroup(x.data(), 1);
+  }
+}
+
+// One Huber-robustified residual per observation the estimator would use (projectable now);
+// a landmark without any is left out of the problem.
+void addReprojections(const WindowSnapshot& w, CeresWindowProblem& p) {
   const EstimatorConfig& cfg = w.config;
   const double sigma = cfg.obs_std_px;
   std::array<SE3<double>, 2> T_i_c;
@@ -260,42 +296,10 @@ CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindo
   } else {
     T_i_c = {SE3<double>(), w.rig.T_c0_c1()};
   }
-  std::array<PinholeCamera<double>, 2> cams = {w.rig.cam0, w.rig.cam1};
-
-  // Parameter storage (stable addresses).
-  std::map<int64_t, std::array<double, 7>> poses;
-  std::map<int64_t, std::array<double, 9>> sbs;
-  std::map<int64_t, std::array<double, 3>> landmarks;
-  std::map<int64_t, FrameLin> lin;
-  std::map<int64_t, const WindowSnapshot::FrameState*> frame_of;
-  for (const auto& f : w.frames) {
-    poseTo(f.T_w_i, poses[f.id].data());
-    frame_of[f.id] = &f;
-    FrameLin fl;
-    if (f.linearized) fl.T_lin = &f.T_w_i_lin;
-    if (f.has_speed_bias) {
-      std::copy(f.speed_bias.data(), f.speed_bias.data() + 9, sbs[f.id].data());
-      if (f.speed_bias_linearized) fl.sb_lin = &f.speed_bias_lin;
-    }
-    lin[f.id] = fl;
-  }
-
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-  for (auto& [id, x] : poses) {
-    problem.AddParameterBlock(x.data(), 7, new PoseManifold);
-    ordering->AddElementToGroup(x.data(), 1);
-  }
-  for (auto& [id, x] : sbs) {
-    problem.AddParameterBlock(x.data(), 9);
-    ordering->AddElementToGroup(x.data(), 1);
-  }
+  const std::array<PinholeCamera<double>, 2> cams = {w.rig.cam0, w.rig.cam1};
   const double huber_a = cfg.huber_px / sigma;
-  int residual_blocks = 0;
   for (const auto& lm : w.landmarks) {
-    auto& x = landmarks[lm.id];
+    auto& x = p.landmarks[lm.id];
     for (int i = 0; i < 3; ++i) x[i] = lm.param[i];
     bool added = false;
     for (const auto& o : lm.obs) {
@@ -309,53 +313,59 @@ CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindo
           blocks = {x.data()};
         } else {
           cost = std::make_unique<ReprojectionCost>(cams[cam], T_i_c[0], T_i_c[cam], z, sigma,
-                                                    lin.at(lm.host), lin.at(o.frame));
-          blocks = {poses.at(lm.host).data(), poses.at(o.frame).data(), x.data()};
+                                                    p.lin.at(lm.host), p.lin.at(o.frame));
+          blocks = {p.poses.at(lm.host).data(), p.poses.at(o.frame).data(), x.data()};
         }
-        // Observations the estimator would skip (not projectable now) are left out.
         double r[2];
         if (!cost->Evaluate(blocks.data(), r, nullptr)) continue;
-        problem.AddResidualBlock(cost.release(), new ceres::HuberLoss(huber_a), blocks);
-        ++residual_blocks;
+        p.problem->AddResidualBlock(cost.release(), new ceres::HuberLoss(huber_a), blocks);
+        ++p.residual_blocks;
         added = true;
       }
     }
     if (added) {
-      ordering->AddElementToGroup(x.data(), 0);
-      problem.SetParameterLowerBound(x.data(), 2, 0.0);
+      p.ordering->AddElementToGroup(x.data(), 0);
+      p.problem->SetParameterLowerBound(x.data(), 2, 0.0);
     } else {
-      landmarks.erase(lm.id);
+      p.landmarks.erase(lm.id);
     }
   }
+}
+
+void addImuAndPrior(const WindowSnapshot& w, CeresWindowProblem& p) {
   for (const auto& link : w.imu_links) {
-    const auto& fi = *frame_of.at(link.from);
-    const auto& fj = *frame_of.at(link.to);
+    const auto& fi = *p.frame_of.at(link.from);
+    const auto& fj = *p.frame_of.at(link.to);
     const ImuPreintegration<double> pre = preintegrate<double>(
         w.imu, fi.t_ns, fj.t_ns, link.bias_gyro_lin, link.bias_accel_lin,
         ImuSampleNoise<double>::fromDensities(w.imu_noise, w.imu_sample_period_s));
-    problem.AddResidualBlock(
+    p.problem->AddResidualBlock(
         new ImuCost(ImuFactor<double>(pre, w.g_w), pre.durationSeconds(), w.imu_noise, fi.t_ns,
-                    fj.t_ns, lin.at(link.from), lin.at(link.to)),
+                    fj.t_ns, p.lin.at(link.from), p.lin.at(link.to)),
         nullptr,
-        {poses.at(link.from).data(), sbs.at(link.from).data(), poses.at(link.to).data(),
-         sbs.at(link.to).data()});
-    ++residual_blocks;
+        {p.poses.at(link.from).data(), p.sbs.at(link.from).data(), p.poses.at(link.to).data(),
+         p.sbs.at(link.to).data()});
+    ++p.residual_blocks;
   }
-  if (!w.prior_blocks.empty()) {
-    MargPrior<double> prior;
-    prior.storage = PriorStorage::kSqrt;
-    std::vector<double*> blocks;
-    for (const auto& b : w.prior_blocks) {
-      prior.blocks.push_back({b.var, b.offset, b.T0, b.sb0});
-      blocks.push_back(b.var.block == StateBlock::kPose ? poses.at(b.var.frame_id).data()
-                                                        : sbs.at(b.var.frame_id).data());
-    }
-    prior.sqrt.J = w.prior_J;
-    prior.sqrt.r = w.prior_r;
-    problem.AddResidualBlock(new PriorCost(std::move(prior)), nullptr, blocks);
-    ++residual_blocks;
+  if (w.prior_blocks.empty()) return;
+  MargPrior<double> prior;
+  prior.storage = PriorStorage::kSqrt;
+  std::vector<double*> blocks;
+  for (const auto& b : w.prior_blocks) {
+    prior.blocks.push_back({b.var, b.offset, b.T0, b.sb0});
+    blocks.push_back(b.var.block == StateBlock::kPose ? p.poses.at(b.var.frame_id).data()
+                                                      : p.sbs.at(b.var.frame_id).data());
   }
+  prior.sqrt.J = w.prior_J;
+  prior.sqrt.r = w.prior_r;
+  p.problem->AddResidualBlock(new PriorCost(std::move(prior)), nullptr, blocks);
+  ++p.residual_blocks;
+}
 
+// The window's LM settings in Ceres' terms (trust radius = 1/λ).
+ceres::Solver::Options solverOptions(
+    const EstimatorConfig& cfg, const CeresWindowOptions& opt,
+    const std::shared_ptr<ceres::ParameterBlockOrdering>& ordering) {
   ceres::Solver::Options o;
   o.minimizer_type = ceres::TRUST_REGION;
   o.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
@@ -381,10 +391,11 @@ CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindo
   o.num_threads = 1;
   o.logging_type = ceres::SILENT;
   o.minimizer_progress_to_stdout = false;
+  return o;
+}
 
-  ceres::Solver::Summary summary;
-  ceres::Solve(o, &problem, &summary);
-
+CeresWindowResult resultOf(const ceres::Solver::Summary& summary, const WindowSnapshot& w,
+                           const CeresWindowProblem& p) {
   CeresWindowResult out;
   out.ok = summary.IsSolutionUsable();
   out.message = summary.message;
@@ -399,7 +410,7 @@ CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindo
   out.split.postprocessor_s = summary.postprocessor_time_in_seconds;
   out.cost_initial = summary.initial_cost;
   out.cost_final = summary.final_cost;
-  out.num_residual_blocks = residual_blocks;
+  out.num_residual_blocks = p.residual_blocks;
   out.step.present = true;
   out.step.lm_iterations = out.iterations;
   out.step.cost_initial = out.cost_initial;
@@ -407,19 +418,34 @@ CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindo
   for (const auto& f : w.frames) {
     WindowSnapshot::FrameState fs;
     fs.id = f.id;
-    fs.T_w_i = poseFrom(poses.at(f.id).data());
+    fs.T_w_i = poseFrom(p.poses.at(f.id).data());
     fs.has_speed_bias = f.has_speed_bias;
     fs.is_keyframe = f.is_keyframe;
-    if (f.has_speed_bias) fs.speed_bias = Eigen::Map<const Vec9d>(sbs.at(f.id).data());
+    if (f.has_speed_bias) fs.speed_bias = Eigen::Map<const Vec9d>(p.sbs.at(f.id).data());
     out.step.frames.push_back(fs);
   }
-  for (const auto& [id, x] : landmarks) {
+  for (const auto& [id, x] : p.landmarks) {
     WindowSnapshot::LandmarkState ls;
     ls.id = id;
     ls.param = Eigen::Vector3d(x[0], x[1], x[2]);
     out.step.landmarks.push_back(ls);
   }
   return out;
+}
+
+}  // namespace
+
+CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindowOptions& opt) {
+  if (w.prior_storage != PriorStorage::kSqrt && !w.prior_blocks.empty()) {
+    throw InputError("", 0, "Ceres peer: the window's prior must be in square-root storage");
+  }
+  CeresWindowProblem p;
+  addStates(w, p);
+  addReprojections(w, p);
+  addImuAndPrior(w, p);
+  ceres::Solver::Summary summary;
+  ceres::Solve(solverOptions(w.config, opt, p.ordering), p.problem.get(), &summary);
+  return resultOf(summary, w, p);
 }
 
 }  // namespace marglab
