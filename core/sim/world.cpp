@@ -5,7 +5,12 @@
 #include <array>
 #include <cmath>
 #include <numeric>
+#include <string>
 #include <unordered_map>
+
+#include <fmt/core.h>
+
+#include "core/common/error.h"
 
 namespace marglab {
 namespace {
@@ -16,23 +21,40 @@ struct PathSample {
 };
 
 // The path resampled so that consecutive samples are at most max_step metres apart (and at least
-// one sample per second, so that hovering is represented once per second).
-std::vector<PathSample> samplePath(const TrajectoryFunction& trajectory, double max_step) {
+// one sample per second, so that hovering is represented once per second), from the start to
+// span.last_frame_ns and on for span.lookahead_m metres of path (or to the end).
+std::vector<PathSample> samplePath(const TrajectoryFunction& trajectory, double max_step,
+                                   const WorldSpan& span) {
   std::vector<PathSample> samples;
   const int64_t t0 = trajectory.startTimeNs();
   const int64_t t1 = trajectory.endTimeNs();
   const int64_t dt = 10'000'000;  // 10 ms: fine enough for 25 m/s at 0.25 m steps
   int64_t last_kept = t0;
+  double ahead_m = 0;  // path length beyond the last frame
+  Eigen::Vector3d previous = Eigen::Vector3d::Zero();
   for (int64_t t = t0;; t = std::min(t + dt, t1)) {
     const TrajectorySample s = trajectory.evaluate(t);
-    if (samples.empty() || t == t1 || (s.p_w_b - samples.back().p_w).norm() >= max_step ||
+    if (t > span.last_frame_ns) ahead_m += (s.p_w_b - previous).norm();
+    previous = s.p_w_b;
+    const bool last = t == t1 || (t > span.last_frame_ns && !(ahead_m < span.lookahead_m));
+    if (samples.empty() || last || (s.p_w_b - samples.back().p_w).norm() >= max_step ||
         t - last_kept >= 1'000'000'000) {
       samples.push_back({s.p_w_b, s.R_w_b});
       last_kept = t;
     }
-    if (t == t1) break;
+    if (last) break;
   }
   return samples;
+}
+
+// Refuses a world larger than options.max_points before it is built (an implausible trajectory
+// would otherwise take memory without bound).
+void checkWorldSize(double points, const WorldOptions& options, const std::string& extent) {
+  if (points <= options.max_points) return;
+  throw InputError("", 0,
+                   fmt::format("the simulated world would hold about {:.3g} points ({}), more "
+                               "than the limit of {:.3g}: is the trajectory plausible?",
+                               points, extent, options.max_points));
 }
 
 // Hash grid over path positions for "is q within r of the path" queries. With horizontal = true
@@ -126,6 +148,11 @@ Cloud indoorPoints(const std::vector<PathSample>& path, const WorldOptions& o, S
   lo -= Eigen::Vector3d(o.horizontal_margin, o.horizontal_margin, o.floor_margin);
   hi += Eigen::Vector3d(o.horizontal_margin, o.horizontal_margin, o.ceiling_margin);
   const Eigen::Vector3d d = hi - lo;
+  const double box_points = 5 * o.clutter_box_max * o.clutter_box_max * o.surface_density;
+  checkWorldSize(2 * (d.x() * d.y() + d.x() * d.z() + d.y() * d.z()) * o.surface_density +
+                     d.x() * d.y() * o.clutter_boxes_per_m2 * box_points +
+                     d.prod() * o.clutter_point_density,
+                 o, fmt::format("a room of {:.3g} x {:.3g} x {:.3g} m", d.x(), d.y(), d.z()));
   const Eigen::Vector3d ex(d.x(), 0, 0), ey(0, d.y(), 0), ez(0, 0, d.z());
 
   const Eigen::Vector3d X = Eigen::Vector3d::UnitX(), Y = Eigen::Vector3d::UnitY(),
@@ -185,6 +212,14 @@ Cloud streetPoints(const std::vector<PathSample>& path, const WorldOptions& o, S
       arc = 0;
     }
   }
+  double length = 0;
+  for (std::size_t k = 1; k < stations.size(); ++k) {
+    length += (stations[k]->p_w - stations[k - 1]->p_w).norm();
+  }
+  checkWorldSize(length * (2 * o.facade_height * o.facade_density +
+                           2 * o.ground_half_width * o.ground_density +
+                           o.far_points_per_station / o.station_spacing),
+                 o, fmt::format("a street of {:.3g} m", length));
   Eigen::Vector3d mean_up = Eigen::Vector3d::Zero();
   for (const PathSample* s : stations) mean_up += s->R_w_b * o.up_b;
   const PathIndex index(path, o.path_clearance, true, mean_up);
@@ -305,9 +340,10 @@ World indexWorld(const std::vector<Eigen::Vector3d>& points_w,
   return world;
 }
 
-World makeWorld(const TrajectoryFunction& trajectory, const WorldOptions& options, uint64_t seed) {
+World makeWorld(const TrajectoryFunction& trajectory, const WorldOptions& options, uint64_t seed,
+                const WorldSpan& span) {
   SimRandom rng(SimRandom::subSeed(seed, 0x776f726c64));  // "world"
-  const std::vector<PathSample> path = samplePath(trajectory, 0.25);
+  const std::vector<PathSample> path = samplePath(trajectory, 0.25, span);
   const Cloud cloud = options.kind == WorldKind::kIndoor ? indoorPoints(path, options, rng)
                                                          : streetPoints(path, options, rng);
   World world =

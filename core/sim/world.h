@@ -40,6 +40,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -104,6 +105,17 @@ struct WorldOptions {
   double ground_density = 0.15;                               // [1/m²]
   double far_min = 50.0, far_max = 200.0, far_height = 30.0;  // [m]
   double far_points_per_station = 3.0;
+  // Bound on the world's size, checked before it is built: ~25× the largest shipped world
+  // (KITTI 02, EuRoC machine hall: ~10⁵ points), ~0.25 GB with the normals.
+  double max_points = 5e6;
+};
+
+// The part of the trajectory a world is built along: from its start to the last frame a run
+// uses, and on for lookahead_m metres of path (what the cameras see ahead at that frame). The
+// default is the whole trajectory.
+struct WorldSpan {
+  int64_t last_frame_ns = std::numeric_limits<int64_t>::max();
+  double lookahead_m = 0;
 };
 
 // Dataset defaults (tuned for 100–250 tracked features per frame, see datasets/README.md).
@@ -133,9 +145,10 @@ struct World {
   }
 };
 
-// Builds the world around the trajectory (sampled over its whole time span). Deterministic for
-// (trajectory, options, seed).
-World makeWorld(const TrajectoryFunction& trajectory, const WorldOptions& options, uint64_t seed);
+// Builds the world around the trajectory within `span`. Deterministic for (trajectory, options,
+// seed, span). Throws InputError (no file) when it would exceed options.max_points.
+World makeWorld(const TrajectoryFunction& trajectory, const WorldOptions& options, uint64_t seed,
+                const WorldSpan& span = {});
 
 // Groups points into chunks by cubic voxel of side chunk_size (stable within a voxel), reorders
 // points_w and normals_w (same size, or empty: all zero) accordingly and fills chunks. Exposed
