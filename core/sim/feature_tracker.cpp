@@ -292,23 +292,6 @@ SimulationOptions defaultSimulationOptions(const Sequence& sequence, uint64_t se
   return o;
 }
 
-namespace {
-
-// The world only along the frames simulated (with max_frames, up to the last of them and as far
-// ahead as the cameras see), so that a short run does not build the world of the whole sequence.
-WorldSpan worldSpan(const Sequence& sequence, const TrajectoryFunction& trajectory,
-                    const SimulationOptions& options) {
-  const std::size_t max_frames = options.tracker.max_frames;
-  std::size_t used = 0;
-  for (const int64_t t_ns : sequence.cam_t_ns) {
-    if (t_ns < trajectory.startTimeNs() || t_ns > trajectory.endTimeNs()) continue;
-    if (max_frames > 0 && ++used == max_frames) return {t_ns, options.tracker.max_depth};
-  }
-  return {};
-}
-
-}  // namespace
-
 TrackStream simulateSequence(const Sequence& sequence, const TrajectoryFunction& trajectory,
                              const SimulationOptions& options) {
   if (!sequence.hasTrajectory()) {
@@ -318,8 +301,7 @@ TrackStream simulateSequence(const Sequence& sequence, const TrajectoryFunction&
   }
   World world;
   try {
-    world = makeWorld(trajectory, options.world, options.seed,
-                      worldSpan(sequence, trajectory, options));
+    world = makeWorld(trajectory, options.world, options.seed);
   } catch (const InputError& e) {
     throw InputError(sequence.gt_file, 0, e.detail());
   }

@@ -21,28 +21,21 @@ struct PathSample {
 };
 
 // The path resampled so that consecutive samples are at most max_step metres apart (and at least
-// one sample per second, so that hovering is represented once per second), from the start to
-// span.last_frame_ns and on for span.lookahead_m metres of path (or to the end).
-std::vector<PathSample> samplePath(const TrajectoryFunction& trajectory, double max_step,
-                                   const WorldSpan& span) {
+// one sample per second, so that hovering is represented once per second).
+std::vector<PathSample> samplePath(const TrajectoryFunction& trajectory, double max_step) {
   std::vector<PathSample> samples;
   const int64_t t0 = trajectory.startTimeNs();
   const int64_t t1 = trajectory.endTimeNs();
   const int64_t dt = 10'000'000;  // 10 ms: fine enough for 25 m/s at 0.25 m steps
   int64_t last_kept = t0;
-  double ahead_m = 0;  // path length beyond the last frame
-  Eigen::Vector3d previous = Eigen::Vector3d::Zero();
   for (int64_t t = t0;; t = std::min(t + dt, t1)) {
     const TrajectorySample s = trajectory.evaluate(t);
-    if (t > span.last_frame_ns) ahead_m += (s.p_w_b - previous).norm();
-    previous = s.p_w_b;
-    const bool last = t == t1 || (t > span.last_frame_ns && !(ahead_m < span.lookahead_m));
-    if (samples.empty() || last || (s.p_w_b - samples.back().p_w).norm() >= max_step ||
+    if (samples.empty() || t == t1 || (s.p_w_b - samples.back().p_w).norm() >= max_step ||
         t - last_kept >= 1'000'000'000) {
       samples.push_back({s.p_w_b, s.R_w_b});
       last_kept = t;
     }
-    if (last) break;
+    if (t == t1) break;
   }
   return samples;
 }
@@ -340,10 +333,9 @@ World indexWorld(const std::vector<Eigen::Vector3d>& points_w,
   return world;
 }
 
-World makeWorld(const TrajectoryFunction& trajectory, const WorldOptions& options, uint64_t seed,
-                const WorldSpan& span) {
+World makeWorld(const TrajectoryFunction& trajectory, const WorldOptions& options, uint64_t seed) {
   SimRandom rng(SimRandom::subSeed(seed, 0x776f726c64));  // "world"
-  const std::vector<PathSample> path = samplePath(trajectory, 0.25, span);
+  const std::vector<PathSample> path = samplePath(trajectory, 0.25);
   const Cloud cloud = options.kind == WorldKind::kIndoor ? indoorPoints(path, options, rng)
                                                          : streetPoints(path, options, rng);
   World world =

@@ -40,7 +40,6 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <random>
 #include <vector>
 
@@ -110,14 +109,6 @@ struct WorldOptions {
   double max_points = 5e6;
 };
 
-// The part of the trajectory a world is built along: from its start to the last frame a run
-// uses, and on for lookahead_m metres of path (what the cameras see ahead at that frame). The
-// default is the whole trajectory.
-struct WorldSpan {
-  int64_t last_frame_ns = std::numeric_limits<int64_t>::max();
-  double lookahead_m = 0;
-};
-
 // Dataset defaults (tuned for 100–250 tracked features per frame, see datasets/README.md).
 WorldOptions defaultWorldOptions(DatasetKind kind);
 
@@ -145,10 +136,11 @@ struct World {
   }
 };
 
-// Builds the world around the trajectory within `span`. Deterministic for (trajectory, options,
-// seed, span). Throws InputError (no file) when it would exceed options.max_points.
-World makeWorld(const TrajectoryFunction& trajectory, const WorldOptions& options, uint64_t seed,
-                const WorldSpan& span = {});
+// Builds the world around the trajectory (sampled over its whole time span: what a short run sees
+// depends on the streets driven later, so the world does not depend on the frames a run uses).
+// Deterministic for (trajectory, options, seed). Throws InputError (no file) when the world would
+// exceed options.max_points, before building it.
+World makeWorld(const TrajectoryFunction& trajectory, const WorldOptions& options, uint64_t seed);
 
 // Groups points into chunks by cubic voxel of side chunk_size (stable within a voxel), reorders
 // points_w and normals_w (same size, or empty: all zero) accordingly and fills chunks. Exposed

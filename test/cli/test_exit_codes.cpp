@@ -96,8 +96,8 @@ TEST_F(ExitCodes, Tables) {
 
 TEST_F(ExitCodes, Plot) {
   expectExit("plot --figure tracks", 2, "--figure tracks needs --dataset");
-  file("broken/index.csv", "id,status\n\"unterminated\n");
-  expectExit("plot " + quoted("broken"), 1, "broken/index.csv");
+  file("none/index.csv", "id,status\n");
+  expectExit("plot " + quoted("none"), 1, "no figure written: the sweep has no headline runs");
 }
 
 TEST_F(ExitCodes, Eigdump) {

@@ -30,8 +30,9 @@ template <typename Edit>
 fs::path kittiCopy(const TempDir& dir, int line, Edit edit) {
   const fs::path seq = dir.path() / "10";
   fs::create_directories(seq);
-  fs::copy_file(kShipped / "kitti/10/calib.txt", seq / "calib.txt");
-  fs::copy_file(kShipped / "kitti/10/times.txt.gz", seq / "times.txt.gz");
+  const auto overwrite = fs::copy_options::overwrite_existing;
+  fs::copy_file(kShipped / "kitti/10/calib.txt", seq / "calib.txt", overwrite);
+  fs::copy_file(kShipped / "kitti/10/times.txt.gz", seq / "times.txt.gz", overwrite);
   std::istringstream poses(test::readGz((kShipped / "kitti/10/poses.txt.gz").string()));
   std::string text, row;
   for (int n = 1; std::getline(poses, row); ++n) text += (n == line ? edit(row) : row) + "\n";

@@ -168,22 +168,6 @@ TEST(World, RefusedBeyondItsSizeBoundBeforeItIsBuilt) {
   EXPECT_THROW(makeWorld(test::StreetDrive(20.0), small, 1), InputError);
 }
 
-TEST(World, SpanEndsAheadOfTheLastFrame) {
-  const test::StreetDrive drive(20.0);  // z = 10 t: 200 m
-  const WorldOptions o = defaultWorldOptions(DatasetKind::kKitti);
-  // A span past the end is the whole trajectory, point for point.
-  expectSameWorld(makeWorld(drive, o, 1), makeWorld(drive, o, 1, WorldSpan{30'000'000'000, 50}));
-  // Up to 5 s (z = 50 m) and 30 m ahead: facades and ground end near z = 80 m.
-  const World part = makeWorld(drive, o, 1, WorldSpan{5'000'000'000, 30});
-  double max_z = 0;
-  for (std::size_t i = 0; i < part.points_w.size(); ++i) {
-    if (!part.normals_w[i].isZero()) max_z = std::max(max_z, part.points_w[i].z());
-  }
-  EXPECT_GT(max_z, 75.0);
-  EXPECT_LT(max_z, 80.0 + o.station_spacing + 0.5);
-  EXPECT_LT(part.points_w.size(), makeWorld(drive, o, 1).points_w.size() / 2);
-}
-
 TEST(World, ChunksCoverThePointsAndBoundThem) {
   SimRandom rng(5);
   std::vector<Eigen::Vector3d> points;
