@@ -6,10 +6,10 @@
 #include <cstdio>
 #include <string>
 
-#include "test_paths.h"
 #include "common/cli_runner.h"
 #include "core/sim/track_io.h"
 #include "data/data_test_utils.h"
+#include "test_paths.h"
 
 namespace marglab {
 namespace {
