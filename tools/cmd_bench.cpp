@@ -13,6 +13,7 @@
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "tools/command.h"
+#include "tools/option_checks.h"
 
 namespace marglab {
 namespace {
@@ -69,14 +70,14 @@ const bool kRegistered = cli::registerCommand(
        sub.add_option("--out", a->out, "Folder of bench.md / bench.json")->capture_default_str();
        sub.add_option("--rounds", a->rounds, "Rounds per side-by-side measurement (best kept)")
            ->capture_default_str()
-           ->check(CLI::PositiveNumber);
+           ->check(cli::intRange("the number of rounds", 1, 1000));
        sub.add_option("--batch-ms", a->batch_ms, "Minimum batch duration per candidate and round")
            ->capture_default_str()
-           ->check(CLI::PositiveNumber);
+           ->check(cli::positiveReal("a duration in ms", 60000));
        sub.add_option("--frames", a->frames,
                       "Whole runs: only the first N frames of EuRoC MH_01 and KITTI 00 (0: all)")
            ->capture_default_str()
-           ->check(CLI::NonNegativeNumber);
+           ->check(cli::nonNegativeInt("the number of frames (0: all)"));
        sub.add_flag("--no-runs", a->no_runs, "Skip the whole runs");
        sub.add_flag("--quick", a->quick, "One round, short batches (for tests; noisy)");
        return [a] { return runBenchCommand(*a); };

@@ -28,6 +28,7 @@
 #include "core/sim/trajectory_spline.h"
 #include "tools/command.h"
 #include "tools/output_checks.h"
+#include "tools/option_checks.h"
 
 namespace marglab::cli {
 namespace {
@@ -91,6 +92,7 @@ CommandRun setupCheck(CLI::App& app) {
       targets.insert(targets.begin(), names.begin(), names.end());
     }
     if (targets.empty()) throw UsageError("datasets check: give --all or sequence names / folders");
+    for (const std::string& target : targets) checkDatasetArgument(target);
     int failed = 0;
     std::string first_error;
     for (const std::string& target : targets) {
@@ -137,12 +139,15 @@ struct SimulateOptions {
 CommandRun setupSimulate(CLI::App& app) {
   auto options = std::make_shared<SimulateOptions>();
   app.add_option("--dataset", options->dataset, "sequence name or folder")->required();
-  app.add_option("--seed", options->seed, "random seed (world and tracks)");
-  app.add_option("--frames", options->frames, "simulate only the first N frames (0: all)");
+  app.add_option("--seed", options->seed, "random seed (world and tracks), in [0, 2^64 - 1]")
+      ->check(seedRange());
+  app.add_option("--frames", options->frames, "simulate only the first N frames (0: all)")
+      ->check(nonNegativeInt("the number of frames (0: all)"));
   app.add_flag("--no-noise", options->no_noise, "exact projections: no pixel noise, no outliers");
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   return [options] {
+    checkDatasetArgument(options->dataset);
     cli::refuseOverwritingInputs({options->output},
                                  {{}, cli::datasetInputFolders(options->dataset)});
     const auto start = std::chrono::steady_clock::now();
@@ -223,13 +228,15 @@ CommandRun setupTrack(CLI::App& app) {
                  "image folder: EuRoC/TUM-VI mav0/ layout or KITTI sequences/NN, or a shipped "
                  "name with images (euroc/V1_01_easy_images)")
       ->required();
-  app.add_option("--frames", options->frames, "track only the first N stereo frames (0: all)");
+  app.add_option("--frames", options->frames, "track only the first N stereo frames (0: all)")
+      ->check(nonNegativeInt("the number of frames (0: all)"));
   app.add_option("--passes", options->passes,
                  "track the images this many times and report the fastest pass (timing)")
-      ->check(CLI::PositiveNumber);
+      ->check(positiveInt("the number of passes"));
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   return [options] {
+    checkDatasetArgument(options->dataset);
     cli::refuseOverwritingInputs({options->output},
                                  {{}, cli::datasetInputFolders(options->dataset)});
     const ImageSequence images = loadImageSequence(options->dataset);

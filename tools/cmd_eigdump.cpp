@@ -161,7 +161,9 @@ const bool kRegistered = registerCommand(
     {"eigdump", "Eigenvalues (and stored prior matrices) of the marginalization priors of a run",
      40, [](CLI::App& app) -> CommandRun {
        auto o = std::make_shared<EigdumpOptions>();
-       app.add_option("file", o->file, "results file RUN.h5 written by `marglab run`")->required();
+       app.add_option("file", o->file, "results file RUN.h5 written by `marglab run`")
+           ->required()
+           ->check(CLI::ExistingFile);  // a missing path is a usage error in every verb
        app.add_option_function<std::int64_t>(
               "--marg",
               [o](const std::int64_t& k) {

@@ -23,6 +23,7 @@
 #include "core/experiment/tables.h"
 #include "tools/analysis.h"
 #include "tools/command.h"
+#include "tools/option_checks.h"
 
 namespace marglab::cli {
 
@@ -131,7 +132,7 @@ const bool kRegistered = registerCommand(
            ->capture_default_str();
        sub.add_option("-j,--jobs", request->jobs, "Notebooks in parallel (0: number of cores)")
            ->capture_default_str()
-           ->check(CLI::NonNegativeNumber);
+           ->check(cli::jobCount());
        return [request] {
          const auto start = std::chrono::steady_clock::now();
          const int code = runNotebooks(*request);

@@ -23,6 +23,7 @@
 #include "core/experiment/tables.h"
 #include "tools/analysis.h"
 #include "tools/command.h"
+#include "tools/option_checks.h"
 
 namespace marglab {
 namespace cli {
@@ -167,7 +168,7 @@ const bool kRegistered = cli::registerCommand(
                     "variant");
        sub.add_option("-j,--jobs", args->jobs, "Runs in parallel (0: number of cores)")
            ->capture_default_str()
-           ->check(CLI::NonNegativeNumber);
+           ->check(cli::jobCount());
        sub.add_flag("--resume", args->resume,
                     "Keep complete runs of an earlier, interrupted reproduction (default: start "
                     "over)");

@@ -43,16 +43,6 @@ struct RunArgs {
   std::string dump_dir = "windows";
 };
 
-// A dataset argument is a shipped sequence name or an existing folder; anything else is a usage
-// error that lists the names.
-void checkDatasetArgument(const std::string& dataset) {
-  if (std::filesystem::is_directory(dataset)) return;
-  const std::vector<std::string> names = listSequences();
-  if (std::find(names.begin(), names.end(), dataset) != names.end()) return;
-  throw UsageError(fmt::format("unknown dataset '{}': expected a folder or one of {}", dataset,
-                               fmt::join(names, ", ")));
-}
-
 // The results file, its TUM trajectory and the captured windows against the files and folders
 // the run reads.
 void refuseOverwritingInputs(const RunArgs& args) {
@@ -67,7 +57,7 @@ void refuseOverwritingInputs(const RunArgs& args) {
 }
 
 int runRun(const RunArgs& args) {
-  checkDatasetArgument(args.dataset);
+  cli::checkDatasetArgument(args.dataset);
   RunOptions options;
   options.dataset = args.dataset;
   options.variant = Variant::parse(args.variant);
@@ -246,7 +236,7 @@ const bool kRegistered = cli::registerCommand(
               "Capture the windows of these frames (comma-separated 0-based indices) before "
               "their optimization, with the step taken, for `marglab bench` and the tests")
            ->delimiter(',')
-           ->check(CLI::NonNegativeNumber);
+           ->check(cli::nonNegativeInt("a frame index"));
        sub.add_option("--dump-dir", args->dump_dir, "Folder of the captured windows")
            ->capture_default_str();
        sub.add_option("--inject-nan-frame", args->inject_nan_frame,

@@ -10,14 +10,58 @@
 #include <sstream>
 
 #include "core/common/error.h"
+#include "core/data/sequence.h"
+#include "core/estimator/config.h"
 #include "core/experiment/slurm_backend.h"
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_runner.h"
 #include "tools/command.h"
 #include "tools/output_checks.h"
+#include "tools/option_checks.h"
 
 namespace marglab {
 namespace cli {
+
+namespace {
+
+// The value of a `run` option in args ("--opt V" or "--opt=V", the last one counts); "" if absent.
+std::string optionValue(const std::vector<std::string>& args, const std::string& option) {
+  std::string value;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == option && i + 1 < args.size()) value = args[i + 1];
+    if (args[i].rfind(option + "=", 0) == 0) value = args[i].substr(option.size() + 1);
+  }
+  return value;
+}
+
+// What `marglab run` would refuse only after loading the dataset: VIO on KITTI (no IMU), so that
+// `sweep --dry-run` and the validation before a sweep refuse it too.
+std::string runPlanProblem(const experiment::PlannedRun& run) {
+  try {
+    if (sequenceKind(run.dataset) != DatasetKind::kKitti) return {};
+  } catch (const InputError&) {
+    return {};  // the run itself reports a folder it cannot read
+  }
+  if (optionValue(run.extra_args, "--mode") == "vio") {
+    return "--mode vio on KITTI: KITTI odometry has no IMU (VIO needs EuRoC or TUM-VI)";
+  }
+  if (optionValue(run.extra_args, "--imu") == "real") {
+    return "--imu real on KITTI: KITTI odometry has no IMU";
+  }
+  std::string strategy = optionValue(run.extra_args, "--marg-strategy");
+  if (strategy.empty() && !run.config_toml.empty()) {
+    EstimatorConfig config;
+    config.loadTomlString(run.config_toml, run.id);
+    strategy = toString(config.marg_strategy);
+  }
+  if (!strategy.empty() && strategy != "discard") {
+    return fmt::format("marginalization strategy {} on KITTI: it needs VIO (EuRoC or TUM-VI)",
+                       strategy);
+  }
+  return {};
+}
+
+}  // namespace
 
 // Checks extra `marglab run` options of a sweep by parsing them with the real `run` verb, so that
 // a typo in a sweep file fails before any run starts. Also used by `marglab reproduce`.
@@ -42,6 +86,7 @@ experiment::ParseOptions sweepParseOptions() {
     }
     return {};
   };
+  options.check_run = runPlanProblem;
   return options;
 }
 
@@ -126,7 +171,7 @@ const bool kRegistered = cli::registerCommand(
            ->check(CLI::ExistingFile);
        sub.add_option("-j,--jobs", args->jobs, "Runs in parallel (0: number of cores)")
            ->capture_default_str()
-           ->check(CLI::NonNegativeNumber);
+           ->check(cli::jobCount());
        sub.add_flag("--resume", args->resume,
                     "Keep runs whose results file is complete and planned the same; redo the rest");
        sub.add_flag("--force", args->force, "Discard an earlier sweep in the output folder");
@@ -147,7 +192,7 @@ const bool kRegistered = cli::registerCommand(
        sub.add_option("--slurm-mem", args->slurm.mem, "slurm: --mem of every task, e.g. 4G");
        sub.add_option("--slurm-cpus", args->slurm.cpus, "slurm: --cpus-per-task")
            ->capture_default_str()
-           ->check(CLI::PositiveNumber);
+           ->check(cli::positiveInt("the number of CPUs"));
        sub.add_option("--slurm-arg", args->slurm.extra,
                       "slurm: a further sbatch option, verbatim (repeatable; write "
                       "--slurm-arg=--qos=long)")

@@ -5,14 +5,31 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
+#include <filesystem>
 #include <memory>
 #include <string>
 
+#include "core/common/error.h"
+#include "core/experiment/sweep_index.h"
 #include "core/experiment/tables.h"
 #include "tools/command.h"
 
 namespace marglab {
 namespace {
+
+// Tables from folders without a single run would be empty files and a silent exit 0.
+void requireRuns(const std::vector<std::string>& dirs) {
+  for (const std::string& dir : dirs) {
+    const std::string index = (std::filesystem::path(dir) / "index.csv").string();
+    if (!std::filesystem::is_regular_file(index)) return;  // writeTables names it (usage error)
+    if (!experiment::readIndex(index).empty()) return;
+  }
+  throw InputError((std::filesystem::path(dirs.front()) / "index.csv").string(), 0,
+                   dirs.size() == 1
+                       ? "expected at least one run in the sweep index, found no rows: no tables"
+                       : "expected at least one run in the sweep indexes, found no rows in any: "
+                         "no tables");
+}
 
 const bool kRegistered = cli::registerCommand(
     {"tables",
@@ -38,6 +55,7 @@ const bool kRegistered = cli::registerCommand(
        sub.add_flag("--print", request->print, "Also print the Markdown tables");
        return [request, seeds] {
          experiment::parseSeedStats(*seeds, &request->seeds);
+         requireRuns(request->dirs);
          std::string md;
          experiment::writeTables(*request, &md);
          if (request->print) fmt::print("\n{}", md);

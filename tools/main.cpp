@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <exception>
 #include <memory>
+#include <string>
+#include <string_view>
 
 #include "core/common/error.h"
 #include "marglab/version.h"
@@ -26,6 +28,39 @@ bool registerCommand(CommandSpec spec) {
 
 bool stderrIsTerminal() { return isatty(fileno(stderr)) != 0; }
 
+namespace {
+
+// An unknown first word is an unknown verb (CLI11 would say "A subcommand is required").
+bool isUnknownVerb(int argc, char** argv) {
+  if (argc < 2 || argv[1][0] == '-') return false;
+  const std::string word = argv[1];
+  const auto& commands = registeredCommands();
+  return std::none_of(commands.begin(), commands.end(),
+                      [&](const CommandSpec& c) { return c.name == word; });
+}
+
+std::string verbList() {
+  std::string list;
+  for (const CommandSpec& c : registeredCommands()) list += (list.empty() ? "" : ", ") + c.name;
+  return list;
+}
+
+// CLI11's message with every overlong word (an echoed argument) shortened; paths stay whole.
+std::string shortenedMessage(const std::string& message) {
+  constexpr std::size_t kLongestWord = 256;
+  std::string out;
+  std::size_t start = 0;
+  while (start < message.size()) {
+    const std::size_t end = std::min(message.find_first_of(" \n", start), message.size());
+    const std::string_view word(message.data() + start, end - start);
+    out += word.size() > kLongestWord ? shortToken(word) : std::string(word);
+    if (end < message.size()) out += message[end];
+    start = end + 1;
+  }
+  return out;
+}
+
+}  // namespace
 }  // namespace marglab::cli
 
 int main(int argc, char** argv) {
@@ -45,6 +80,11 @@ int main(int argc, char** argv) {
     runs.emplace_back(sub, command.setup(*sub));
   }
 
+  if (cli::isUnknownVerb(argc, argv)) {
+    fmt::print(stderr, "marglab: usage error: unknown verb '{}'; the verbs are: {} (see --help)\n",
+               shortToken(argv[1]), cli::verbList());
+    return 2;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -54,7 +94,8 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    app.exit(e);
+    fmt::print(stderr, "{}\nRun with --help for more information.\n",
+               cli::shortenedMessage(e.what()));
     return 2;
   }
 

@@ -4,13 +4,19 @@
 // `run` verb) reject them before anything runs, with exit code 2 (usage error).
 
 #include <fmt/core.h>
+#include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <charconv>
 #include <cstdint>
+#include <filesystem>
 #include <limits>
 #include <string>
+#include <vector>
 
+#include "core/common/error.h"
+#include "core/data/sequence.h"
 #include "core/estimator/config.h"
 
 namespace marglab::cli {
@@ -31,7 +37,7 @@ inline CLI::Validator seedRange() {
         const char* end = text.data() + text.size();
         const auto [ptr, ec] = std::from_chars(text.data(), end, value);
         if (text.empty() || ec != std::errc() || ptr != end) {
-          return fmt::format("{}: expected an integer in [0, {}]", text,
+          return fmt::format("{}: expected an integer in [0, {}]", shortToken(text),
                              std::numeric_limits<std::uint64_t>::max());
         }
         return {};
@@ -39,21 +45,61 @@ inline CLI::Validator seedRange() {
       "", "seed");
 }
 
-// A count that must be >= 0 and fit an int (CLI::NonNegativeNumber prints a 309-digit range).
-inline CLI::Validator nonNegativeInt(const char* what) {
+// An integer in [lo, hi] (CLI::NonNegativeNumber / PositiveNumber print a 309-digit range and
+// accept fractions).
+inline CLI::Validator intRange(const char* what, long long lo, long long hi) {
   return CLI::Validator(
-      [what](std::string& text) -> std::string {
+      [what, lo, hi](std::string& text) -> std::string {
         long long value = 0;
         const char* end = text.data() + text.size();
         const auto [ptr, ec] = std::from_chars(text.data(), end, value);
-        if (text.empty() || ec != std::errc() || ptr != end || value < 0 ||
-            value > std::numeric_limits<int>::max()) {
-          return fmt::format("{}: expected {}, an integer in [0, {}]", text, what,
-                             std::numeric_limits<int>::max());
+        if (text.empty() || ec != std::errc() || ptr != end || value < lo || value > hi) {
+          return fmt::format("{}: expected {}, an integer in [{}, {}]", shortToken(text), what, lo,
+                             hi);
         }
         return {};
       },
-      "", "non-negative int");
+      "", "int");
+}
+
+// A finite number in (0, hi].
+inline CLI::Validator positiveReal(const char* what, double hi) {
+  return CLI::Validator(
+      [what, hi](std::string& text) -> std::string {
+        double value = 0;
+        const char* end = text.data() + text.size();
+        const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+        if (text.empty() || ec != std::errc() || ptr != end || !(value > 0 && value <= hi)) {
+          return fmt::format("{}: expected {}, a number in (0, {:g}]", shortToken(text), what, hi);
+        }
+        return {};
+      },
+      "", "number");
+}
+
+// The number of parallel jobs, 0 meaning one per core; bounded like lm.threads.
+inline CLI::Validator jobCount() {
+  return intRange("the number of parallel jobs (0: cores)", 0, 256);
+}
+
+// A count that must be >= 0 and fit an int.
+inline CLI::Validator nonNegativeInt(const char* what) {
+  return intRange(what, 0, std::numeric_limits<int>::max());
+}
+
+// A count that must be >= 1 and fit an int.
+inline CLI::Validator positiveInt(const char* what) {
+  return intRange(what, 1, std::numeric_limits<int>::max());
+}
+
+// A dataset argument is a shipped sequence name or an existing folder; anything else is a usage
+// error (exit 2, as for every other bad option value) that lists the names.
+inline void checkDatasetArgument(const std::string& dataset) {
+  if (std::filesystem::is_directory(dataset)) return;
+  const std::vector<std::string> names = listSequences();
+  if (std::find(names.begin(), names.end(), dataset) != names.end()) return;
+  throw UsageError(fmt::format("unknown dataset '{}': expected a folder or one of {}",
+                               shortToken(dataset), fmt::join(names, ", ")));
 }
 
 }  // namespace marglab::cli

@@ -4,11 +4,22 @@ namespace marglab {
 namespace {
 std::string formatLocation(const std::string& file, int line, const std::string& what) {
   if (line > 0) return file + ":" + std::to_string(line) + ": " + what;
+  if (file.empty()) return what;
   return file + ": " + what;
 }
 }  // namespace
 
 InputError::InputError(std::string file, int line, const std::string& what)
-    : std::runtime_error(formatLocation(file, line, what)), file_(std::move(file)), line_(line) {}
+    : std::runtime_error(formatLocation(file, line, what)),
+      file_(std::move(file)),
+      line_(line),
+      detail_(what) {}
+
+std::string shortToken(std::string_view token, std::size_t max_chars) {
+  if (token.size() <= max_chars) return std::string(token);
+  std::size_t cut = max_chars;
+  while (cut > 0 && (static_cast<unsigned char>(token[cut]) & 0xC0) == 0x80) --cut;
+  return std::string(token.substr(0, cut)) + "… (" + std::to_string(token.size()) + " bytes)";
+}
 
 }  // namespace marglab

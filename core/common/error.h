@@ -4,20 +4,30 @@
 
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace marglab {
 
 class InputError : public std::runtime_error {
  public:
-  // line 0 means "the file as a whole" (missing file, empty file, ...).
+  // line 0 means "the file as a whole" (missing file, empty file, ...); an empty file means the
+  // error is about no file (what() is then `what` alone).
   InputError(std::string file, int line, const std::string& what);
   const std::string& file() const { return file_; }
   int line() const { return line_; }
+  // The message without "FILE:LINE: ", for re-throwing with a better location.
+  const std::string& detail() const { return detail_; }
 
  private:
   std::string file_;
   int line_;
+  std::string detail_;
 };
+
+// A token from the input as echoed in a message: at most `max_chars` bytes (cut at a UTF-8
+// character boundary) followed by "…" and the full length, so that a 5 MB garbage field does not
+// become a 5 MB error message.
+std::string shortToken(std::string_view token, std::size_t max_chars = 80);
 
 // A command-line usage error (unknown variant, bad option value): exit code 2.
 class UsageError : public std::runtime_error {

@@ -21,6 +21,17 @@ void checkIncreasing(int64_t t, int64_t& previous, bool first, const TextFile& f
   previous = t;
 }
 
+// A pose appended to `trajectory` is checked against the step and speed limits, if any.
+void checkStep(const Trajectory& trajectory, const PlausibilityLimits* limits,
+               const TextFile& file) {
+  const std::size_t n = trajectory.size();
+  if (limits == nullptr || n < 2) return;
+  const std::string problem =
+      poseStepProblem(*limits, trajectory.t_ns[n - 2], trajectory.p_w_b[n - 2],
+                      trajectory.t_ns[n - 1], trajectory.p_w_b[n - 1]);
+  if (!problem.empty()) file.fail(problem);
+}
+
 void checkColumns(const std::vector<std::string_view>& fields, std::size_t expected,
                   const TextFile& file, std::string_view layout) {
   if (fields.size() != expected) {
@@ -138,8 +149,9 @@ class FlatYaml {
     for (std::string_view token : splitFields(text, " \t")) {
       double x = 0;
       if (!tryParseDouble(token, x) || !std::isfinite(x)) {
-        throw InputError(path_, value.line,
-                         fmt::format("expected finite numbers in '{}', found '{}'", key, token));
+        throw InputError(
+            path_, value.line,
+            fmt::format("expected finite numbers in '{}', found '{}'", key, shortToken(token)));
       }
       result.push_back(x);
     }
@@ -205,7 +217,7 @@ void readPinholeIntrinsics(const FlatYaml& yaml, const std::string& prefix, Came
 
 }  // namespace
 
-Trajectory readTumTrajectory(const std::string& path) {
+Trajectory readTumTrajectory(const std::string& path, const PlausibilityLimits* limits) {
   static const char* const kNames[] = {"t [s]", "x", "y", "z", "qx", "qy", "qz", "qw"};
   TextFile file(path);
   Trajectory trajectory;
@@ -220,12 +232,13 @@ Trajectory readTumTrajectory(const std::string& path) {
     for (int i = 1; i < 8; ++i) v[i] = parseDouble(f[i], file, columnName(i, kNames));
     trajectory.push_back(t, Eigen::Vector3d(v[1], v[2], v[3]),
                          unitQuaternion(v[7], v[4], v[5], v[6], file));
+    checkStep(trajectory, limits, file);
   }
   if (trajectory.empty()) file.fail("expected at least one pose (the file has no data lines)");
   return trajectory;
 }
 
-AslGroundTruth readAslGroundTruth(const std::string& path) {
+AslGroundTruth readAslGroundTruth(const std::string& path, const PlausibilityLimits* limits) {
   static const char* const kNames[] = {"t [ns]", "p_x",  "p_y",  "p_z",  "q_w", "q_x",
                                        "q_y",    "q_z",  "v_x",  "v_y",  "v_z", "bw_x",
                                        "bw_y",   "bw_z", "ba_x", "ba_y", "ba_z"};
@@ -252,6 +265,7 @@ AslGroundTruth readAslGroundTruth(const std::string& path) {
     for (std::size_t i = 1; i < columns; ++i) v[i] = parseDouble(f[i], file, columnName(i, kNames));
     gt.trajectory.push_back(t, Eigen::Vector3d(v[1], v[2], v[3]),
                             unitQuaternion(v[4], v[5], v[6], v[7], file));
+    checkStep(gt.trajectory, limits, file);
     if (gt.state) {
       gt.state->v_w_b.emplace_back(v[8], v[9], v[10]);
       gt.state->bias_gyro.emplace_back(v[11], v[12], v[13]);
@@ -262,7 +276,7 @@ AslGroundTruth readAslGroundTruth(const std::string& path) {
   return gt;
 }
 
-ImuData readAslImu(const std::string& path) {
+ImuData readAslImu(const std::string& path, const PlausibilityLimits* limits) {
   static const char* const kNames[] = {"t [ns]", "w_x", "w_y", "w_z", "a_x", "a_y", "a_z"};
   TextFile file(path);
   ImuData imu;
@@ -272,9 +286,16 @@ ImuData readAslImu(const std::string& path) {
     const auto f = splitFields(line, ",");
     checkColumns(f, 7, file, "t[ns], w xyz, a xyz");
     const int64_t t = parseInt64(f[0], file, columnName(0, kNames));
+    const int64_t t_prev = previous;
     checkIncreasing(t, previous, imu.empty(), file);
     double v[7];
     for (int i = 1; i < 7; ++i) v[i] = parseDouble(f[i], file, columnName(i, kNames));
+    if (limits != nullptr) {
+      const std::string problem =
+          imuSampleProblem(*limits, imu.empty(), t_prev, t, Eigen::Vector3d(v[1], v[2], v[3]),
+                           Eigen::Vector3d(v[4], v[5], v[6]));
+      if (!problem.empty()) file.fail(problem);
+    }
     imu.t_ns.push_back(t);
     imu.gyro.emplace_back(v[1], v[2], v[3]);
     imu.accel.emplace_back(v[4], v[5], v[6]);
@@ -308,7 +329,7 @@ CameraCalib readEurocSensorYaml(const std::string& path) {
   const std::string model = yaml.string("camera_model");
   if (model != "pinhole") {
     throw InputError(path, yaml.get("camera_model").line,
-                     fmt::format("expected camera_model 'pinhole', found '{}'", model));
+                     fmt::format("expected camera_model 'pinhole', found '{}'", shortToken(model)));
   }
   readPinholeIntrinsics(yaml, "", cam);
   yaml.transform("T_BS.data", cam.R_b_c, cam.t_b_c);
@@ -378,7 +399,8 @@ std::vector<int64_t> readKittiTimes(const std::string& path) {
   return stamps;
 }
 
-Trajectory readKittiPoses(const std::string& path, const std::vector<int64_t>& t_ns) {
+Trajectory readKittiPoses(const std::string& path, const std::vector<int64_t>& t_ns,
+                          const PlausibilityLimits* limits) {
   TextFile file(path);
   Trajectory trajectory;
   std::string_view line;
@@ -395,9 +417,15 @@ Trajectory readKittiPoses(const std::string& path, const std::vector<int64_t>& t
     }
     const Eigen::Matrix3d R = T.leftCols<3>();
     if (!isRotation(R)) {
-      file.fail(fmt::format("expected a rotation (|RᵀR − I| <= {:g}, det +1)", kRotationTolerance));
+      file.fail(
+          fmt::format("expected a rotation (|RᵀR − I| <= {:g}, det +1), found |RᵀR − I| = "
+                      "{:.3g}, det {:.6g}",
+                      kRotationTolerance,
+                      (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(),
+                      R.determinant()));
     }
     trajectory.push_back(t_ns[trajectory.size()], T.col(3), Eigen::Quaterniond(R).normalized());
+    checkStep(trajectory, limits, file);
   }
   if (trajectory.size() != t_ns.size()) {
     file.fail(fmt::format("expected {} poses, one per line of times.txt, found {}", t_ns.size(),

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "core/data/plausibility.h"
 #include "core/data/types.h"
 
 namespace marglab {
@@ -36,15 +37,18 @@ inline constexpr double kQuaternionNormTolerance = 1e-2;
 // Largest ‖RᵀR − I‖_max accepted for a rotation read from a file (KITTI stores 7 digits).
 inline constexpr double kRotationTolerance = 1e-4;
 
-Trajectory readTumTrajectory(const std::string& path);
+// With `limits`, the trajectory and IMU readers also refuse implausible rows (core/data/
+// plausibility.h: steps, speeds, IMU gaps and ranges) at their line.
+Trajectory readTumTrajectory(const std::string& path, const PlausibilityLimits* limits = nullptr);
 
 struct AslGroundTruth {
   Trajectory trajectory;
   std::optional<GtImuState> state;  // present for the 17-column EuRoC form
 };
-AslGroundTruth readAslGroundTruth(const std::string& path);
+AslGroundTruth readAslGroundTruth(const std::string& path,
+                                  const PlausibilityLimits* limits = nullptr);
 
-ImuData readAslImu(const std::string& path);
+ImuData readAslImu(const std::string& path, const PlausibilityLimits* limits = nullptr);
 
 std::vector<int64_t> readTimestampList(const std::string& path);
 
@@ -56,7 +60,8 @@ ImuNoise readKalibrImuNoise(const std::string& path);
 
 std::vector<int64_t> readKittiTimes(const std::string& path);
 // `t_ns` are the frame times from times.txt; the file must have exactly one pose per time.
-Trajectory readKittiPoses(const std::string& path, const std::vector<int64_t>& t_ns);
+Trajectory readKittiPoses(const std::string& path, const std::vector<int64_t>& t_ns,
+                          const PlausibilityLimits* limits = nullptr);
 // Image size is not in calib.txt; KITTI odometry images are ≈1241×376 (the value ORB-SLAM3 and
 // VINS-Fusion configure for every sequence).
 StereoCalib readKittiCalib(const std::string& path, int width = 1241, int height = 376);

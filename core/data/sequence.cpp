@@ -11,6 +11,7 @@
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
 #include "core/data/parsers.h"
+#include "core/data/plausibility.h"
 #include "core/data/text_file.h"
 
 namespace marglab {
@@ -66,14 +67,15 @@ std::string canonicalName(std::string name) {
 }
 
 void loadTrajectoryFile(Sequence& seq, const std::string& asl_csv, const std::string& tum_txt) {
+  const PlausibilityLimits& limits = plausibilityLimits(seq.kind);
   if (const std::string asl = findPlainOrGz(asl_csv); !asl.empty()) {
-    AslGroundTruth gt = readAslGroundTruth(asl);
+    AslGroundTruth gt = readAslGroundTruth(asl, &limits);
     seq.gt = std::move(gt.trajectory);
     seq.gt_imu_state = std::move(gt.state);
     seq.gt_source = "ASL csv";
     seq.gt_file = asl;
   } else if (const std::string tum = tum_txt.empty() ? "" : findPlainOrGz(tum_txt); !tum.empty()) {
-    seq.gt = readTumTrajectory(tum);
+    seq.gt = readTumTrajectory(tum, &limits);
     seq.gt_source = "TUM txt";
     seq.gt_file = tum;
   }
@@ -81,7 +83,9 @@ void loadTrajectoryFile(Sequence& seq, const std::string& asl_csv, const std::st
 
 void loadImu(Sequence& seq, const std::string& file, const LoadOptions& options) {
   seq.imu_file = findPlainOrGz(file);
-  if (!seq.imu_file.empty() && options.load_imu) seq.imu = readAslImu(seq.imu_file);
+  if (!seq.imu_file.empty() && options.load_imu) {
+    seq.imu = readAslImu(seq.imu_file, &plausibilityLimits(seq.kind));
+  }
 }
 
 void loadCalibration(Sequence& seq, const fs::path& calib_dir) {
@@ -97,18 +101,26 @@ void loadCalibration(Sequence& seq, const fs::path& calib_dir) {
   seq.imu_noise = readKalibrImuNoise((calib_dir / "openvins_kalibr_imu_chain.yaml").string());
 }
 
+DatasetKind shippedKind(const fs::path& dir) {
+  const std::string parent = fs::absolute(dir).lexically_normal().parent_path().filename().string();
+  if (parent == "euroc") return DatasetKind::kEuroc;
+  if (parent == "tumvi") return DatasetKind::kTumvi;
+  throw InputError(dir.string(), 0,
+                   "expected this folder (shipped layout) inside a folder named euroc or tumvi, "
+                   "next to its calib/ folder");
+}
+
+// EuRoC has state_groundtruth_estimate0/, TUM-VI mocap0/.
+DatasetKind aslKind(const fs::path& mav) {
+  const bool has_state_gt =
+      !findPlainOrGz((mav / "state_groundtruth_estimate0/data.csv").string()).empty();
+  const bool has_mocap = !findPlainOrGz((mav / "mocap0/data.csv").string()).empty();
+  return has_mocap && !has_state_gt ? DatasetKind::kTumvi : DatasetKind::kEuroc;
+}
+
 // Shipped layout: <root>/<kind>/<seq>/{cam0_timestamps_ns.txt, gt_*.{csv,txt}, imu0_asl.csv}(.gz).
 void loadShippedLayout(Sequence& seq, const fs::path& dir, const LoadOptions& options) {
-  const std::string parent = fs::absolute(dir).lexically_normal().parent_path().filename().string();
-  if (parent == "euroc") {
-    seq.kind = DatasetKind::kEuroc;
-  } else if (parent == "tumvi") {
-    seq.kind = DatasetKind::kTumvi;
-  } else {
-    throw InputError(dir.string(), 0,
-                     "expected this folder (shipped layout) inside a folder named euroc or tumvi, "
-                     "next to its calib/ folder");
-  }
+  seq.kind = shippedKind(dir);
   seq.cam_file = findPlainOrGz((dir / "cam0_timestamps_ns.txt").string());
   seq.cam_t_ns = readTimestampList(seq.cam_file);
   loadTrajectoryFile(seq, (dir / "gt_asl.csv").string(), (dir / "gt_tum.txt").string());
@@ -120,7 +132,7 @@ void loadShippedLayout(Sequence& seq, const fs::path& dir, const LoadOptions& op
       std::string method = file.substr(9, file.find('_', 9) - 9);
       if (method == "okvis") method = "OKVIS";
       if (method == "vinsmono") method = "VINS-Mono";
-      seq.gt = readTumTrajectory(entry.path().string());
+      seq.gt = readTumTrajectory(entry.path().string(), &plausibilityLimits(seq.kind));
       seq.gt_is_estimate = true;
       seq.gt_source = method + " estimate";
       seq.gt_file = entry.path().string();
@@ -151,10 +163,7 @@ std::vector<fs::path> camchainCandidates(const fs::path& dir, const fs::path& ma
 // Original ASL layout of EuRoC / TUM-VI: <dir>/mav0/... or <dir> = mav0.
 void loadAslLayout(Sequence& seq, const fs::path& dir, const fs::path& mav,
                    const LoadOptions& options) {
-  const bool has_state_gt =
-      !findPlainOrGz((mav / "state_groundtruth_estimate0/data.csv").string()).empty();
-  const bool has_mocap = !findPlainOrGz((mav / "mocap0/data.csv").string()).empty();
-  seq.kind = has_mocap && !has_state_gt ? DatasetKind::kTumvi : DatasetKind::kEuroc;
+  seq.kind = aslKind(mav);
   seq.cam_file = findPlainOrGz((mav / "cam0/data.csv").string());
   if (seq.cam_file.empty()) {
     throw InputError((mav / "cam0/data.csv").string(), 0, "expected an existing file (not found)");
@@ -200,36 +209,73 @@ void loadKittiLayout(Sequence& seq, const fs::path& dir) {
         (abs.parent_path().parent_path() / "poses" / (abs.filename().string() + ".txt")).string());
   }
   if (!poses.empty()) {
-    seq.gt = readKittiPoses(poses, seq.cam_t_ns);
+    seq.gt = readKittiPoses(poses, seq.cam_t_ns, &plausibilityLimits(seq.kind));
     seq.gt_source = "KITTI poses.txt";
     seq.gt_file = poses;
   }
+}
+
+enum class Layout { kKitti, kShipped, kAsl, kAslMav };
+
+// The folder's layout; throws InputError when it cannot be read or has none of them.
+Layout detectLayout(const fs::path& dir) {
+  std::error_code ec;
+  fs::directory_iterator listing(dir, ec);
+  if (ec) throw InputError(dir.string(), 0, "cannot read the folder: " + ec.message());
+  const auto has = [&](const char* file) { return !findPlainOrGz((dir / file).string()).empty(); };
+  if (has("times.txt") && has("calib.txt")) return Layout::kKitti;
+  if (has("cam0_timestamps_ns.txt")) return Layout::kShipped;
+  if (isDir(dir / "mav0")) return Layout::kAslMav;
+  if (isDir(dir / "cam0") && has("cam0/data.csv")) return Layout::kAsl;
+  throw InputError(dir.string(), 0,
+                   "expected a sequence folder: EuRoC/TUM-VI with mav0/, KITTI with times.txt + "
+                   "calib.txt, or the shipped layout with cam0_timestamps_ns.txt");
 }
 
 Sequence loadFolder(const fs::path& dir, const std::string& name, const LoadOptions& options) {
   Sequence seq;
   seq.name = name;
   seq.directory = dir.string();
-  const auto has = [&](const char* file) { return !findPlainOrGz((dir / file).string()).empty(); };
-  if (has("times.txt") && has("calib.txt")) {
-    loadKittiLayout(seq, dir);
-  } else if (has("cam0_timestamps_ns.txt")) {
-    loadShippedLayout(seq, dir, options);
-  } else if (isDir(dir / "mav0")) {
-    loadAslLayout(seq, dir, dir / "mav0", options);
-  } else if (isDir(dir / "cam0") && has("cam0/data.csv")) {
-    loadAslLayout(seq, dir, dir, options);
-  } else {
-    throw InputError(dir.string(), 0,
-                     "expected a sequence folder: EuRoC/TUM-VI with mav0/, KITTI with times.txt + "
-                     "calib.txt, or the shipped layout with cam0_timestamps_ns.txt");
+  switch (detectLayout(dir)) {
+    case Layout::kKitti:
+      loadKittiLayout(seq, dir);
+      break;
+    case Layout::kShipped:
+      loadShippedLayout(seq, dir, options);
+      break;
+    case Layout::kAslMav:
+      loadAslLayout(seq, dir, dir / "mav0", options);
+      break;
+    case Layout::kAsl:
+      loadAslLayout(seq, dir, dir, options);
+      break;
   }
+  checkSequencePlausibility(seq);
   seq.defaults = datasetDefaults(seq.kind);
   if (seq.name.empty() || seq.name.find('/') == std::string::npos) {
     seq.name = std::string(datasetKindName(seq.kind)) + "/" +
                fs::absolute(dir).lexically_normal().filename().string();
   }
   return seq;
+}
+
+struct SequenceFolder {
+  fs::path dir;
+  std::string name;  // the shipped name, "" for a user's folder
+};
+
+// The folder a sequence name or path stands for; throws InputError for neither.
+SequenceFolder sequenceFolder(const std::string& name_or_path) {
+  const std::string name = canonicalName(name_or_path);
+  const fs::path root = datasetsRoot();
+  const bool looks_like_path =
+      !name_or_path.empty() && (name_or_path.front() == '/' || name_or_path.front() == '.');
+  if (!looks_like_path && !name.empty() && isDir(root / name)) return {root / name, name};
+  if (isDir(name_or_path)) return {name_or_path, ""};
+  throw InputError(
+      name_or_path, 0,
+      fmt::format("expected a sequence name or an existing folder; sequences in {}: {}",
+                  root.string(), joinNames(listSequences())));
 }
 
 }  // namespace
@@ -258,18 +304,23 @@ std::vector<std::string> listSequences() {
 }
 
 Sequence loadSequence(const std::string& name_or_path, const LoadOptions& options) {
-  const std::string name = canonicalName(name_or_path);
-  const fs::path root = datasetsRoot();
-  const bool looks_like_path =
-      !name_or_path.empty() && (name_or_path.front() == '/' || name_or_path.front() == '.');
-  if (!looks_like_path && !name.empty() && isDir(root / name)) {
-    return loadFolder(root / name, name, options);
+  const SequenceFolder folder = sequenceFolder(name_or_path);
+  return loadFolder(folder.dir, folder.name, options);
+}
+
+DatasetKind sequenceKind(const std::string& name_or_path) {
+  const fs::path dir = sequenceFolder(name_or_path).dir;
+  switch (detectLayout(dir)) {
+    case Layout::kKitti:
+      return DatasetKind::kKitti;
+    case Layout::kShipped:
+      return shippedKind(dir);
+    case Layout::kAslMav:
+      return aslKind(dir / "mav0");
+    case Layout::kAsl:
+      break;
   }
-  if (isDir(name_or_path)) return loadFolder(name_or_path, "", options);
-  throw InputError(
-      name_or_path, 0,
-      fmt::format("expected a sequence name or an existing folder; sequences in {}: {}",
-                  root.string(), joinNames(listSequences())));
+  return aslKind(dir);
 }
 
 std::pair<std::size_t, std::size_t> framesWithinTrajectory(const Sequence& sequence) {

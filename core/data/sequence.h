@@ -40,8 +40,13 @@ struct LoadOptions {
   bool load_imu = true;  // false: only record whether a real IMU file exists (imu_file)
 };
 
-// Throws InputError: for an unknown name (listing the available ones) or any bad file.
+// Throws InputError: for an unknown name (listing the available ones), an unreadable folder, any
+// bad file or an implausible sequence (core/data/plausibility.h).
 Sequence loadSequence(const std::string& name_or_path, const LoadOptions& options = {});
+
+// The dataset kind of a sequence from its folder's layout, without loading it (for validating
+// plans); throws InputError as loadSequence does for an unknown name or unreadable folder.
+DatasetKind sequenceKind(const std::string& name_or_path);
 
 // Indices [first, last) of the camera frames inside the trajectory's time span (empty if none).
 std::pair<std::size_t, std::size_t> framesWithinTrajectory(const Sequence& sequence);

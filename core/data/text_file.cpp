@@ -2,8 +2,10 @@
 
 #include <fmt/core.h>
 
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 
@@ -18,7 +20,10 @@ TextFile::TextFile(std::string path) : path_(std::move(path)) {
   if (!fs::exists(path_, ec)) throw InputError(path_, 0, "expected an existing file (not found)");
   if (!fs::is_regular_file(path_, ec)) throw InputError(path_, 0, "expected a regular file");
   file_ = gzopen(path_.c_str(), "rb");
-  if (file_ == nullptr) throw InputError(path_, 0, "expected a readable file (cannot open)");
+  if (file_ == nullptr) {
+    throw InputError(
+        path_, 0, fmt::format("expected a readable file (cannot open: {})", std::strerror(errno)));
+  }
   gzbuffer(file_, 1 << 17);
 }
 
@@ -93,10 +98,10 @@ bool tryParseDouble(std::string_view field, double& value) {
 double parseDouble(std::string_view field, const TextFile& file, std::string_view what) {
   double value = 0;
   if (!tryParseDouble(field, value)) {
-    file.fail(fmt::format("expected a number in {}, found '{}'", what, field));
+    file.fail(fmt::format("expected a number in {}, found '{}'", what, shortToken(field)));
   }
   if (!std::isfinite(value)) {
-    file.fail(fmt::format("expected a finite number in {}, found '{}'", what, field));
+    file.fail(fmt::format("expected a finite number in {}, found '{}'", what, shortToken(field)));
   }
   return value;
 }
@@ -107,7 +112,7 @@ int64_t parseInt64(std::string_view field, const TextFile& file, std::string_vie
   if (!digits.empty() && digits.front() == '+') digits.remove_prefix(1);
   const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), value);
   if (digits.empty() || ec != std::errc() || end != digits.data() + digits.size()) {
-    file.fail(fmt::format("expected an integer in {}, found '{}'", what, field));
+    file.fail(fmt::format("expected an integer in {}, found '{}'", what, shortToken(field)));
   }
   return value;
 }
@@ -127,8 +132,8 @@ int64_t parseSecondsToNs(std::string_view field, const TextFile& file, std::stri
     int64_t ns = 0;
     for (char c : whole) ns = ns * 10 + (c - '0');
     if (ns > std::numeric_limits<int64_t>::max() / 1000000000 - 1) {
-      file.fail(
-          fmt::format("expected a time in seconds below 9.2e9 in {}, found '{}'", what, field));
+      file.fail(fmt::format("expected a time in seconds below 9.2e9 in {}, found '{}'", what,
+                            shortToken(field)));
     }
     int64_t frac_ns = 0;
     for (std::size_t i = 0; i < 9; ++i)
@@ -139,16 +144,22 @@ int64_t parseSecondsToNs(std::string_view field, const TextFile& file, std::stri
   }
   const double seconds = parseDouble(field, file, what);
   if (std::abs(seconds) > 9.2e9) {
-    file.fail(
-        fmt::format("expected a time in seconds within ±9.2e9 in {}, found '{}'", what, field));
+    file.fail(fmt::format("expected a time in seconds within ±9.2e9 in {}, found '{}'", what,
+                          shortToken(field)));
   }
   return std::llround(seconds * 1e9);
 }
 
 std::string findPlainOrGz(const std::string& path) {
-  std::error_code ec;
-  if (fs::is_regular_file(path, ec)) return path;
-  if (fs::is_regular_file(path + ".gz", ec)) return path + ".gz";
+  for (const std::string& candidate : {path, path + ".gz"}) {
+    std::error_code ec;
+    const fs::file_status status = fs::status(candidate, ec);
+    if (status.type() == fs::file_type::not_found) continue;
+    if (ec) throw InputError(candidate, 0, "cannot read: " + ec.message());
+    if (fs::is_regular_file(status)) return candidate;
+    // A folder named like a data file must not read as "the file is absent".
+    throw InputError(candidate, 0, "expected a regular file, found a folder or special file");
+  }
   return "";
 }
 

@@ -393,6 +393,13 @@ class Parser {
             run.line = line;
             run.id = fmt::format("{}__{}__{}__s{}", group_name, slug(dataset), variant, seed);
             if (!o.name.empty()) run.id += "__" + o.name;
+            if (options_.check_run) {
+              const std::string problem = options_.check_run(run);
+              if (!problem.empty()) {
+                throw InputError(name_, o.name.empty() ? line : o.line,
+                                 fmt::format("run {}: {}", run.id, problem));
+              }
+            }
             for (const PlannedRun& other : plan->runs) {
               if (other.id == run.id) {
                 throw InputError(name_, line,
@@ -444,7 +451,8 @@ std::vector<std::string> expandVariantEntry(const std::string& entry) {
     try {
       out.push_back(Variant::parse(entry).name());
     } catch (const UsageError& e) {
-      throw UsageError(fmt::format("{} (or a set: paper, headline, ablation, precision)", e.what()));
+      throw UsageError(
+          fmt::format("{} (or a set: paper, headline, ablation, precision)", e.what()));
     }
   }
   return out;

@@ -74,8 +74,13 @@ struct SweepPlan {
 // checker that parses them with the real `run` verb; the library default accepts everything.
 using RunArgsChecker = std::function<std::string(const std::vector<std::string>& args)>;
 
+// Checks one planned run as a whole (its dataset with its options); returns "" when fine, else
+// what is wrong. The CLI refuses combinations `marglab run` would refuse (VIO on KITTI).
+using RunChecker = std::function<std::string(const PlannedRun& run)>;
+
 struct ParseOptions {
   RunArgsChecker check_run_args;
+  RunChecker check_run;
   // The sequences a dataset name may be (default: listSequences()).
   std::vector<std::string> known_sequences;
   bool known_sequences_given = false;

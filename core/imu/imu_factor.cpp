@@ -1,5 +1,7 @@
 #include "core/imu/imu_factor.h"
 
+#include <fmt/core.h>
+
 #include <Eigen/Cholesky>
 #include <cmath>
 
@@ -17,9 +19,13 @@ ImuFactor<Scalar>::ImuFactor(const ImuPreintegration<Scalar>& preintegration, co
   const Eigen::Matrix<double, 9, 9> cov = pre_.covariance().template cast<double>();
   const Eigen::LLT<Eigen::Matrix<double, 9, 9>> llt(cov);
   if (llt.info() != Eigen::Success || !cov.allFinite()) {
-    throw InputError("", 0,
-                     "IMU factor: preintegrated covariance is not positive definite (zero "
-                     "duration or zero noise?)");
+    throw InputError(
+        "", 0,
+        fmt::format("IMU factor between the frames at t = {} ns and t = {} ns ({:.6g} s): the "
+                    "preintegrated covariance is not positive definite (a zero duration, zero "
+                    "noise, or IMU samples far outside the sensor's range?)",
+                    pre_.startTimeNs(), pre_.endTimeNs(),
+                    static_cast<double>(pre_.durationSeconds())));
   }
   const Eigen::Matrix<double, 9, 9> W =
       llt.matrixL().solve(Eigen::Matrix<double, 9, 9>::Identity());

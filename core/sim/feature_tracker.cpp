@@ -299,7 +299,12 @@ TrackStream simulateSequence(const Sequence& sequence, const TrajectoryFunction&
         sequence.directory, 0,
         fmt::format("{}: no trajectory (timestamps only); cannot simulate", sequence.name));
   }
-  const World world = makeWorld(trajectory, options.world, options.seed);
+  World world;
+  try {
+    world = makeWorld(trajectory, options.world, options.seed);
+  } catch (const InputError& e) {
+    throw InputError(sequence.gt_file, 0, e.detail());
+  }
   TrackStream stream = simulateTracks(trajectory, sequence.calib, sequence.cam_t_ns, world,
                                       options.tracker, options.seed);
   stream.sequence = sequence.name;

@@ -178,7 +178,7 @@ TrajectorySpline TrajectorySpline::fromSequence(const Sequence& sequence, double
   try {
     return TrajectorySpline(sequence.gt, options);
   } catch (const InputError& e) {
-    throw InputError(sequence.gt_file, 0, e.what());
+    throw InputError(sequence.gt_file, 0, e.detail());
   }
 }
 

@@ -5,7 +5,12 @@
 #include <array>
 #include <cmath>
 #include <numeric>
+#include <string>
 #include <unordered_map>
+
+#include <fmt/core.h>
+
+#include "core/common/error.h"
 
 namespace marglab {
 namespace {
@@ -33,6 +38,16 @@ std::vector<PathSample> samplePath(const TrajectoryFunction& trajectory, double 
     if (t == t1) break;
   }
   return samples;
+}
+
+// Refuses a world larger than options.max_points before it is built (an implausible trajectory
+// would otherwise take memory without bound).
+void checkWorldSize(double points, const WorldOptions& options, const std::string& extent) {
+  if (points <= options.max_points) return;
+  throw InputError("", 0,
+                   fmt::format("the simulated world would hold about {:.3g} points ({}), more "
+                               "than the limit of {:.3g}: is the trajectory plausible?",
+                               points, extent, options.max_points));
 }
 
 // Hash grid over path positions for "is q within r of the path" queries. With horizontal = true
@@ -126,6 +141,11 @@ Cloud indoorPoints(const std::vector<PathSample>& path, const WorldOptions& o, S
   lo -= Eigen::Vector3d(o.horizontal_margin, o.horizontal_margin, o.floor_margin);
   hi += Eigen::Vector3d(o.horizontal_margin, o.horizontal_margin, o.ceiling_margin);
   const Eigen::Vector3d d = hi - lo;
+  const double box_points = 5 * o.clutter_box_max * o.clutter_box_max * o.surface_density;
+  checkWorldSize(2 * (d.x() * d.y() + d.x() * d.z() + d.y() * d.z()) * o.surface_density +
+                     d.x() * d.y() * o.clutter_boxes_per_m2 * box_points +
+                     d.prod() * o.clutter_point_density,
+                 o, fmt::format("a room of {:.3g} x {:.3g} x {:.3g} m", d.x(), d.y(), d.z()));
   const Eigen::Vector3d ex(d.x(), 0, 0), ey(0, d.y(), 0), ez(0, 0, d.z());
 
   const Eigen::Vector3d X = Eigen::Vector3d::UnitX(), Y = Eigen::Vector3d::UnitY(),
@@ -185,6 +205,14 @@ Cloud streetPoints(const std::vector<PathSample>& path, const WorldOptions& o, S
       arc = 0;
     }
   }
+  double length = 0;
+  for (std::size_t k = 1; k < stations.size(); ++k) {
+    length += (stations[k]->p_w - stations[k - 1]->p_w).norm();
+  }
+  checkWorldSize(length * (2 * o.facade_height * o.facade_density +
+                           2 * o.ground_half_width * o.ground_density +
+                           o.far_points_per_station / o.station_spacing),
+                 o, fmt::format("a street of {:.3g} m", length));
   Eigen::Vector3d mean_up = Eigen::Vector3d::Zero();
   for (const PathSample* s : stations) mean_up += s->R_w_b * o.up_b;
   const PathIndex index(path, o.path_clearance, true, mean_up);

@@ -104,6 +104,9 @@ struct WorldOptions {
   double ground_density = 0.15;                               // [1/m²]
   double far_min = 50.0, far_max = 200.0, far_height = 30.0;  // [m]
   double far_points_per_station = 3.0;
+  // Bound on the world's size, checked before it is built: ~25× the largest shipped world
+  // (KITTI 02, EuRoC machine hall: ~10⁵ points), ~0.25 GB with the normals.
+  double max_points = 5e6;
 };
 
 // Dataset defaults (tuned for 100–250 tracked features per frame, see datasets/README.md).
@@ -133,8 +136,10 @@ struct World {
   }
 };
 
-// Builds the world around the trajectory (sampled over its whole time span). Deterministic for
-// (trajectory, options, seed).
+// Builds the world around the trajectory (sampled over its whole time span: what a short run sees
+// depends on the streets driven later, so the world does not depend on the frames a run uses).
+// Deterministic for (trajectory, options, seed). Throws InputError (no file) when the world would
+// exceed options.max_points, before building it.
 World makeWorld(const TrajectoryFunction& trajectory, const WorldOptions& options, uint64_t seed);
 
 // Groups points into chunks by cubic voxel of side chunk_size (stable within a voxel), reorders

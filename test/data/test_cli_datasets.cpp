@@ -5,10 +5,10 @@
 #include <cstdio>
 #include <sstream>
 
-#include "test_paths.h"
-#include "core/common/source_dir.h"
 #include "common/cli_runner.h"
+#include "core/common/source_dir.h"
 #include "data_test_utils.h"
+#include "test_paths.h"
 
 namespace marglab {
 namespace {
@@ -57,10 +57,53 @@ TEST(CliDatasets, ListUsageAndUnknownName) {
   }
   EXPECT_EQ(runCli("datasets check").exit_code, 2);
   EXPECT_EQ(runCli("datasets").exit_code, 2);
+  // An unknown name is a usage error, as in `marglab run` (issue #18: it was 1 here, 2 there).
   const CliResult unknown = runCli("datasets check euroc/nope");
-  EXPECT_EQ(unknown.exit_code, 1);
-  EXPECT_NE(unknown.output.find("euroc/nope: expected a sequence name"), std::string::npos)
+  EXPECT_EQ(unknown.exit_code, 2);
+  EXPECT_NE(unknown.output.find("unknown dataset 'euroc/nope': expected a folder or one of"),
+            std::string::npos)
       << unknown.output;
+}
+
+// A pose moved by 1e5 m passed `check` and made `run --frames 40` take 0.6 GB (issue #18, item 2);
+// a 5 MB bad token was echoed in full on stdout and stderr (item 9).
+TEST(CliDatasets, CheckRefusesAnImplausiblePoseAndCutsLongTokens) {
+  TempDir dir;
+  const fs::path seq = dir.path() / "10";
+  fs::create_directories(seq);
+  fs::copy_file(kShipped / "kitti/10/calib.txt", seq / "calib.txt");
+  fs::copy_file(kShipped / "kitti/10/times.txt.gz", seq / "times.txt.gz");
+  std::istringstream poses(test::readGz((kShipped / "kitti/10/poses.txt.gz").string()));
+  std::string far, garbage, line;
+  for (int n = 1; std::getline(poses, line); ++n) {
+    std::istringstream in(line);
+    std::vector<std::string> v(12);
+    for (auto& value : v) in >> value;
+    std::string far_row, garbage_row;
+    for (int i = 0; i < 12; ++i) {
+      far_row += (i ? " " : "") + (n == 500 && i == 3 ? std::string("1e5") : v[i]);
+      garbage_row += (i ? " " : "") + (n == 5 && i == 1 ? std::string(5000000, 'y') : v[i]);
+    }
+    far += far_row + "\n";
+    garbage += garbage_row + "\n";
+  }
+  const std::string poses_path = test::writeFile((seq / "poses.txt").string(), far);
+  const CliResult result = runCli("datasets check '" + seq.string() + "'");
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find(poses_path +
+                               ":500: expected a step of at most 10 m from the previous pose "
+                               "(car), found 99"),
+            std::string::npos)
+      << result.output;
+
+  test::writeFile(poses_path, garbage);
+  const CliResult token = runCli("datasets check '" + seq.string() + "'");
+  EXPECT_EQ(token.exit_code, 1);
+  EXPECT_LT(token.output.size(), 2000u);
+  EXPECT_NE(token.output.find(poses_path + ":5: expected a number in column 2, found 'yyyy"),
+            std::string::npos)
+      << token.output.substr(0, 2000);
+  EXPECT_NE(token.output.find("… (5000000 bytes)"), std::string::npos);
 }
 
 }  // namespace

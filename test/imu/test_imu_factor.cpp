@@ -120,6 +120,25 @@ TEST(ImuFactor, ZeroDurationIsRejected) {
       InputError);
 }
 
+// The message names the frames' times (issue #18: "IMU factor: …" named no frame).
+TEST(ImuFactor, FailureNamesTheFrameTimes) {
+  ImuData imu = synthesizeImu(SmoothTrajectory(0.1), ImuNoise{}, kRateHz, 0).imu;
+  imu.accel[3].x() = 1e300;  // overflows the covariance propagation: not positive definite
+  const auto noise = ImuSampleNoise<double>::fromDensities(ImuNoise{}, kPeriodS);
+  const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+  try {
+    ImuFactor<double>(preintegrate<double>(imu, 0, 50 * kMs, zero, zero, noise), kGravity);
+    ADD_FAILURE() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("IMU factor between the frames at t = 0 ns and t = "
+                                          "50000000 ns (0.05 s): the preintegrated covariance is "
+                                          "not positive definite",
+                                          0),
+              0u)
+        << e.what();
+  }
+}
+
 // r = [(b_g,j − b_g,i); (b_a,j − b_a,i)] / (σ_rw √Δt), and its (linear) Jacobian against central
 // differences.
 TYPED_TEST(ImuFactorTyped, BiasRandomWalkResidualAndJacobian) {

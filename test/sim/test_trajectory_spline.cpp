@@ -142,6 +142,21 @@ TEST(TrajectorySpline, DerivativesMatchCentralDifferencesAnalytic) {
   checkDerivatives(TrajectorySpline(gt, knots(0.1, 0.1)), 2, 200);
 }
 
+// The trajectory file's name replaces the spline's missing location ("poses.txt: : trajectory
+// spline…" before, issue #18 item 9).
+TEST(TrajectorySpline, ErrorNamesTheTrajectoryFileOnce) {
+  Sequence seq;
+  seq.kind = DatasetKind::kKitti;
+  seq.gt_file = "k/poses.txt";
+  seq.gt.push_back(0, Eigen::Vector3d::Zero(), Eigen::Quaterniond::Identity());
+  try {
+    TrajectorySpline::fromSequence(seq);
+    ADD_FAILURE() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "k/poses.txt: trajectory spline: need at least 2 poses");
+  }
+}
+
 TEST(TrajectorySpline, EvaluatesAtBothEnds) {
   const Trajectory gt = test::sampleAnalytic(kT0, 7'000'000, 150);  // span not a knot multiple
   const TrajectorySpline spline(gt, knots(0.05, 0.02));

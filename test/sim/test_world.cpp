@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "core/common/error.h"
 #include "core/sim/world.h"
 #include "sim_test_utils.h"
 
@@ -127,6 +128,44 @@ TEST(World, StreetFacadesGroundAndFarPoints) {
   EXPECT_GT(ground, 100u);
   EXPECT_GT(far, 30u);
   EXPECT_FALSE(world.walls.empty());
+}
+
+// A straight walk that jumps `jump_m` along x at 0.5 s (an implausible pose the spline follows).
+class JumpingWalk : public TrajectoryFunction {
+ public:
+  explicit JumpingWalk(double jump_m) : jump_m_(jump_m) {}
+  int64_t startTimeNs() const override { return 0; }
+  int64_t endTimeNs() const override { return 1'000'000'000; }
+  TrajectorySample evaluate(int64_t t_ns) const override {
+    TrajectorySample s;
+    s.p_w_b = Eigen::Vector3d(t_ns >= 500'000'000 ? jump_m_ : 0.0, 1e-9 * t_ns, 1.5);
+    return s;
+  }
+
+ private:
+  double jump_m_;
+};
+
+TEST(World, RefusedBeyondItsSizeBoundBeforeItIsBuilt) {
+  for (const DatasetKind kind : {DatasetKind::kEuroc, DatasetKind::kKitti}) {
+    const WorldOptions o = defaultWorldOptions(kind);
+    EXPECT_NO_THROW(makeWorld(JumpingWalk(0.0), o, 1));
+    for (const double jump : {1e8, 1e300}) {
+      try {
+        makeWorld(JumpingWalk(jump), o, 1);
+        ADD_FAILURE() << "expected InputError for a jump of " << jump;
+      } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("more than the limit of 5e+06: is the trajectory "
+                                             "plausible?"),
+                  std::string::npos)
+            << e.what();
+      }
+    }
+  }
+  // The bound is an option: the 200 m street (~3900 points) is refused under 1000.
+  WorldOptions small = defaultWorldOptions(DatasetKind::kKitti);
+  small.max_points = 1000;
+  EXPECT_THROW(makeWorld(test::StreetDrive(20.0), small, 1), InputError);
 }
 
 TEST(World, ChunksCoverThePointsAndBoundThem) {

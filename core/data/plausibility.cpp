@@ -1,0 +1,99 @@
+#include "core/data/plausibility.h"
+
+#include <fmt/core.h>
+
+#include <cmath>
+
+#include "core/common/error.h"
+
+namespace marglab {
+
+namespace {
+
+// The one table of limits (docs/design.md §5 lists the same numbers).
+constexpr PlausibilityLimits kMavLimits{
+    "MAV / handheld rig", 50.0, 10.0, 1.0, 0.02, 1.0, 200.0, 0.05, 17.5, 176.5};
+constexpr PlausibilityLimits kTumviLimits{
+    "MAV / handheld rig", 50.0, 10.0, 1.0, 0.02, 1.0, 200.0, 0.05, 34.9, 156.9};
+constexpr PlausibilityLimits kCarLimits{"car", 70.0, 10.0, 1.0, 0.1, 3.0, 0.0, 0.0, 0.0, 0.0};
+
+}  // namespace
+
+const PlausibilityLimits& plausibilityLimits(DatasetKind kind) {
+  switch (kind) {
+    case DatasetKind::kEuroc:
+      return kMavLimits;
+    case DatasetKind::kTumvi:
+      return kTumviLimits;
+    case DatasetKind::kKitti:
+      return kCarLimits;
+  }
+  return kMavLimits;
+}
+
+std::string poseStepProblem(const PlausibilityLimits& limits, int64_t t0_ns,
+                            const Eigen::Vector3d& p0, int64_t t1_ns, const Eigen::Vector3d& p1) {
+  const double step = (p1 - p0).norm();
+  const double dt_s = 1e-9 * static_cast<double>(t1_ns - t0_ns);
+  if (!(step <= limits.max_step_m)) {
+    return fmt::format(
+        "expected a step of at most {:g} m from the previous pose ({}), found {:.6g} m",
+        limits.max_step_m, limits.platform, step);
+  }
+  if (!(step <= limits.max_speed_mps * dt_s)) {
+    return fmt::format(
+        "expected a speed of at most {:g} m/s from the previous pose ({}), found {:.6g} m in "
+        "{:.6g} s = {:.6g} m/s",
+        limits.max_speed_mps, limits.platform, step, dt_s, step / dt_s);
+  }
+  return {};
+}
+
+std::string imuSampleProblem(const PlausibilityLimits& limits, bool first, int64_t t_prev_ns,
+                             int64_t t_ns, const Eigen::Vector3d& gyro,
+                             const Eigen::Vector3d& accel) {
+  const double gap_s = 1e-9 * static_cast<double>(t_ns - t_prev_ns);
+  if (!first && gap_s > limits.max_imu_gap_s) {
+    return fmt::format(
+        "expected IMU samples at most {:g} s apart (nominal {:g} Hz), found a gap of {:.6g} s "
+        "after t = {} ns",
+        limits.max_imu_gap_s, limits.imu_rate_hz, gap_s, t_prev_ns);
+  }
+  if (gyro.cwiseAbs().maxCoeff() > limits.max_gyro_radps) {
+    return fmt::format(
+        "expected angular rates within ±{:g} rad/s (the gyroscope's range), found {:.6g}",
+        limits.max_gyro_radps, gyro.cwiseAbs().maxCoeff());
+  }
+  if (accel.cwiseAbs().maxCoeff() > limits.max_accel_mps2) {
+    return fmt::format(
+        "expected accelerations within ±{:g} m/s² (the accelerometer's range), found {:.6g}",
+        limits.max_accel_mps2, accel.cwiseAbs().maxCoeff());
+  }
+  return {};
+}
+
+void checkSequencePlausibility(const Sequence& seq) {
+  const PlausibilityLimits& limits = plausibilityLimits(seq.kind);
+  if (seq.hasTrajectory()) {
+    double length = 0;
+    for (std::size_t i = 1; i < seq.gt.size(); ++i) {
+      length += (seq.gt.p_w_b[i] - seq.gt.p_w_b[i - 1]).norm();
+    }
+    if (!(length >= limits.min_path_length_m)) {
+      throw InputError(
+          seq.gt_file, 0,
+          fmt::format("expected a trajectory that moves at least {:g} m ({}), found a "
+                      "path of {:.6g} m over {} poses: nothing to estimate",
+                      limits.min_path_length_m, limits.platform, length, seq.gt.size()));
+    }
+  }
+  const double baseline = seq.calib.baseline();
+  if (!(baseline >= limits.min_baseline_m && baseline <= limits.max_baseline_m)) {
+    throw InputError(
+        seq.calib_source, 0,
+        fmt::format("expected a stereo baseline in [{:g}, {:g}] m ({}), found {:.6g} m",
+                    limits.min_baseline_m, limits.max_baseline_m, limits.platform, baseline));
+  }
+}
+
+}  // namespace marglab
