@@ -4,6 +4,8 @@
 # BUILD_DIR/fuzz-out/artifacts/). scripts/run_sanitizers.sh runs all of them for 20 s in CI; a
 # longer campaign runs them for longer (fuzz/README.md).
 #   usage: fuzz/run_fuzzers.sh BUILD_DIR SECONDS [TARGET...]     (default: every target)
+#   MARGLAB_FUZZ_FLAGS   extra libFuzzer flags; a campaign that should go on after a finding uses
+#                        "-fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1"
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR="$1"
@@ -22,9 +24,9 @@ export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$(pwd)/fuzz/lsan.supp}"
 # The binary seeds, made here rather than committed: HDF5 track files written by the simulator
 # (with and without landmarks, stereo and mono matches) and two shipped windows, decompressed.
 make_seeds() {
-  local cli="$BUILD_DIR/bin/marglab"
   mkdir -p "$OUT/seeds/track_hdf5" "$OUT/seeds/window"
-  if [ ! -s "$OUT/seeds/track_hdf5/kitti.h5" ]; then
+  if [[ " ${TARGETS[*]} " == *" track_hdf5 "* && ! -s "$OUT/seeds/track_hdf5/euroc.h5" ]]; then
+    local cli="$BUILD_DIR/bin/marglab"
     "$cli" datasets simulate --dataset kitti/00 --frames 3 -o "$OUT/seeds/track_hdf5/kitti.h5" >/dev/null
     "$cli" datasets simulate --dataset euroc/MH_01_easy --frames 2 --no-noise \
       -o "$OUT/seeds/track_hdf5/euroc.h5" >/dev/null
@@ -45,15 +47,22 @@ for t in "${TARGETS[@]}"; do
   dict=()
   [ -f "fuzz/$t.dict" ] && dict=("-dict=fuzz/$t.dict")
   log="$OUT/logs/$t.log"
+  rm -f "$OUT/artifacts/$t-"*
   # A hang (> 10 s per input), > 2 GB of memory or a single allocation > 512 MB is a finding too.
-  if "$BUILD_DIR/fuzz/fuzz_$t" -seed=1 -max_total_time="$SECONDS_PER_TARGET" -timeout=10 \
-    -rss_limit_mb=2048 -malloc_limit_mb=512 -print_final_stats=1 \
-    -artifact_prefix="$OUT/artifacts/$t-" "${dict[@]}" "${dirs[@]}" >"$log" 2>&1; then
-    runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")
-    cov=$(grep -oE 'cov: [0-9]+ ft: [0-9]+' "$log" | tail -1)
-    echo "fuzz_$t: ok, $runs executions in ${SECONDS_PER_TARGET} s, $cov, corpus $(ls "$corpus" | wc -l) new inputs"
+  status=0
+  # shellcheck disable=SC2086  # MARGLAB_FUZZ_FLAGS is a list of flags
+  "$BUILD_DIR/fuzz/fuzz_$t" -seed=1 -max_total_time="$SECONDS_PER_TARGET" -timeout=10 \
+    -rss_limit_mb=2048 -malloc_limit_mb=512 -print_final_stats=1 ${MARGLAB_FUZZ_FLAGS:-} \
+    -artifact_prefix="$OUT/artifacts/$t-" "${dict[@]}" "${dirs[@]}" >"$log" 2>&1 || status=$?
+  # The last status line: "#RUNS ... cov: E ft: F corp: ..." (also in fork mode).
+  last=$(grep -E '^#[0-9]+' "$log" | tail -1)
+  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")
+  runs=${runs:-$(echo "$last" | grep -oE '^#[0-9]+' | tr -d '#')}
+  cov=$(echo "$last" | grep -oE 'cov: [0-9]+ ft: [0-9]+')
+  if [ "$status" -eq 0 ] && ! compgen -G "$OUT/artifacts/$t-*" >/dev/null; then
+    echo "fuzz_$t: ok, $runs executions in ${SECONDS_PER_TARGET} s, $cov, $(ls "$corpus" | wc -l) new corpus inputs"
   else
-    echo "fuzz_$t: FOUND A PROBLEM (input in $OUT/artifacts/$t-*); the end of $log:"
+    echo "fuzz_$t: FOUND A PROBLEM after $runs executions ($cov; inputs in $OUT/artifacts/$t-*); the end of $log:"
     tail -40 "$log"
     failed+=("$t")
   fi

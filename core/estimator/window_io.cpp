@@ -95,7 +95,11 @@ class Reader {
   }
   MatXd matrix() {
     const int64_t rows = integer(), cols = integer();
-    if (rows < 0 || cols < 0 || rows * cols > 100'000'000) fail("bad matrix size");
+    // Every entry takes at least one byte of the rest of the file; checked without multiplying,
+    // which could overflow, and before the allocation, which a corrupt size would make huge.
+    if (rows < 0 || cols < 0 || (rows > 0 && cols > static_cast<int64_t>(remaining()) / rows)) {
+      fail("bad matrix size");
+    }
     MatXd m(rows, cols);
     for (int64_t i = 0; i < rows; ++i) {
       for (int64_t j = 0; j < cols; ++j) m(i, j) = number();
@@ -112,9 +116,14 @@ class Reader {
   }
   size_t count(int64_t max = 100'000'000) {
     const int64_t n = integer();
-    if (n < 0 || n > max) fail(fmt::format("bad count {}", n));
+    // Each counted item takes at least one byte of the rest of the file: a larger count is a
+    // corrupt file and must not size an allocation (resize before reading the items).
+    if (n < 0 || n > max || static_cast<uint64_t>(n) > remaining()) {
+      fail(fmt::format("bad count {}", n));
+    }
     return static_cast<size_t>(n);
   }
+  size_t remaining() const { return text_.size() - pos_; }
   [[noreturn]] void fail(const std::string& what) const {
     throw InputError(path_, 0, fmt::format("window file (byte {}): {}", pos_, what));
   }
