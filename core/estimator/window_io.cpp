@@ -106,6 +106,13 @@ class Reader {
     }
     return m;
   }
+  // A matrix with one column (an Eigen assignment to a vector would otherwise assert).
+  VecXd vector() {
+    MatXd m = matrix();
+    if (m.cols() != 1)
+      fail(fmt::format("expected a vector (1 column), found {} columns", m.cols()));
+    return m.col(0);
+  }
   std::string bytes(size_t n) {
     if (pos_ >= text_.size() || text_[pos_] != '\n' || pos_ + 1 + n > text_.size()) {
       fail("truncated config");
@@ -429,9 +436,9 @@ void readPrior(Reader& in, WindowSnapshot& w) {
     b.sb0 = in.fixed<9, 1>();
   }
   w.prior_J = in.matrix();
-  w.prior_r = in.matrix();
+  w.prior_r = in.vector();
   w.prior_H = in.matrix();
-  w.prior_b = in.matrix();
+  w.prior_b = in.vector();
   w.prior_c = in.number();
 }
 

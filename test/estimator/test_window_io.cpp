@@ -38,6 +38,12 @@ TEST(WindowFileFuzzRegression, MatrixSizeThatOverflowsIsRejected) {
             std::string::npos);
 }
 
+// A 2 × 2 matrix where the prior's residual vector belongs failed Eigen's resize assertion.
+TEST(WindowFileFuzzRegression, PriorVectorWithTwoColumnsIsRejected) {
+  EXPECT_NE(readError(fuzzInput("crash-prior-vector-with-two-columns")).find("expected a vector"),
+            std::string::npos);
+}
+
 // The checks reject only what the file cannot hold: a shipped window still reads.
 TEST(WindowFileFuzzRegression, ShippedWindowStillReads) {
   const WindowSnapshot w = readWindow(std::string(sourceDir()) +
