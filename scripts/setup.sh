@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Installs the Debian packages marglab needs (only those missing), then configures and builds
 # marglab in ./build (Release). Idempotent: a second run installs nothing and rebuilds incrementally.
-#   MARGLAB_BUILD_DIR   build folder (default: build)
-#   MARGLAB_JOBS        parallel build jobs (default: number of cores)
+#   MARGLAB_BUILD_DIR       build folder (default: build)
+#   MARGLAB_JOBS            parallel build jobs (default: number of cores)
+#   MARGLAB_BUILD_TARGETS   targets to build, space-separated (default: all; scripts/run_main.sh
+#                           builds only marglab_cli, the tests and benchmarks are left for later)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -14,6 +16,7 @@ PACKAGES=(
   python3-pandas jupyter-nbconvert python3-nbclient python3-nbformat python3-ipykernel
   chromium python3-websocket
   slurm-wlm munge  # scripts/slurm_local.sh: a one-node Slurm cluster for `sweep --backend slurm`
+  clang libclang-rt-dev llvm  # scripts/run_sanitizers.sh: ASan/UBSan, libFuzzer, llvm-symbolizer
 )
 
 missing=()
@@ -36,4 +39,6 @@ fi
 BUILD_DIR="${MARGLAB_BUILD_DIR:-build}"
 JOBS="${MARGLAB_JOBS:-$(nproc)}"
 cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release
-cmake --build "$BUILD_DIR" -j "$JOBS"
+targets=()
+for t in ${MARGLAB_BUILD_TARGETS:-}; do targets+=(--target "$t"); done
+cmake --build "$BUILD_DIR" -j "$JOBS" "${targets[@]}"

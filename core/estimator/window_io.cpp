@@ -99,12 +99,23 @@ class Reader {
   }
   MatXd matrix() {
     const int64_t rows = integer(), cols = integer();
-    if (rows < 0 || cols < 0 || rows * cols > 100'000'000) fail("bad matrix size");
+    // Every entry takes at least one byte of the rest of the file; checked without multiplying,
+    // which could overflow, and before the allocation, which a corrupt size would make huge.
+    if (rows < 0 || cols < 0 || (rows > 0 && cols > static_cast<int64_t>(remaining()) / rows)) {
+      fail("bad matrix size");
+    }
     MatXd m(rows, cols);
     for (int64_t i = 0; i < rows; ++i) {
       for (int64_t j = 0; j < cols; ++j) m(i, j) = number();
     }
     return m;
+  }
+  // A matrix with one column (an Eigen assignment to a vector would otherwise assert).
+  VecXd vector() {
+    MatXd m = matrix();
+    if (m.cols() != 1)
+      fail(fmt::format("expected a vector (1 column), found {} columns", m.cols()));
+    return m.col(0);
   }
   std::string bytes(size_t n) {
     if (pos_ >= text_.size() || text_[pos_] != '\n' || pos_ + 1 + n > text_.size()) {
@@ -116,9 +127,14 @@ class Reader {
   }
   size_t count(int64_t max = 100'000'000) {
     const int64_t n = integer();
-    if (n < 0 || n > max) fail(fmt::format("bad count {}", n));
+    // Each counted item takes at least one byte of the rest of the file: a larger count is a
+    // corrupt file and must not size an allocation (resize before reading the items).
+    if (n < 0 || n > max || static_cast<uint64_t>(n) > remaining()) {
+      fail(fmt::format("bad count {}", n));
+    }
     return static_cast<size_t>(n);
   }
+  size_t remaining() const { return text_.size() - pos_; }
   [[noreturn]] void fail(const std::string& what) const {
     throw InputError(path_, 0, fmt::format("window file (byte {}): {}", pos_, what));
   }
@@ -422,9 +438,9 @@ void readPrior(Reader& in, WindowSnapshot& w) {
     b.sb0 = in.fixed<9, 1>();
   }
   w.prior_J = in.matrix();
-  w.prior_r = in.matrix();
+  w.prior_r = in.vector();
   w.prior_H = in.matrix();
-  w.prior_b = in.matrix();
+  w.prior_b = in.vector();
   w.prior_c = in.number();
 }
 

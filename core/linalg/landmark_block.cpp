@@ -268,7 +268,8 @@ Status LandmarkBlockSc<Scalar>::setFromJacobians(const MatX<Scalar>& J_p,
   map_ = std::move(map);
   // Lower triangle only: the symmetric rank update halves the flops of the full product.
   H_pp_.setZero(J_p.cols(), J_p.cols());
-  H_pp_.template selfadjointView<Eigen::Lower>().rankUpdate(J_p.transpose());
+  // Eigen's rank update of an empty J_p binds a reference to its null data (UBSan, §11).
+  if (J_p.size() > 0) H_pp_.template selfadjointView<Eigen::Lower>().rankUpdate(J_p.transpose());
   H_pl_ = J_p.transpose() * J_l;
   H_ll_ = J_l.transpose() * J_l;
   b_p_ = J_p.transpose() * r;

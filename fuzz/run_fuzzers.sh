@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# Runs fuzz targets of a MARGLAB_FUZZ build from their seed corpus, deterministically (-seed=1),
+# for SECONDS each, one after the other; exits 1 when a target found anything (the input is left in
+# BUILD_DIR/fuzz-out/artifacts/). scripts/run_sanitizers.sh runs all of them for 20 s in CI; a
+# longer campaign runs them for longer (fuzz/README.md).
+#   usage: fuzz/run_fuzzers.sh BUILD_DIR SECONDS [TARGET...]     (default: every target)
+#   MARGLAB_FUZZ_FLAGS   extra libFuzzer flags; a campaign that should go on after a finding uses
+#                        "-fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1"
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD_DIR="$1"
+SECONDS_PER_TARGET="$2"
+shift 2
+TARGETS=("$@")
+if ((${#TARGETS[@]} == 0)); then
+  TARGETS=(dataset_text calib config sweep track_text track_hdf5 window)
+fi
+OUT="$BUILD_DIR/fuzz-out"
+mkdir -p "$OUT/seeds" "$OUT/artifacts" "$OUT/logs"
+export ASAN_OPTIONS="${ASAN_OPTIONS:-halt_on_error=1:abort_on_error=1:detect_leaks=1}"
+export UBSAN_OPTIONS="${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}"
+export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$(pwd)/fuzz/lsan.supp}"
+
+# The binary seeds, made here rather than committed: HDF5 track files written by the simulator
+# (with and without landmarks, stereo and mono matches) and two shipped windows, decompressed.
+make_seeds() {
+  mkdir -p "$OUT/seeds/track_hdf5" "$OUT/seeds/window"
+  if [[ " ${TARGETS[*]} " == *" track_hdf5 "* && ! -s "$OUT/seeds/track_hdf5/euroc.h5" ]]; then
+    local cli="$BUILD_DIR/bin/marglab"
+    "$cli" datasets simulate --dataset kitti/00 --frames 3 -o "$OUT/seeds/track_hdf5/kitti.h5" >/dev/null
+    "$cli" datasets simulate --dataset euroc/MH_01_easy --frames 2 --no-noise \
+      -o "$OUT/seeds/track_hdf5/euroc.h5" >/dev/null
+  fi
+  for w in kitti-00_ns-qr-sqrt-f32_000100 euroc-MH_01_easy_ns-qr-sqrt-f32_000600; do
+    [ -s "$OUT/seeds/window/$w.win" ] || gzip -dc "datasets/windows/$w.win.gz" >"$OUT/seeds/window/$w.win"
+  done
+}
+make_seeds
+
+failed=()
+for t in "${TARGETS[@]}"; do
+  corpus="$OUT/corpus/$t"  # new inputs go here; fresh each time so that a run is reproducible
+  rm -rf "$corpus"
+  mkdir -p "$corpus"
+  dirs=("$corpus")
+  for d in "fuzz/corpus/$t" "$OUT/seeds/$t"; do [ -d "$d" ] && dirs+=("$d"); done
+  dict=()
+  [ -f "fuzz/$t.dict" ] && dict=("-dict=fuzz/$t.dict")
+  log="$OUT/logs/$t.log"
+  rm -f "$OUT/artifacts/$t-"*
+  # A hang (> 10 s per input), > 2 GB of memory or a single allocation > 512 MB is a finding too.
+  status=0
+  # shellcheck disable=SC2086  # MARGLAB_FUZZ_FLAGS is a list of flags
+  "$BUILD_DIR/fuzz/fuzz_$t" -seed=1 -max_total_time="$SECONDS_PER_TARGET" -timeout=10 \
+    -rss_limit_mb=2048 -malloc_limit_mb=512 -print_final_stats=1 ${MARGLAB_FUZZ_FLAGS:-} \
+    -artifact_prefix="$OUT/artifacts/$t-" "${dict[@]}" "${dirs[@]}" >"$log" 2>&1 || status=$?
+  # The last status line: "#RUNS ... cov: E ft: F corp: ..." (also in fork mode).
+  last=$(grep -E '^#[0-9]+' "$log" | tail -1)
+  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")
+  runs=${runs:-$(echo "$last" | grep -oE '^#[0-9]+' | tr -d '#')}
+  cov=$(echo "$last" | grep -oE 'cov: [0-9]+ ft: [0-9]+')
+  # Findings are crash-, leak-, timeout- and oom- inputs; a slow-unit- input (> 10 s once, kept by
+  # libFuzzer for a look) is not one unless it also hit -timeout.
+  found=0
+  for kind in crash leak timeout oom; do
+    if compgen -G "$OUT/artifacts/$t-$kind-*" >/dev/null; then found=1; fi
+  done
+  if [ "$status" -eq 0 ] && [ "$found" -eq 0 ]; then
+    echo "fuzz_$t: ok, $runs executions in ${SECONDS_PER_TARGET} s, $cov, $(ls "$corpus" | wc -l) new corpus inputs"
+  else
+    echo "fuzz_$t: FOUND A PROBLEM after $runs executions ($cov; inputs in $OUT/artifacts/$t-*); the end of $log:"
+    tail -40 "$log"
+    failed+=("$t")
+  fi
+done
+if ((${#failed[@]})); then
+  echo "fuzz: problems found by ${failed[*]}"
+  exit 1
+fi
