@@ -28,10 +28,10 @@ namespace marglab {
 namespace {
 
 using ceres_marg::Method;
-using massspring::MassSpringSystem;
 using experiment::PaperCell;
 using experiment::PaperTable;
 using experiment::PaperValues;
+using massspring::MassSpringSystem;
 
 struct Options {
   int grid = 5;
@@ -250,46 +250,40 @@ struct ScalingRow {
   int reps = 0;
 };
 
-int runMassSpring(const Options& opt, bool sizes_given, bool grid_given) {
-  Method method;
-  if (!ceres_marg::parseMethod(opt.method, &method)) {
-    throw UsageError("--method must be qr, schur or sparse-schur, not '" + opt.method + "'");
-  }
-  checkGridSize("--grid", opt.grid);
-  if (opt.iterations < 1) throw UsageError("--iterations must be at least 1");
+// Grid sizes of the scaling table (--sizes, comma-separated).
+std::vector<int> parseSizes(const std::string& list) {
   std::vector<int> sizes;
-  if (sizes_given || !grid_given) {
-    std::stringstream in(opt.sizes);
-    std::string item;
-    while (std::getline(in, item, ',')) {
-      if (item.empty()) continue;
-      char* end = nullptr;
-      const long v = std::strtol(item.c_str(), &end, 10);
-      if (*end != '\0') {
-        throw UsageError("--sizes: '" + shortToken(item) + "' is not an integer grid size");
-      }
-      checkGridSize("--sizes", v);
-      sizes.push_back(static_cast<int>(v));
+  std::stringstream in(list);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    if (item.empty()) continue;
+    char* end = nullptr;
+    const long v = std::strtol(item.c_str(), &end, 10);
+    if (*end != '\0') {
+      throw UsageError("--sizes: '" + shortToken(item) + "' is not an integer grid size");
     }
+    checkGridSize("--sizes", v);
+    sizes.push_back(static_cast<int>(v));
   }
-  if (!denseFeasible(opt.grid) && method != Method::kSparseSchur) {
-    throw UsageError(fmt::format(
-        "--method {} builds a dense Jacobian; use sparse-schur above {}x{}", opt.method, 30, 30));
-  }
+  return sizes;
+}
 
-  massspring::GridSpec spec;
-  spec.n = opt.grid;
-  const MassSpringSystem system = MassSpringSystem::grid(spec);
-  const int reps = opt.reps > 0 ? opt.reps : autoReps(opt.grid);
-  const SingleRow single = runSingle(system, opt.iterations, reps);
-  std::vector<TwoRow> twos;
-  for (Method m : {Method::kQr, Method::kSchur, Method::kSparseSchur}) {
-    if (m != method && !denseFeasible(opt.grid)) continue;
-    twos.push_back(runTwo(system, opt.iterations, reps, m, single));
+// Everything one `marglab massspring` measures.
+struct Measurements {
+  MassSpringSystem system;
+  Method method;
+  int reps = 0;
+  SingleRow single;
+  std::vector<TwoRow> twos;  // one per two-stage method that fits the grid
+  std::vector<ScalingRow> scaling;
+  const TwoRow& main() const {
+    return *std::find_if(twos.begin(), twos.end(),
+                         [&](const TwoRow& t) { return t.method == method; });
   }
-  const TwoRow& main_two =
-      *std::find_if(twos.begin(), twos.end(), [&](const TwoRow& t) { return t.method == method; });
+};
 
+std::vector<ScalingRow> measureScaling(const Options& opt, const massspring::GridSpec& spec,
+                                       Method method, const std::vector<int>& sizes) {
   std::vector<ScalingRow> scaling;
   for (int n : sizes) {
     if (!opt.json && cli::stderrIsTerminal()) fmt::print(stderr, "\rscaling: {}x{} ...   ", n, n);
@@ -305,157 +299,202 @@ int runMassSpring(const Options& opt, bool sizes_given, bool grid_given) {
     scaling.push_back(row);
   }
   if (!opt.json && cli::stderrIsTerminal() && !sizes.empty()) fmt::print(stderr, "\r{:40}\r", "");
+  return scaling;
+}
 
+Measurements measure(const Options& opt, Method method, const std::vector<int>& sizes) {
+  massspring::GridSpec spec;
+  spec.n = opt.grid;
+  Measurements m{MassSpringSystem::grid(spec), method, 0, {}, {}, {}};
+  m.reps = opt.reps > 0 ? opt.reps : autoReps(opt.grid);
+  m.single = runSingle(m.system, opt.iterations, m.reps);
+  for (Method two : {Method::kQr, Method::kSchur, Method::kSparseSchur}) {
+    if (two != method && !denseFeasible(opt.grid)) continue;
+    m.twos.push_back(runTwo(m.system, opt.iterations, m.reps, two, m.single));
+  }
+  m.scaling = measureScaling(opt, spec, method, sizes);
+  return m;
+}
+
+void printJson(const Options& opt, const Measurements& m, const PrimerTable& primer,
+               const std::string& figure) {
+  const Method method = m.method;
+  const double speedup = m.single.ms / m.main().total_ms;
+  std::vector<std::string> methods, rows;
+  for (const TwoRow& t : m.twos) {
+    methods.push_back(fmt::format(
+        "\"{}\":{{\"marginalize_ms\":{:.6g},\"stage1_ms\":{:.6g},\"stage2_ms\":{:.6g},"
+        "\"two_stage_ms\":{:.6g},\"speedup\":{:.6g},\"max_abs_diff\":{:.3e},\"prior_rows\":{},"
+        "\"prior_condition\":{:.6g}}}",
+        ceres_marg::toString(t.method), t.marg_ms, t.stage1_ms, t.stage2_ms, t.total_ms,
+        m.single.ms / t.total_ms, t.max_abs_diff, t.last.marginalization.prior_rows,
+        t.last.marginalization.condition_number));
+  }
+  for (const ScalingRow& r : m.scaling) {
+    rows.push_back(fmt::format(
+        "{{\"grid\":{},\"masses\":{},\"reps\":{},\"single_stage_ms\":{:.6g},"
+        "\"marginalize_ms\":{:.6g},\"stage1_ms\":{:.6g},\"stage2_ms\":{:.6g},"
+        "\"two_stage_ms\":{:.6g},\"speedup\":{:.6g},\"max_abs_diff\":{:.3e}}}",
+        r.n, r.masses, r.reps, r.single.ms, r.two.marg_ms, r.two.stage1_ms, r.two.stage2_ms,
+        r.two.total_ms, r.single.ms / r.two.total_ms, r.two.max_abs_diff));
+  }
+  fmt::print(
+      "{{\"grid\":{},\"masses\":{},\"nonlinear_masses\":{},\"iterations\":{},\"reps\":{},"
+      "\"method\":\"{}\",\"single_stage_ms\":{:.6g},\"two_stage_ms\":{:.6g},\"speedup\":{:.6g},"
+      "\"max_abs_diff\":{:.3e},\"final_energy\":{:.12g},\"two_stage\":{{{}}},\"scaling\":[{}]"
+      "{}}}\n",
+      opt.grid, m.system.num_masses, m.system.nonlinearMasses(), opt.iterations, m.reps,
+      ceres_marg::toString(method), m.single.ms, m.main().total_ms, speedup, m.main().max_abs_diff,
+      m.single.last.final_cost, fmt::join(methods, ","), fmt::join(rows, ","),
+      primer.present ? fmt::format(",\"primer_table1\":{{\"single_stage_ms_per_iteration\":{},"
+                                   "\"two_stage_ms_per_iteration\":{}}}",
+                                   primer.single_ms, primer.two_ms)
+                     : std::string());
+  if (!figure.empty()) fmt::print(stderr, "{}\n", figure);
+}
+
+void printText(const Options& opt, const Measurements& m, const PrimerTable& primer,
+               const std::string& figure) {
+  const Method method = m.method;
+  const int reps = m.reps;
+  fmt::print(
+      "marglab massspring: {0}x{0} grid (primer §6), {1} masses, {2} in N (touched by p = 4 "
+      "springs), {3} springs + {4} anchors\n",
+      opt.grid, m.system.num_masses, m.system.nonlinearMasses(), m.system.springs.size(),
+      m.system.anchors.size());
+  fmt::print(
+      "Gauss-Newton, {} iterations in both methods; times are medians of {} runs (problem "
+      "construction not timed)\n",
+      opt.iterations, reps);
+  fmt::print(
+      "single stage: all masses, sparse normal Cholesky; two-stage: marginalize the {} masses "
+      "outside N, {} iterations on N (dense normal Cholesky), recover the rest by CHOLMOD\n\n",
+      m.system.num_masses - m.system.nonlinearMasses(), opt.iterations);
+  fmt::print("| {:<26} | {:>9} | {:>9} | {:>9} | {:>9} | {:>7} | {:>12} | {:>9} |\n", "method",
+             "marg ms", "stage1 ms", "stage2 ms", "total ms", "speedup", "max|dx|", "prior");
+  fmt::print("|{:-<28}|{:->11}|{:->11}|{:->11}|{:->11}|{:->9}|{:->14}|{:->11}|\n", "", "", "", "",
+             "", "", "", "");
+  fmt::print("| {:<26} | {:>9} | {:>9} | {:>9} | {:>9.3f} | {:>7} | {:>12} | {:>9} |\n",
+             "single stage", "", "", "", m.single.ms, "1.0", "", "");
+  for (const TwoRow& t : m.twos) {
+    fmt::print(
+        "| {:<26} | {:>9.3f} | {:>9.3f} | {:>9.3f} | {:>9.3f} | {:>7.1f} | {:>12.2e} | "
+        "{:>4}x{:<4} |\n",
+        fmt::format("two-stage, {}{}", ceres_marg::toString(t.method),
+                    t.method == method ? " *" : ""),
+        t.marg_ms, t.stage1_ms, t.stage2_ms, t.total_ms, m.single.ms / t.total_ms, t.max_abs_diff,
+        t.last.marginalization.prior_rows, t.last.marginalization.blanket_dim);
+  }
+  fmt::print(
+      "\nfinal energy {:.10g} (single) vs {:.10g} (two-stage); max|dx| is the largest coordinate "
+      "difference of the two final states. * = --method\n",
+      m.single.last.final_cost, m.main().last.final_cost);
+  printPrimerTable(primer, opt.grid, opt.iterations, m.single.ms, m.main().total_ms);
+  if (!m.scaling.empty()) {
+    fmt::print("\nscaling (two-stage with {}):\n\n", ceres_marg::toString(method));
+    fmt::print(
+        "| {:>9} | {:>6} | {:>4} | {:>10} | {:>9} | {:>9} | {:>9} | {:>10} | {:>7} | {:>9} |\n",
+        "grid", "masses", "reps", "single ms", "marg ms", "stage1 ms", "stage2 ms", "2-stage ms",
+        "speedup", "max|dx|");
+    fmt::print("|{:->11}|{:->8}|{:->6}|{:->12}|{:->11}|{:->11}|{:->11}|{:->12}|{:->9}|{:->11}|\n",
+               "", "", "", "", "", "", "", "", "", "");
+    for (const ScalingRow& r : m.scaling) {
+      fmt::print(
+          "| {:>9} | {:>6} | {:>4} | {:>10.3f} | {:>9.3f} | {:>9.3f} | {:>9.3f} | {:>10.3f} | "
+          "{:>7.1f} | {:>9.1e} |\n",
+          fmt::format("{0}x{0}", r.n), r.masses, r.reps, r.single.ms, r.two.marg_ms,
+          r.two.stage1_ms, r.two.stage2_ms, r.two.total_ms, r.single.ms / r.two.total_ms,
+          r.two.max_abs_diff);
+    }
+  }
+  if (!figure.empty()) fmt::print("\n{}\n", figure);
+}
+
+void writeResults(const Options& opt, const Measurements& m) {
+  const Method method = m.method;
+  const double speedup = m.single.ms / m.main().total_ms;
+  h5::File file = h5::File::create(opt.output);
+  file.setAttr("experiment", "massspring");
+  file.setAttr("grid", opt.grid);
+  file.setAttr("iterations", opt.iterations);
+  file.setAttr("reps", m.reps);
+  file.setAttr("method", ceres_marg::toString(method));
+  file.setAttr("single_stage_ms", m.single.ms);
+  file.setAttr("two_stage_ms", m.main().total_ms);
+  file.setAttr("speedup", speedup);
+  file.setAttr("max_abs_diff", m.main().max_abs_diff);
+  const auto asRows = [](const std::vector<double>& x) {
+    return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>>(
+        x.data(), static_cast<Eigen::Index>(x.size() / 2), 2);
+  };
+  const h5::Group state = file.group("state");
+  state.writeMatrix("rest", asRows(m.system.rest));
+  state.writeMatrix("initial", asRows(m.system.initial));
+  state.writeMatrix("single_stage", asRows(m.single.last.x));
+  state.writeMatrix("two_stage", asRows(m.main().last.x));
+  std::vector<std::int32_t> springs;
+  for (const auto& s : m.system.springs) springs.insert(springs.end(), {s.i, s.j, s.p});
+  state.write("springs", springs.data(), m.system.springs.size(), 3);
+  state.write("energy_final", m.system.springEnergies(m.single.last.x));
+  const h5::Group methods = file.group("two_stage");
+  for (const TwoRow& t : m.twos) {
+    const h5::Group g = methods.group(ceres_marg::toString(t.method));
+    g.setAttr("marginalize_ms", t.marg_ms);
+    g.setAttr("stage1_ms", t.stage1_ms);
+    g.setAttr("stage2_ms", t.stage2_ms);
+    g.setAttr("total_ms", t.total_ms);
+    g.setAttr("max_abs_diff", t.max_abs_diff);
+    g.setAttr("prior_rows", t.last.marginalization.prior_rows);
+  }
+  if (!m.scaling.empty()) {
+    const h5::Group g = file.group("scaling");
+    std::vector<std::int64_t> grid, masses;
+    std::vector<double> single_ms, marg_ms, s1, s2, total, diff;
+    for (const ScalingRow& r : m.scaling) {
+      grid.push_back(r.n);
+      masses.push_back(r.masses);
+      single_ms.push_back(r.single.ms);
+      marg_ms.push_back(r.two.marg_ms);
+      s1.push_back(r.two.stage1_ms);
+      s2.push_back(r.two.stage2_ms);
+      total.push_back(r.two.total_ms);
+      diff.push_back(r.two.max_abs_diff);
+    }
+    g.write("grid", grid);
+    g.write("masses", masses);
+    g.write("single_stage_ms", single_ms);
+    g.write("marginalize_ms", marg_ms);
+    g.write("stage1_ms", s1);
+    g.write("stage2_ms", s2);
+    g.write("two_stage_ms", total);
+    g.write("max_abs_diff", diff);
+  }
+  file.commit();
+}
+
+int runMassSpring(const Options& opt, bool sizes_given, bool grid_given) {
+  Method method;
+  if (!ceres_marg::parseMethod(opt.method, &method)) {
+    throw UsageError("--method must be qr, schur or sparse-schur, not '" + opt.method + "'");
+  }
+  checkGridSize("--grid", opt.grid);
+  if (opt.iterations < 1) throw UsageError("--iterations must be at least 1");
+  const std::vector<int> sizes =
+      sizes_given || !grid_given ? parseSizes(opt.sizes) : std::vector<int>{};
+  if (!denseFeasible(opt.grid) && method != Method::kSparseSchur) {
+    throw UsageError(fmt::format(
+        "--method {} builds a dense Jacobian; use sparse-schur above {}x{}", opt.method, 30, 30));
+  }
+  const Measurements m = measure(opt, method, sizes);
   std::string figure;
-  if (!opt.no_plot) figure = writeFigure(opt, system, main_two.last.x);
-
-  const double speedup = single.ms / main_two.total_ms;
+  if (!opt.no_plot) figure = writeFigure(opt, m.system, m.main().last.x);
   const PrimerTable primer = loadPrimerTable();
   if (opt.json) {
-    std::vector<std::string> methods, rows;
-    for (const TwoRow& t : twos) {
-      methods.push_back(fmt::format(
-          "\"{}\":{{\"marginalize_ms\":{:.6g},\"stage1_ms\":{:.6g},\"stage2_ms\":{:.6g},"
-          "\"two_stage_ms\":{:.6g},\"speedup\":{:.6g},\"max_abs_diff\":{:.3e},\"prior_rows\":{},"
-          "\"prior_condition\":{:.6g}}}",
-          ceres_marg::toString(t.method), t.marg_ms, t.stage1_ms, t.stage2_ms, t.total_ms,
-          single.ms / t.total_ms, t.max_abs_diff, t.last.marginalization.prior_rows,
-          t.last.marginalization.condition_number));
-    }
-    for (const ScalingRow& r : scaling) {
-      rows.push_back(fmt::format(
-          "{{\"grid\":{},\"masses\":{},\"reps\":{},\"single_stage_ms\":{:.6g},"
-          "\"marginalize_ms\":{:.6g},\"stage1_ms\":{:.6g},\"stage2_ms\":{:.6g},"
-          "\"two_stage_ms\":{:.6g},\"speedup\":{:.6g},\"max_abs_diff\":{:.3e}}}",
-          r.n, r.masses, r.reps, r.single.ms, r.two.marg_ms, r.two.stage1_ms, r.two.stage2_ms,
-          r.two.total_ms, r.single.ms / r.two.total_ms, r.two.max_abs_diff));
-    }
-    fmt::print(
-        "{{\"grid\":{},\"masses\":{},\"nonlinear_masses\":{},\"iterations\":{},\"reps\":{},"
-        "\"method\":\"{}\",\"single_stage_ms\":{:.6g},\"two_stage_ms\":{:.6g},\"speedup\":{:.6g},"
-        "\"max_abs_diff\":{:.3e},\"final_energy\":{:.12g},\"two_stage\":{{{}}},\"scaling\":[{}]"
-        "{}}}\n",
-        opt.grid, system.num_masses, system.nonlinearMasses(), opt.iterations, reps,
-        ceres_marg::toString(method), single.ms, main_two.total_ms, speedup, main_two.max_abs_diff,
-        single.last.final_cost, fmt::join(methods, ","), fmt::join(rows, ","),
-        primer.present ? fmt::format(",\"primer_table1\":{{\"single_stage_ms_per_iteration\":{},"
-                                     "\"two_stage_ms_per_iteration\":{}}}",
-                                     primer.single_ms, primer.two_ms)
-                       : std::string());
-    if (!figure.empty()) fmt::print(stderr, "{}\n", figure);
+    printJson(opt, m, primer, figure);
   } else {
-    fmt::print(
-        "marglab massspring: {0}x{0} grid (primer §6), {1} masses, {2} in N (touched by p = 4 "
-        "springs), {3} springs + {4} anchors\n",
-        opt.grid, system.num_masses, system.nonlinearMasses(), system.springs.size(),
-        system.anchors.size());
-    fmt::print(
-        "Gauss-Newton, {} iterations in both methods; times are medians of {} runs (problem "
-        "construction not timed)\n",
-        opt.iterations, reps);
-    fmt::print(
-        "single stage: all masses, sparse normal Cholesky; two-stage: marginalize the {} masses "
-        "outside N, {} iterations on N (dense normal Cholesky), recover the rest by CHOLMOD\n\n",
-        system.num_masses - system.nonlinearMasses(), opt.iterations);
-    fmt::print("| {:<26} | {:>9} | {:>9} | {:>9} | {:>9} | {:>7} | {:>12} | {:>9} |\n", "method",
-               "marg ms", "stage1 ms", "stage2 ms", "total ms", "speedup", "max|dx|", "prior");
-    fmt::print("|{:-<28}|{:->11}|{:->11}|{:->11}|{:->11}|{:->9}|{:->14}|{:->11}|\n", "", "", "", "",
-               "", "", "", "");
-    fmt::print("| {:<26} | {:>9} | {:>9} | {:>9} | {:>9.3f} | {:>7} | {:>12} | {:>9} |\n",
-               "single stage", "", "", "", single.ms, "1.0", "", "");
-    for (const TwoRow& t : twos) {
-      fmt::print(
-          "| {:<26} | {:>9.3f} | {:>9.3f} | {:>9.3f} | {:>9.3f} | {:>7.1f} | {:>12.2e} | "
-          "{:>4}x{:<4} |\n",
-          fmt::format("two-stage, {}{}", ceres_marg::toString(t.method),
-                      t.method == method ? " *" : ""),
-          t.marg_ms, t.stage1_ms, t.stage2_ms, t.total_ms, single.ms / t.total_ms, t.max_abs_diff,
-          t.last.marginalization.prior_rows, t.last.marginalization.blanket_dim);
-    }
-    fmt::print(
-        "\nfinal energy {:.10g} (single) vs {:.10g} (two-stage); max|dx| is the largest coordinate "
-        "difference of the two final states. * = --method\n",
-        single.last.final_cost, main_two.last.final_cost);
-    printPrimerTable(primer, opt.grid, opt.iterations, single.ms, main_two.total_ms);
-    if (!scaling.empty()) {
-      fmt::print("\nscaling (two-stage with {}):\n\n", ceres_marg::toString(method));
-      fmt::print(
-          "| {:>9} | {:>6} | {:>4} | {:>10} | {:>9} | {:>9} | {:>9} | {:>10} | {:>7} | {:>9} |\n",
-          "grid", "masses", "reps", "single ms", "marg ms", "stage1 ms", "stage2 ms", "2-stage ms",
-          "speedup", "max|dx|");
-      fmt::print("|{:->11}|{:->8}|{:->6}|{:->12}|{:->11}|{:->11}|{:->11}|{:->12}|{:->9}|{:->11}|\n",
-                 "", "", "", "", "", "", "", "", "", "");
-      for (const ScalingRow& r : scaling) {
-        fmt::print(
-            "| {:>9} | {:>6} | {:>4} | {:>10.3f} | {:>9.3f} | {:>9.3f} | {:>9.3f} | {:>10.3f} | "
-            "{:>7.1f} | {:>9.1e} |\n",
-            fmt::format("{0}x{0}", r.n), r.masses, r.reps, r.single.ms, r.two.marg_ms,
-            r.two.stage1_ms, r.two.stage2_ms, r.two.total_ms, r.single.ms / r.two.total_ms,
-            r.two.max_abs_diff);
-      }
-    }
-    if (!figure.empty()) fmt::print("\n{}\n", figure);
+    printText(opt, m, primer, figure);
   }
-
-  if (!opt.output.empty()) {
-    h5::File file = h5::File::create(opt.output);
-    file.setAttr("experiment", "massspring");
-    file.setAttr("grid", opt.grid);
-    file.setAttr("iterations", opt.iterations);
-    file.setAttr("reps", reps);
-    file.setAttr("method", ceres_marg::toString(method));
-    file.setAttr("single_stage_ms", single.ms);
-    file.setAttr("two_stage_ms", main_two.total_ms);
-    file.setAttr("speedup", speedup);
-    file.setAttr("max_abs_diff", main_two.max_abs_diff);
-    const auto asRows = [](const std::vector<double>& x) {
-      return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>>(
-          x.data(), static_cast<Eigen::Index>(x.size() / 2), 2);
-    };
-    const h5::Group state = file.group("state");
-    state.writeMatrix("rest", asRows(system.rest));
-    state.writeMatrix("initial", asRows(system.initial));
-    state.writeMatrix("single_stage", asRows(single.last.x));
-    state.writeMatrix("two_stage", asRows(main_two.last.x));
-    std::vector<std::int32_t> springs;
-    for (const auto& s : system.springs) springs.insert(springs.end(), {s.i, s.j, s.p});
-    state.write("springs", springs.data(), system.springs.size(), 3);
-    state.write("energy_final", system.springEnergies(single.last.x));
-    const h5::Group methods = file.group("two_stage");
-    for (const TwoRow& t : twos) {
-      const h5::Group g = methods.group(ceres_marg::toString(t.method));
-      g.setAttr("marginalize_ms", t.marg_ms);
-      g.setAttr("stage1_ms", t.stage1_ms);
-      g.setAttr("stage2_ms", t.stage2_ms);
-      g.setAttr("total_ms", t.total_ms);
-      g.setAttr("max_abs_diff", t.max_abs_diff);
-      g.setAttr("prior_rows", t.last.marginalization.prior_rows);
-    }
-    if (!scaling.empty()) {
-      const h5::Group g = file.group("scaling");
-      std::vector<std::int64_t> grid, masses;
-      std::vector<double> single_ms, marg_ms, s1, s2, total, diff;
-      for (const ScalingRow& r : scaling) {
-        grid.push_back(r.n);
-        masses.push_back(r.masses);
-        single_ms.push_back(r.single.ms);
-        marg_ms.push_back(r.two.marg_ms);
-        s1.push_back(r.two.stage1_ms);
-        s2.push_back(r.two.stage2_ms);
-        total.push_back(r.two.total_ms);
-        diff.push_back(r.two.max_abs_diff);
-      }
-      g.write("grid", grid);
-      g.write("masses", masses);
-      g.write("single_stage_ms", single_ms);
-      g.write("marginalize_ms", marg_ms);
-      g.write("stage1_ms", s1);
-      g.write("stage2_ms", s2);
-      g.write("two_stage_ms", total);
-      g.write("max_abs_diff", diff);
-    }
-    file.commit();
-  }
+  if (!opt.output.empty()) writeResults(opt, m);
   return 0;
 }
 
