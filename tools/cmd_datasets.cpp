@@ -27,8 +27,8 @@
 #include "core/sim/track_io.h"
 #include "core/sim/trajectory_spline.h"
 #include "tools/command.h"
-#include "tools/output_checks.h"
 #include "tools/option_checks.h"
+#include "tools/output_checks.h"
 
 namespace marglab::cli {
 namespace {

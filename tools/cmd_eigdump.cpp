@@ -17,6 +17,7 @@
 #include "core/common/error.h"
 #include "core/io/results_file.h"
 #include "tools/command.h"
+#include "tools/option_checks.h"
 
 namespace marglab::cli {
 namespace {
@@ -163,7 +164,7 @@ const bool kRegistered = registerCommand(
        auto o = std::make_shared<EigdumpOptions>();
        app.add_option("file", o->file, "results file RUN.h5 written by `marglab run`")
            ->required()
-           ->check(CLI::ExistingFile);  // a missing path is a usage error in every verb
+           ->check(cli::existingPath("results file", cli::PathKind::kFile));
        app.add_option_function<std::int64_t>(
               "--marg",
               [o](const std::int64_t& k) {

@@ -11,6 +11,7 @@
 #include "core/experiment/plotting.h"
 #include "core/frontend/track_figure.h"
 #include "tools/command.h"
+#include "tools/option_checks.h"
 
 namespace marglab {
 namespace {
@@ -21,7 +22,7 @@ const bool kRegistered = cli::registerCommand(
        auto request = std::make_shared<experiment::PlotRequest>();
        auto tracks = std::make_shared<TrackFigureRequest>();
        sub.add_option("dirs", request->dirs, "Sweep folders (results/NAME), one or more")
-           ->check(CLI::ExistingDirectory);
+           ->check(cli::existingPath("sweep folder", cli::PathKind::kFolder));
        sub.add_option("--figure", request->figures,
                       "Figures, comma-separated: fig1 (trajectories + sigma_min, VIO), fig4 (dEm, "
                       "VIO), fig5 (dEm, VO), fig6 (sigma_min, VO), fig7 (trajectories, VO), "
@@ -44,7 +45,7 @@ const bool kRegistered = cli::registerCommand(
            ->capture_default_str();
        sub.add_option("--tracks", tracks->tracks_file,
                       "tracks: draw this track file instead of running the front-end")
-           ->check(CLI::ExistingFile);
+           ->check(cli::existingPath("--tracks", cli::PathKind::kFile));
        return [request, tracks] {
          if (request->figures == "tracks") {
            if (tracks->dataset.empty()) throw UsageError("--figure tracks needs --dataset");

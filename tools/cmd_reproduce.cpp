@@ -174,7 +174,7 @@ const bool kRegistered = cli::registerCommand(
                     "over)");
        sub.add_option("--experiments", args->experiments, "Folder of the sweep definitions")
            ->capture_default_str()
-           ->check(CLI::ExistingDirectory);
+           ->check(cli::existingPath("--experiments", cli::PathKind::kFolder));
        sub.add_option("--results", args->results, "Folder for the sweep results and tables")
            ->capture_default_str();
        sub.add_option("--figures", args->figures, "Folder for the figures, notebooks and report")

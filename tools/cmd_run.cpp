@@ -198,7 +198,7 @@ const bool kRegistered = cli::registerCommand(
        sub.add_option("--tracks", args->tracks,
                       "Run on this track file (HDF5 or text, datasets/README.md) instead of a "
                       "front-end; --dataset supplies calibration, ground truth and IMU")
-           ->check(CLI::ExistingFile);
+           ->check(cli::existingPath("--tracks", cli::PathKind::kFile));
        sub.add_option("--frames", args->frames, "Process only the first N frames (0: all)")
            ->capture_default_str()
            ->check(cli::nonNegativeInt("the number of frames (0: all)"));
@@ -207,7 +207,7 @@ const bool kRegistered = cli::registerCommand(
            ->capture_default_str()
            ->check(cli::seedRange());
        sub.add_option("--config", args->config_file, "Estimator config (TOML), see README")
-           ->check(CLI::ExistingFile);
+           ->check(cli::existingPath("--config", cli::PathKind::kFile));
        sub.add_option("-o,--output", args->output, "Results file (HDF5)")->required();
        sub.add_option("--qr-threshold-mode", args->qr_threshold_mode,
                       "Flat-QR rank threshold: absolute (default) or relative")

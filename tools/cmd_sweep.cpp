@@ -16,8 +16,8 @@
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_runner.h"
 #include "tools/command.h"
-#include "tools/output_checks.h"
 #include "tools/option_checks.h"
+#include "tools/output_checks.h"
 
 namespace marglab {
 namespace cli {
@@ -82,6 +82,8 @@ experiment::ParseOptions sweepParseOptions() {
     try {
       app.parse(args);
     } catch (const CLI::ParseError& e) {
+      return e.what();
+    } catch (const InputError& e) {  // a missing --config or --tracks
       return e.what();
     }
     return {};
@@ -168,7 +170,7 @@ const bool kRegistered = cli::registerCommand(
      [](CLI::App& sub) -> cli::CommandRun {
        auto args = std::make_shared<SweepArgs>();
        sub.add_option("file", args->file, "Sweep definition (TOML), e.g. experiments/quick.toml")
-           ->check(CLI::ExistingFile);
+           ->check(cli::existingPath("sweep file", cli::PathKind::kFile));
        sub.add_option("-j,--jobs", args->jobs, "Runs in parallel (0: number of cores)")
            ->capture_default_str()
            ->check(cli::jobCount());
@@ -185,7 +187,7 @@ const bool kRegistered = cli::registerCommand(
                     "slurm: follow the array until it ends (default: return after submission)");
        sub.add_option("--status", args->status_dir,
                       "Reconcile a sweep folder's index with Slurm and print where it stands")
-           ->check(CLI::ExistingDirectory);
+           ->check(cli::existingPath("--status", cli::PathKind::kFolder));
        sub.add_option("--slurm-partition", args->slurm.partition, "slurm: --partition");
        sub.add_option("--slurm-time", args->slurm.time,
                       "slurm: --time of every task (default: the group's timeout_s, in minutes)");

@@ -13,6 +13,7 @@
 #include "core/experiment/sweep_index.h"
 #include "core/experiment/tables.h"
 #include "tools/command.h"
+#include "tools/option_checks.h"
 
 namespace marglab {
 namespace {
@@ -21,7 +22,7 @@ namespace {
 void requireRuns(const std::vector<std::string>& dirs) {
   for (const std::string& dir : dirs) {
     const std::string index = (std::filesystem::path(dir) / "index.csv").string();
-    if (!std::filesystem::is_regular_file(index)) return;  // writeTables names it (usage error)
+    if (!std::filesystem::is_regular_file(index)) return;  // writeTables names it
     if (!experiment::readIndex(index).empty()) return;
   }
   throw InputError((std::filesystem::path(dirs.front()) / "index.csv").string(), 0,
@@ -39,13 +40,13 @@ const bool kRegistered = cli::registerCommand(
        auto request = std::make_shared<experiment::TablesRequest>();
        sub.add_option("dirs", request->dirs, "Sweep folders (results/NAME), one or more")
            ->required()
-           ->check(CLI::ExistingDirectory);
+           ->check(cli::existingPath("sweep folder", cli::PathKind::kFolder));
        sub.add_option("--format", request->formats, "Formats, comma-separated: md, tex, csv")
            ->capture_default_str();
        sub.add_option("-o,--out", request->out, "Output folder (default: <first folder>/tables)");
        sub.add_option("--paper-values", request->paper_values,
                       "The paper's values (default: experiments/paper_values.toml of the source)")
-           ->check(CLI::ExistingFile);
+           ->check(cli::existingPath("--paper-values", cli::PathKind::kFile));
        auto seeds = std::make_shared<std::string>("auto");
        sub.add_option("--seeds", *seeds,
                       "Tables 1 and 2 as mean ± std over seeds with the failure count (x k/n), "

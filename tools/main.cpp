@@ -97,6 +97,9 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "{}\nRun with --help for more information.\n",
                cli::shortenedMessage(e.what()));
     return 2;
+  } catch (const InputError& e) {  // a missing input path (cli::existingPath)
+    fmt::print(stderr, "marglab: error: {}\n", e.what());
+    return 1;
   }
 
   try {

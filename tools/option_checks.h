@@ -92,14 +92,46 @@ inline CLI::Validator positiveInt(const char* what) {
   return intRange(what, 1, std::numeric_limits<int>::max());
 }
 
-// A dataset argument is a shipped sequence name or an existing folder; anything else is a usage
-// error (exit 2, as for every other bad option value) that lists the names.
+// A dataset argument is a shipped sequence name or an existing folder; anything else is a missing
+// input (exit 1, like a missing file) and the message lists the names.
 inline void checkDatasetArgument(const std::string& dataset) {
   if (std::filesystem::is_directory(dataset)) return;
   const std::vector<std::string> names = listSequences();
   if (std::find(names.begin(), names.end(), dataset) != names.end()) return;
-  throw UsageError(fmt::format("unknown dataset '{}': expected a folder or one of {}",
+  throw InputError({}, 0,
+                   fmt::format("unknown dataset '{}': expected a folder or one of {}",
                                shortToken(dataset), fmt::join(names, ", ")));
+}
+
+enum class PathKind { kFile, kFolder };
+
+// A path argument that must exist. A missing or unreadable file is bad input, not bad usage: the
+// validator throws InputError (exit 1, docs/design.md §7) instead of returning CLI11's message
+// (exit 2). It runs while the command line is parsed, so a sweep's `args` are checked too.
+inline CLI::Validator existingPath(const std::string& option, PathKind kind) {
+  const bool want_folder = kind == PathKind::kFolder;
+  return CLI::Validator(
+      [option, want_folder](std::string& path) -> std::string {
+        std::error_code ec;
+        const auto status = std::filesystem::status(path, ec);
+        const char* expected = want_folder ? "folder" : "file";
+        if (ec && ec != std::errc::no_such_file_or_directory) {
+          throw InputError(
+              {}, 0,
+              fmt::format("{} {}: cannot access it: {}", option, shortToken(path), ec.message()));
+        }
+        if (!std::filesystem::exists(status)) {
+          throw InputError({}, 0,
+                           fmt::format("{} {}: no such {}", option, shortToken(path), expected));
+        }
+        if (std::filesystem::is_directory(status) != want_folder) {
+          throw InputError({}, 0,
+                           fmt::format("{} {}: expected a {}, found a {}", option, shortToken(path),
+                                       expected, want_folder ? "file" : "folder"));
+        }
+        return {};
+      },
+      want_folder ? "FOLDER" : "FILE", "existing " + option);
 }
 
 }  // namespace marglab::cli

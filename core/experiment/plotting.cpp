@@ -34,7 +34,8 @@ int runPlot(const PlotRequest& request) {
   namespace fs = std::filesystem;
   for (const std::string& dir : request.dirs) {
     if (!fs::is_regular_file(fs::path(dir) / "index.csv")) {
-      throw UsageError(dir + " is not a sweep folder (no index.csv); run `marglab sweep` first");
+      throw InputError((fs::path(dir) / "index.csv").string(), 0,
+                       "no such file: not a sweep folder (run `marglab sweep` first)");
     }
   }
   std::stringstream list(request.figures);

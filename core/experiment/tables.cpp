@@ -1337,7 +1337,8 @@ std::vector<std::string> writeTables(const TablesRequest& request, std::string* 
   }
   for (const std::string& dir : request.dirs) {
     if (!fs::is_regular_file(fs::path(dir) / "index.csv")) {
-      throw UsageError(dir + " is not a sweep folder (no index.csv); run `marglab sweep` first");
+      throw InputError((fs::path(dir) / "index.csv").string(), 0,
+                       "no such file: not a sweep folder (run `marglab sweep` first)");
     }
   }
   const PaperValues paper = loadPaperValues(request.paper_values.empty() ? defaultPaperValuesPath()

@@ -295,6 +295,8 @@ Status LandmarkBlockSc<Scalar>::addToReducedSystem(MatX<HScalar>& H, VecX<HScala
   Eigen::LLT<Mat3<Scalar>> llt;
   Status status = dampedFactor(&llt);
   if (!status.ok()) return status;
+  // No pose block, nothing to add (Eigen's rank update of an empty M binds a null reference).
+  if (H_pl_.rows() == 0) return Status::Ok();
   // H_pl H_ll⁻¹ H_lp = MᵀM with M = L⁻¹ H_lp, H_ll = L Lᵀ.
   const Mat<Scalar, 3, Eigen::Dynamic> M =
       llt.matrixL().solve(Mat<Scalar, 3, Eigen::Dynamic>(H_pl_.transpose()));

@@ -57,15 +57,21 @@ void expectExit(const std::string& args, int code, const std::string& fragment =
 TEST_F(ExitCodes, Run) {
   expectExit("run --dataset kitti/10 --variant ns-qr-sqrt-f32 -o x.h5 --threads 0", 2,
              "--threads: lm.threads = 0: expected an integer in [1, 256]");
-  expectExit("run --dataset " + quoted("missing") + " --variant ns-qr-sqrt-f32 -o x.h5", 2,
+  // A missing dataset, config or track file is bad input, not bad usage (the brief: exit 1).
+  expectExit("run --dataset " + quoted("missing") + " --variant ns-qr-sqrt-f32 -o x.h5", 1,
              "unknown dataset");
+  expectExit(
+      "run --dataset kitti/10 --variant ns-qr-sqrt-f32 -o x.h5 --config " + quoted("none.toml"), 1,
+      "--config " + (dir_ / "none.toml").string() + ": no such file");
+  expectExit("run --dataset kitti/10 --variant ns-qr-sqrt-f32 -o x.h5 --tracks " + folder("t"), 1,
+             ": expected a file, found a folder");
   expectExit("run --dataset " + folder("empty") + " --variant ns-qr-sqrt-f32 -o x.h5", 1,
              "expected a sequence folder");
 }
 
 TEST_F(ExitCodes, Datasets) {
   expectExit("datasets frobnicate", 2);
-  expectExit("datasets check " + quoted("missing"), 2, "unknown dataset");
+  expectExit("datasets check " + quoted("missing"), 1, "unknown dataset");
   expectExit("datasets simulate --dataset kitti/10 --seed -1 -o x.txt", 2,
              "--seed: -1: expected an integer in [0, 18446744073709551615]");
   expectExit("datasets simulate --dataset kitti/10 --seed 18446744073709551616 -o x.txt", 2,
@@ -77,6 +83,13 @@ TEST_F(ExitCodes, Sweep) {
   expectExit("sweep --jobs -1 " + file("s.toml", "name = \"s\"\n"), 2,
              "expected the number of parallel jobs (0: cores), an integer in [0, 256]");
   expectExit("sweep --dry-run " + file("bad.toml", "name = \n"), 1, "bad.toml:1");
+  expectExit("sweep --dry-run " + quoted("none.toml"), 1,
+             "sweep file " + (dir_ / "none.toml").string() + ": no such file");
+  const std::string cfg =
+      file("cfg.toml",
+           "name = \"c\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
+           "variants = [\"ns-qr-sqrt-f64\"]\nargs = [\"--tracks\", \"/no/such.h5\"]\n");
+  expectExit("sweep --dry-run " + cfg, 1, "--tracks /no/such.h5: no such file");
   // KITTI has no IMU: VIO on it is refused when the sweep is validated, dry run included.
   const std::string vio = file("vio.toml",
                                "name = \"v\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
@@ -87,7 +100,10 @@ TEST_F(ExitCodes, Sweep) {
 }
 
 TEST_F(ExitCodes, Tables) {
-  expectExit("tables " + quoted("missing"), 2);
+  expectExit("tables --bogus " + folder("s"), 2);
+  expectExit("tables " + quoted("missing"), 1,
+             "sweep folder " + (dir_ / "missing").string() + ": no such folder");
+  expectExit("tables " + folder("plain"), 1, "index.csv: no such file: not a sweep folder");
   const std::string header = "id,group,dataset,variant,seed,status\n";
   file("empty/index.csv", header);
   expectExit("tables " + quoted("empty"), 1,
@@ -96,12 +112,14 @@ TEST_F(ExitCodes, Tables) {
 
 TEST_F(ExitCodes, Plot) {
   expectExit("plot --figure tracks", 2, "--figure tracks needs --dataset");
+  expectExit("plot " + folder("plain"), 1, "index.csv: no such file: not a sweep folder");
   file("none/index.csv", "id,status\n");
   expectExit("plot " + quoted("none"), 1, "no figure written: the sweep has no headline runs");
 }
 
 TEST_F(ExitCodes, Eigdump) {
   expectExit("eigdump", 2);
+  expectExit("eigdump " + quoted("missing.h5"), 1, "missing.h5: no such file");
   expectExit("eigdump " + file("not.h5", "not hdf5\n"), 1, "not.h5");
 }
 

@@ -8,8 +8,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "core/common/source_dir.h"
 #include "common/cli_runner.h"
+#include "core/common/source_dir.h"
 #include "core/io/results_file.h"
 
 namespace marglab {
@@ -165,12 +165,15 @@ TEST_F(RunCliTest, UsageErrorsExitWithTwoAndWriteNothing) {
   const std::string out = path("none.h5");
   for (const std::string& args :
        {"run --dataset kitti/10 --variant ns-qr-sqrt-f16 -o '" + out + "'",
-        "run --dataset kitti/99 --variant ns-qr-sqrt-f32 -o '" + out + "'",
         "run --dataset kitti/10 --variant ns-qr-sq-f32 -o '" + out + "'",
         "run --dataset kitti/10 --variant ns-qr-sqrt-f32 --no-such-option -o '" + out + "'"}) {
     const auto result = runCli(args);
     EXPECT_EQ(result.exit_code, 2) << args << "\n" << result.output;
   }
+  EXPECT_FALSE(fs::exists(out));
+  // An unknown dataset is a missing input: exit 1.
+  EXPECT_EQ(runCli("run --dataset kitti/99 --variant ns-qr-sqrt-f32 -o '" + out + "'").exit_code,
+            1);
   EXPECT_FALSE(fs::exists(out));
   const auto no_gt =
       runCli("run --dataset tumvi/slides1 --variant ns-qr-sqrt-f32 -o '" + out + "'");

@@ -57,9 +57,9 @@ TEST(CliDatasets, ListUsageAndUnknownName) {
   }
   EXPECT_EQ(runCli("datasets check").exit_code, 2);
   EXPECT_EQ(runCli("datasets").exit_code, 2);
-  // An unknown name is a usage error, as in `marglab run` (issue #18: it was 1 here, 2 there).
+  // An unknown name is an input error, as in `marglab run` (issue #18: it was 1 here, 2 there).
   const CliResult unknown = runCli("datasets check euroc/nope");
-  EXPECT_EQ(unknown.exit_code, 2);
+  EXPECT_EQ(unknown.exit_code, 1);
   EXPECT_NE(unknown.output.find("unknown dataset 'euroc/nope': expected a folder or one of"),
             std::string::npos)
       << unknown.output;

@@ -318,6 +318,51 @@ frames = 20
   fs::remove_all(dir);
 }
 
+// A sweep that submitted and returned leaves its tasks queued and no lock: a --force sweep into
+// that folder must not delete what those tasks will write. It is refused, naming the jobs to
+// cancel, and the folder is left as it was.
+TEST(SlurmSweep, ForceIsRefusedWhileTheFoldersTasksAreStillQueued) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("queued");
+  std::ofstream(dir / "q.toml") << R"(name = "q"
+[[group]]
+name = "vo"
+datasets = ["kitti/10"]
+variants = ["headline"]
+frames = 600
+)";
+  const fs::path out = dir / "out";
+  const std::string sweep = "sweep " + quote(dir / "q.toml") + " --backend slurm --jobs 1 ";
+  const auto submit = runCli(sweep + "--out " + quote(out));
+  ASSERT_EQ(submit.exit_code, 0) << submit.output;
+  // Each row's task: the refused sweep may bring the states up to date, not the tasks.
+  const auto tasks = [&out] {
+    std::vector<std::string> ids_and_tasks;
+    for (const IndexRow& row : readIndex((out / "index.csv").string())) {
+      ids_and_tasks.push_back(row.get("id") + " " + row.get("slurm_job"));
+    }
+    return ids_and_tasks;
+  };
+  const std::vector<std::string> tasks_before = tasks();
+  const std::string job = readIndex((out / "index.csv").string()).front().get("slurm_job");
+  const std::string array = job.substr(0, job.find('_'));
+  ASSERT_FALSE(array.empty()) << submit.output;
+
+  const auto force = runCli(sweep + "--force --out " + quote(out));
+  EXPECT_EQ(force.exit_code, 2) << force.output;
+  EXPECT_NE(force.output.find("still queued in Slurm (jobs " + array + ")"), std::string::npos)
+      << force.output;
+  EXPECT_NE(force.output.find("cancel them first (scancel " + array + ")"), std::string::npos)
+      << force.output;
+  EXPECT_EQ(tasks(), tasks_before);
+  EXPECT_TRUE(fs::exists(out / "slurm" / "array-1.sbatch"));
+  EXPECT_TRUE(fs::exists(out / "runs"));
+
+  runShell("scancel " + array);
+  runCli("sweep --status " + quote(out) + " --wait");
+  fs::remove_all(dir);
+}
+
 // Starts the marglab CLI with stdout and stderr into log; returns its pid.
 pid_t startCli(const std::vector<std::string>& args, const fs::path& log) {
   std::vector<std::string> argv = {test::cliPath()};

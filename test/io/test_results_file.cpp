@@ -575,8 +575,8 @@ TEST_F(ResultsFileTest, EigdumpErrorsHaveClearMessagesAndExitCodes) {
   EXPECT_EQ(test::runCli("eigdump --marg 1 --all " + q).exit_code, 2);
   EXPECT_EQ(test::runCli("eigdump").exit_code, 2);
   const test::CliResult missing = test::runCli("eigdump '" + file("missing.h5") + "'");
-  EXPECT_EQ(missing.exit_code, 2);  // a missing path is a usage error in every verb
-  EXPECT_NE(missing.output.find("File does not exist"), std::string::npos) << missing.output;
+  EXPECT_EQ(missing.exit_code, 1);  // a missing file is an input error in every verb
+  EXPECT_NE(missing.output.find("missing.h5: no such file"), std::string::npos) << missing.output;
   const test::CliResult help = test::runCli("eigdump --help");
   EXPECT_EQ(help.exit_code, 0);
   EXPECT_NE(help.output.find("Default: the"), std::string::npos) << help.output;

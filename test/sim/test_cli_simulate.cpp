@@ -51,8 +51,8 @@ TEST(CliSimulate, ErrorsAndUsage) {
   EXPECT_EQ(no_gt.exit_code, 1) << no_gt.output;
   EXPECT_NE(no_gt.output.find("no trajectory"), std::string::npos) << no_gt.output;
   EXPECT_EQ(runCli("datasets simulate --dataset euroc/MH_01_easy").exit_code, 2);
-  // An unknown dataset is a usage error, as in `marglab run` (issue #18 item 9).
-  EXPECT_EQ(runCli("datasets simulate --dataset euroc/nope -o x.h5").exit_code, 2);
+  // An unknown dataset is an input error, as in `marglab run` (issue #18 item 9).
+  EXPECT_EQ(runCli("datasets simulate --dataset euroc/nope -o x.h5").exit_code, 1);
   // The seed is range-checked, not wrapped to 2^64 - 1 (item 11).
   const CliResult seed = runCli("datasets simulate --dataset kitti/10 --seed -1 -o x.h5");
   EXPECT_EQ(seed.exit_code, 2);
