@@ -6,6 +6,8 @@
 #   usage: fuzz/run_fuzzers.sh BUILD_DIR SECONDS [TARGET...]     (default: every target)
 #   MARGLAB_FUZZ_FLAGS   extra libFuzzer flags; a campaign that should go on after a finding uses
 #                        "-fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1"
+#   MARGLAB_FUZZ_OUT     output folder (default: BUILD_DIR/fuzz-out), so that a campaign and the
+#                        CI run of the same build keep their corpora and findings apart
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR="$1"
@@ -15,21 +17,26 @@ TARGETS=("$@")
 if ((${#TARGETS[@]} == 0)); then
   TARGETS=(dataset_text calib config sweep track_text track_hdf5 window)
 fi
-OUT="$BUILD_DIR/fuzz-out"
+OUT="${MARGLAB_FUZZ_OUT:-$BUILD_DIR/fuzz-out}"
 mkdir -p "$OUT/seeds" "$OUT/artifacts" "$OUT/logs"
-export ASAN_OPTIONS="${ASAN_OPTIONS:-halt_on_error=1:abort_on_error=1:detect_leaks=1}"
+# allocator_may_return_null: an allocation beyond ASan's limit returns NULL as malloc does in a
+# release build (libhdf5 asks for absurd sizes from corrupted metadata and reports the failure).
+export ASAN_OPTIONS="${ASAN_OPTIONS:-halt_on_error=1:abort_on_error=1:detect_leaks=1:allocator_may_return_null=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}"
 export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$(pwd)/fuzz/lsan.supp}"
 
-# The binary seeds, made here rather than committed: HDF5 track files written by the simulator
-# (with and without landmarks, stereo and mono matches) and two shipped windows, decompressed.
+# The binary seeds, made here rather than committed: HDF5 track files written by the front-end
+# on the shipped real images (2 and 3 frames, stereo and mono matches; a few KB each, so that the
+# fuzzer's input length stays small — a simulated file carries the whole world's landmarks, 0.3 to
+# 1.3 MB) and two shipped windows, decompressed.
 make_seeds() {
   mkdir -p "$OUT/seeds/track_hdf5" "$OUT/seeds/window"
-  if [[ " ${TARGETS[*]} " == *" track_hdf5 "* && ! -s "$OUT/seeds/track_hdf5/euroc.h5" ]]; then
+  if [[ " ${TARGETS[*]} " == *" track_hdf5 "* && ! -s "$OUT/seeds/track_hdf5/tracked3.h5" ]]; then
     local cli="$BUILD_DIR/bin/marglab"
-    "$cli" datasets simulate --dataset kitti/00 --frames 3 -o "$OUT/seeds/track_hdf5/kitti.h5" >/dev/null
-    "$cli" datasets simulate --dataset euroc/MH_01_easy --frames 2 --no-noise \
-      -o "$OUT/seeds/track_hdf5/euroc.h5" >/dev/null
+    for n in 2 3; do
+      "$cli" datasets track --dataset euroc/V1_01_easy_images --frames "$n" \
+        -o "$OUT/seeds/track_hdf5/tracked$n.h5" >/dev/null
+    done
   fi
   for w in kitti-00_ns-qr-sqrt-f32_000100 euroc-MH_01_easy_ns-qr-sqrt-f32_000600; do
     [ -s "$OUT/seeds/window/$w.win" ] || gzip -dc "datasets/windows/$w.win.gz" >"$OUT/seeds/window/$w.win"
