@@ -96,13 +96,13 @@ def per_sequence_lines(runs, overrides):
     for d in datasets:
         cells = []
         for o in overrides:
-            ates = [r["ate"] for k, r in runs.items()
-                    if k[0] == o and k[1] == d and np.isfinite(r["ate"])]
-            n = len([k for k in runs if k[0] == o and k[1] == d])
-            cell = (f"{statistics.fmean(ates):.4f} ± {statistics.pstdev(ates):.4f}"
+            sel = [r for k, r in runs.items() if k[0] == o and k[1] == d]
+            ates = [r["ate"] for r in sel if np.isfinite(r["ate"])]
+            cell = (f"{statistics.fmean(ates):.4f} ± {statistics.pstdev(ates):.4f} ({len(ates)})"
                     if ates else "–")
-            if len(ates) < n:
-                cell += f" (x {n - len(ates)}/{n})"
+            failed = sum(r["status"] == "failed" for r in sel)
+            if failed:
+                cell += f" x {failed}/{len(sel)}"
             cells.append(cell)
         lines.append(f"| {d} | " + " | ".join(cells) + " |")
     return lines
@@ -125,8 +125,9 @@ def main():
              "exact); recovered: share of such events; < discard: (sequence, seed) pairs with a "
              "lower ATE than discard.", ""]
     lines += summary_lines(runs, overrides)
-    lines += ["", "Per sequence: mean ± population std of the ATE over the seeds (x k/n: k of n "
-              "runs failed).", ""]
+    lines += ["", "Per sequence: mean ± population std of the ATE over the seeds, (n) runs with an "
+              "ATE; x k/n: k of n runs failed; runs not yet done (status pending) are left out.",
+              ""]
     lines += per_sequence_lines(runs, overrides)
     out_dir = os.path.join(sweep, "tables")
     os.makedirs(out_dir, exist_ok=True)
