@@ -162,7 +162,7 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
   list.push_back(choice("marginalization", "strategy", &c.marg_strategy, parseMargStrategy,
                         "\"discard\", \"dense\" or \"nfr\""));
   list.push_back(choice("marginalization", "nfr_topology", &c.nfr_topology, parseSparsifyTopology,
-                        "\"paper\" or \"joint-states\""));
+                        "\"paper\", \"joint-states\" or \"relative-pose\""));
   D("failure", "max_position_error_m", &c.max_position_error_m,
     orSentinel(above(0), -1, "dataset default"));
   list.push_back(choice("imu", "noise_profile", &c.imu_noise_profile, parseImuNoiseProfile,
@@ -276,11 +276,22 @@ const char* toString(MargStrategy strategy) {
 }
 
 const char* toString(SparsifyTopology topology) {
-  return topology == SparsifyTopology::kJointStates ? "joint-states" : "paper";
+  switch (topology) {
+    case SparsifyTopology::kJointStates:
+      return "joint-states";
+    case SparsifyTopology::kRelativePose:
+      return "relative-pose";
+    case SparsifyTopology::kPaper:
+      break;
+  }
+  return "paper";
 }
 
 bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology) {
-  return parseByName(text, {SparsifyTopology::kPaper, SparsifyTopology::kJointStates}, topology);
+  return parseByName(
+      text,
+      {SparsifyTopology::kPaper, SparsifyTopology::kJointStates, SparsifyTopology::kRelativePose},
+      topology);
 }
 
 const char* toString(LmStopRule rule) { return rule == LmStopRule::kBasalt ? "basalt" : "marglab"; }

@@ -15,8 +15,8 @@
 //                   max_failed_solves, landmark_damping, threads
 //   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
 //                   scalar type), strategy ("discard"|"dense"|"nfr", keyframe marginalization of
-//                   VIO; see MargStrategy), nfr_topology ("paper"|"joint-states", see
-//                   SparsifyTopology)
+//                   VIO; see MargStrategy), nfr_topology ("paper"|"joint-states"|"relative-pose",
+//                   see SparsifyTopology)
 //   [failure]       max_position_error_m (−1: dataset default)
 //   [imu]           noise_profile ("kalibr"|"basalt": the IMU densities of VIO runs, for the
 //                   synthetic IMU and the estimator's weights; see core/imu/noise_profile.h)
@@ -61,8 +61,11 @@ bool parseMargStrategy(const std::string& text, MargStrategy* strategy);
 //                  pose–landmark factor from the anchor pose to every landmark;
 //   joint-states — the same pose–landmark factors, and one joint factor over all state blocks
 //                  instead of the unary ones (information: the dense prior marginalized onto the
-//                  states), so the correlations between the blanket's states are kept.
-enum class SparsifyTopology { kPaper, kJointStates };
+//                  states), so the correlations between the blanket's states are kept;
+//   relative-pose — Mazuran et al.'s pose-graph topology: a unary factor on the anchor pose, a
+//                  relative-pose factor between consecutive blanket poses, unary velocity and
+//                  bias factors, and the same pose–landmark factors.
+enum class SparsifyTopology { kPaper, kJointStates, kRelativePose };
 const char* toString(SparsifyTopology topology);
 bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology);
 

@@ -60,8 +60,8 @@ void gatherDirectRows(const Window<Scalar>& w, const MargPlan& plan,
       p->direct.push_back(std::move(rows));
     }
   }
-  for (const auto& f : w.nfr_unary) {
-    if (plan.vars.count(f.var()) != 0) p->direct.push_back(w.linearizeNfr(f, -1, nullptr));
+  for (const auto& f : w.nfr_states) {
+    if (f.touches(plan.vars)) p->direct.push_back(w.linearizeNfr(f, -1, nullptr));
   }
   const std::set<int64_t> eliminated(plan.landmarks.begin(), plan.landmarks.end());
   for (const auto& [id, lm] : w.landmarks) {
@@ -158,8 +158,7 @@ class QrMarginalizer final : public Marginalizer<Scalar> {
  private:
   // [J | r] of the landmarks' reduced rows, the direct rows and the old prior's rows.
   static void stack(const std::vector<LandmarkBlockNs<Scalar>>& blocks,
-                    const MargProblem<Scalar>& p, const MargPrior<Scalar>& prior,
-                    MatX<Scalar>& A) {
+                    const MargProblem<Scalar>& p, const MargPrior<Scalar>& prior, MatX<Scalar>& A) {
     int row = 0;
     for (const auto& block : blocks) {
       block.copyReducedRows(A, row);
@@ -257,7 +256,7 @@ std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method, PriorS
   return std::make_unique<SchurMarginalizer<Scalar>>(storage);
 }
 
-#define MARGLAB_INST(S)                                                 \
+#define MARGLAB_INST(S)                                                                   \
   template std::unique_ptr<Marginalizer<S>> makeMarginalizer<S>(MargMethod, PriorStorage, \
                                                                 const EstimatorConfig&);
 MARGLAB_INSTANTIATE(MARGLAB_INST)

@@ -1,5 +1,6 @@
 #include "core/estimator/prior_sparsifier.h"
 
+#include <algorithm>
 #include <chrono>
 #include <optional>
 #include <vector>
@@ -23,6 +24,17 @@ struct BlanketVars {
   Blanket<Scalar> x;
   std::vector<VarKey> var_of;
   int anchor = -1;
+  // The poses in frame order: the chain of the relative-pose topology.
+  std::vector<int> poseChain() const {
+    std::vector<int> chain;
+    for (int v = 0; v < static_cast<int>(x.size()); ++v) {
+      if (x[static_cast<size_t>(v)].kind == BlanketKind::kPose) chain.push_back(v);
+    }
+    std::sort(chain.begin(), chain.end(), [this](int a, int b) {
+      return var_of[static_cast<size_t>(a)].frame_id < var_of[static_cast<size_t>(b)].frame_id;
+    });
+    return chain;
+  }
 };
 
 template <typename Scalar>
@@ -107,8 +119,8 @@ std::optional<JointFactor<Scalar>> jointStateFactor(const MargPrior<Scalar>& pri
   return joint;
 }
 
-// The recovered factors into the window: pose–landmark ones to their landmark, unary ones to the
-// factor list (not with the joint factor, which replaces them).
+// The recovered factors into the window: pose–landmark ones to their landmark, unary and
+// relative-pose ones to the factor list (not with the joint factor, which replaces them).
 template <typename Scalar>
 void insertFactors(Window<Scalar>& w, const BlanketVars<Scalar>& b,
                    const Sparsification<Scalar>& sp, bool joint) {
@@ -118,12 +130,16 @@ void insertFactors(Window<Scalar>& w, const BlanketVars<Scalar>& b,
     f.factor.spec.var = 0;
     f.kind = b.x[static_cast<size_t>(recovered.spec.var)].kind;
     f.frame = b.var_of[static_cast<size_t>(recovered.spec.var)].frame_id;
-    if (recovered.spec.kind == NfrFactorKind::kPoseLandmark) {
+    if (recovered.spec.kind == NfrFactorKind::kRelativePose) {
+      f.factor.spec.pose_b = 1;
+      f.frame_b = b.var_of[static_cast<size_t>(recovered.spec.pose_b)].frame_id;
+      w.nfr_states.push_back(std::move(f));
+    } else if (recovered.spec.kind == NfrFactorKind::kPoseLandmark) {
       f.factor.spec.landmark = 1;
       w.landmarks.at(b.var_of[static_cast<size_t>(recovered.spec.landmark)].frame_id)
           .nfr.push_back(std::move(f));
     } else if (!joint) {
-      w.nfr_unary.push_back(std::move(f));
+      w.nfr_states.push_back(std::move(f));
     }
   }
 }
@@ -190,7 +206,10 @@ void sparsifyPrior(Window<Scalar>& w, SparsifyTopology topology, SparsifyEvent* 
   // determined along the directions Λ_t leaves (nearly) free.
   const BlanketVars<Scalar> b = blanketOf(w);
   if (b.anchor < 0) return fallback("no pose in the blanket");
-  const Sparsification<Scalar> sp = sparsify<Scalar>(Lambda_t, b.x, paperTopology(b.x, b.anchor));
+  const NfrTopology factors = topology == SparsifyTopology::kRelativePose
+                                  ? relativePoseTopology(b.x, b.poseChain(), b.anchor)
+                                  : paperTopology(b.x, b.anchor);
+  const Sparsification<Scalar> sp = sparsify<Scalar>(Lambda_t, b.x, factors);
   if (!sp.status.ok()) return fallback(sp.status.toString());
   Scalar kld = sp.kld;
   MatX<Scalar> Lambda_s = sp.Lambda_s;
@@ -213,8 +232,8 @@ void sparsifyPrior(Window<Scalar>& w, SparsifyTopology topology, SparsifyEvent* 
   event->nnz_sparse = (Lambda_s.array() != Scalar(0)).count();
 }
 
-#define MARGLAB_INST(S)                                                          \
-  template MatX<S> describeBlanket<S>(const Window<S>&, SparsifyEvent*);         \
+#define MARGLAB_INST(S)                                                  \
+  template MatX<S> describeBlanket<S>(const Window<S>&, SparsifyEvent*); \
   template void sparsifyPrior<S>(Window<S>&, SparsifyTopology, SparsifyEvent*);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST

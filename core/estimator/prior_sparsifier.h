@@ -6,17 +6,20 @@
 // landmarks as world points. Topology `paper`: unary factors on every pose, velocity and bias, and
 // pose–landmark factors from the newest keyframe pose of the blanket (keyframes leave last);
 // `joint-states`: one joint factor over all state blocks instead of the unary ones — the dense
-// prior marginalized onto the states, gradient kept — plus the same pose–landmark factors.
+// prior marginalized onto the states, gradient kept — plus the same pose–landmark factors;
+// `relative-pose`: a unary factor on the anchor pose and a relative-pose factor between
+// consecutive blanket poses (in frame order) instead of the unary pose factors, the rest as
+// `paper` — a tree, so eq. 16 is its exact optimum.
 //
 // Regularization. Our blanket is only positive semi-definite in general (a keyframe pose that
 // enters through landmark eliminations alone carries relative information), while the closed form
 // needs Σ_t: it is recovered for Λ_t + εI, ε = 10 n ε_mach tr Λ_t, just above core/sparsify's rank
 // threshold; the factors carry information of order ε along the directions Λ_t leaves free.
 //
-// Insertion. Unary factors join the window's factor list, pose–landmark ones their landmark's rows
-// (landmarks are still eliminated per landmark). The prior is emptied (paper) or keeps the joint
-// factor over the states (joint-states); variables no longer in a linear prior drop their first
-// estimates.
+// Insertion. Unary and relative-pose factors join the window's factor list, pose–landmark ones
+// their landmark's rows (landmarks are still eliminated per landmark). The prior is emptied (paper)
+// or keeps the joint factor over the states (joint-states); variables no longer in a linear prior
+// drop their first estimates.
 
 #include <cstdint>
 #include <limits>

@@ -178,6 +178,12 @@ Blanket<Scalar> Window<Scalar>::nfrBlanket(const NfrFactor& f, const Landmark* l
   x[0].kind = f.kind;
   if (f.kind == BlanketKind::kPose) {
     x[0].T_w_i = at_first_estimates ? jacobianPoseOf(f.frame) : poseOf(f.frame);
+    if (f.relativePose()) {
+      x.push_back({BlanketKind::kPose,
+                   kPoseDim,
+                   at_first_estimates ? jacobianPoseOf(f.frame_b) : poseOf(f.frame_b),
+                   {}});
+    }
   } else {
     const Frame& frame = frames.at(f.frame);
     const Vec9S sb =
@@ -208,6 +214,7 @@ RowBlock<Scalar> Window<Scalar>::linearizeNfr(const NfrFactor& f, int64_t track_
   out.vars.push_back({f.var(), 0});
   if (f.kind == BlanketKind::kPose) {
     if (lm != nullptr) out.vars.push_back({{track_id, StateBlock::kLandmark}, kPoseDim});
+    if (f.relativePose()) out.vars.push_back({{f.frame_b, StateBlock::kPose}, kPoseDim});
     out.J = J_f;
     return out;
   }
@@ -241,7 +248,7 @@ Scalar Window<Scalar>::totalCost() const {
   Scalar cost = 0;
   for (const Scalar c : chunk_cost) cost += c;
   for (const auto& [from, link] : imu_links) cost += linkCost(from, link);
-  for (const NfrFactor& f : nfr_unary) cost += nfrCost(f, nullptr);
+  for (const NfrFactor& f : nfr_states) cost += nfrCost(f, nullptr);
   if (!prior.empty()) cost += prior.cost(priorDelta(prior));
   return cost;
 }
@@ -256,8 +263,8 @@ void Window<Scalar>::observationRows(const Landmark& lm, const std::set<int64_t>
     if (system_frames.count(frame_id) == 0) continue;
     const bool in_host = frame_id == lm.host;
     BodyPoint<Scalar> body;  // world points only
-    if (lm.world()) body = worldBodyPoint<Scalar>(jacobianPoseOf(frame_id), poseOf(frame_id),
-                                                  p_w_jac, lm.param);
+    if (lm.world())
+      body = worldBodyPoint<Scalar>(jacobianPoseOf(frame_id), poseOf(frame_id), p_w_jac, lm.param);
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
       size_t k_rel = 0;
       TargetPoint<Scalar> point;
@@ -314,8 +321,7 @@ bool Window<Scalar>::landmarkRows(int64_t track_id, const std::set<int64_t>& sys
                                   const RelativePoses& rel, bool with_nfr,
                                   RowBlock<Scalar>* out) const {
   LandmarkJacobians<Scalar> lin;
-  if (!linearizeLandmark(track_id, landmarks.at(track_id), system_frames, rel, &lin, with_nfr,
-                         1)) {
+  if (!linearizeLandmark(track_id, landmarks.at(track_id), system_frames, rel, &lin, with_nfr, 1)) {
     return false;
   }
   out->vars.clear();
@@ -338,7 +344,7 @@ std::vector<RowBlock<Scalar>> Window<Scalar>::directRows(const std::set<int64_t>
     RowBlock<Scalar> rows;
     if (landmarkRows(track, system_frames, rel, true, &rows)) out.push_back(std::move(rows));
   }
-  for (const NfrFactor& f : nfr_unary) out.push_back(linearizeNfr(f, -1, nullptr));
+  for (const NfrFactor& f : nfr_states) out.push_back(linearizeNfr(f, -1, nullptr));
   return out;
 }
 
@@ -377,10 +383,8 @@ void Window<Scalar>::dropMarginalizedFactors(const MargPlan& plan) {
     landmarks.at(track).obs.erase(frame);
   }
   // Recovered factors on marginalized variables are in the prior now.
-  auto in_plan = [&plan](const NfrFactor& f) {
-    return plan.vars.count(f.var()) != 0;
-  };
-  nfr_unary.erase(std::remove_if(nfr_unary.begin(), nfr_unary.end(), in_plan), nfr_unary.end());
+  auto in_plan = [&plan](const NfrFactor& f) { return f.touches(plan.vars); };
+  nfr_states.erase(std::remove_if(nfr_states.begin(), nfr_states.end(), in_plan), nfr_states.end());
   for (auto& [id, lm] : landmarks) {
     lm.nfr.erase(std::remove_if(lm.nfr.begin(), lm.nfr.end(), in_plan), lm.nfr.end());
   }
@@ -424,8 +428,8 @@ void Window<Scalar>::removeMarginalized(const MargPlan& plan) {
   }
 }
 
-#define MARGLAB_INST(S)                  \
-  template struct LinkLinearized<S>;     \
+#define MARGLAB_INST(S)              \
+  template struct LinkLinearized<S>; \
   template class Window<S>;
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST

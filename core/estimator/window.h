@@ -109,15 +109,23 @@ class Window {
     Vec2S uv1;
   };
   // A factor recovered by nfr (core/sparsify/nfr.h), kept as the nonlinear residual
-  // W (h(x) ⊟ z) of its variables: `frame`'s pose, velocity or bias (unary), or the pose of
-  // `frame` and a landmark (pose–landmark). factor.spec indexes a blanket {variable, landmark}.
+  // W (h(x) ⊟ z) of its variables: `frame`'s pose, velocity or bias (unary), the pose of `frame`
+  // and a landmark (pose–landmark), or the poses of `frame` and `frame_b` (relative pose).
+  // factor.spec indexes a blanket {variable, landmark} or {pose a, pose b}.
   struct NfrFactor {
     RecoveredFactor<Scalar> factor;
-    BlanketKind kind = BlanketKind::kPose;  // of the unary variable (kPose for pose–landmark)
+    BlanketKind kind = BlanketKind::kPose;  // of the unary variable (kPose for the others)
     int64_t frame = -1;
+    int64_t frame_b = -1;  // relative pose: the second pose
     // The window variable of frame it constrains (velocity and bias: the speed-bias block).
     VarKey var() const {
       return {frame, kind == BlanketKind::kPose ? StateBlock::kPose : StateBlock::kSpeedBias};
+    }
+    bool relativePose() const { return factor.spec.kind == NfrFactorKind::kRelativePose; }
+    // Whether it constrains a variable of vars (its landmark aside).
+    bool touches(const std::set<VarKey>& vars) const {
+      return vars.count(var()) != 0 ||
+             (relativePose() && vars.count({frame_b, StateBlock::kPose}) != 0);
     }
   };
   struct Landmark {
@@ -147,14 +155,13 @@ class Window {
   };
 
   // VO (no imu): the body is cam0 (T_i_c0 = I, cam1 at T_c0_c1). VIO: the rig's extrinsics.
-  Window(const EstimatorConfig& config, const StereoRig<double>& rig,
-         std::optional<ImuSetup> imu);
+  Window(const EstimatorConfig& config, const StereoRig<double>& rig, std::optional<ImuSetup> imu);
 
   // The variables and factors; the estimator and its collaborators edit them.
   std::map<int64_t, Frame> frames;        // by frame index
   std::map<int64_t, Landmark> landmarks;  // by track id
   std::map<int64_t, ImuLink> imu_links;   // by start frame
-  std::vector<NfrFactor> nfr_unary;       // recovered unary factors (nfr)
+  std::vector<NfrFactor> nfr_states;      // recovered unary and relative-pose factors (nfr)
   MargPrior<Scalar> prior;
 
   bool isVio() const { return imu_.has_value(); }
@@ -198,7 +205,7 @@ class Window {
   // The same rows with the landmark as a variable of the system; false when it has none.
   bool landmarkRows(int64_t track_id, const std::set<int64_t>& system_frames,
                     const RelativePoses& rel, bool with_nfr, RowBlock<Scalar>* out) const;
-  // The rows the reduced system takes as they are: prior landmarks and recovered unary factors.
+  // The rows the reduced system takes as they are: prior landmarks and recovered state factors.
   std::vector<RowBlock<Scalar>> directRows(const std::set<int64_t>& system_frames,
                                            const RelativePoses& rel) const;
   // W (h(x) ⊟ z) of a recovered factor at the current state, its Jacobian at the first estimates

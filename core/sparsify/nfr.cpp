@@ -56,6 +56,28 @@ NfrTopology paperTopology(const Blanket<Scalar>& blanket, int anchor_pose) {
   return topology;
 }
 
+template <typename Scalar>
+NfrTopology relativePoseTopology(const Blanket<Scalar>& blanket, const std::vector<int>& pose_chain,
+                                 int anchor_pose) {
+  NfrTopology topology;
+  topology.push_back({NfrFactorKind::kUnary, anchor_pose, -1, -1});
+  for (size_t k = 1; k < pose_chain.size(); ++k) {
+    topology.push_back({NfrFactorKind::kRelativePose, pose_chain[k - 1], -1, pose_chain[k]});
+  }
+  for (int v = 0; v < static_cast<int>(blanket.size()); ++v) {
+    const BlanketKind kind = blanket[v].kind;
+    if (kind == BlanketKind::kVelocity || kind == BlanketKind::kBias) {
+      topology.push_back({NfrFactorKind::kUnary, v, -1, -1});
+    }
+  }
+  for (int v = 0; v < static_cast<int>(blanket.size()); ++v) {
+    if (blanket[v].kind == BlanketKind::kLandmark) {
+      topology.push_back({NfrFactorKind::kPoseLandmark, anchor_pose, v, -1});
+    }
+  }
+  return topology;
+}
+
 std::vector<int> vioGaugeReference(int pose_offset) {
   return {pose_offset, pose_offset + 1, pose_offset + 2, pose_offset + 5};
 }
@@ -74,10 +96,16 @@ VecX<Scalar> RecoveredFactor<Scalar>::whitenedResidual(const Blanket<Scalar>& x,
   if (spec.kind == NfrFactorKind::kPoseLandmark) {
     Mat<Scalar, 3, 6> J_pose;
     Mat3<Scalar> J_landmark;
-    r = poseLandmarkResidual<Scalar>(var.T_w_i, Vec3<Scalar>(x[spec.landmark].value),
-                                     Vec3<Scalar>(z), &J_pose, &J_landmark);
+    r.resize(3);  // then a fixed-size assignment: GCC 12 warns (-Warray-bounds) on Vec3 → VecX
+    r.template head<3>() = poseLandmarkResidual<Scalar>(
+        var.T_w_i, Vec3<Scalar>(x[spec.landmark].value), Vec3<Scalar>(z), &J_pose, &J_landmark);
     J_h.resize(3, 9);
     J_h << J_pose, J_landmark;
+  } else if (spec.kind == NfrFactorKind::kRelativePose) {
+    Mat<Scalar, 6, 6> J_a, J_b;
+    r = relativePoseResidual<Scalar>(var.T_w_i, x[spec.pose_b].T_w_i, z_pose, &J_a, &J_b);
+    J_h.resize(6, 12);
+    J_h << J_a, J_b;
   } else if (var.kind == BlanketKind::kPose) {
     Mat<Scalar, 6, 6> J_pose;
     r = posePriorResidual<Scalar>(var.T_w_i, z_pose, &J_pose);
@@ -97,38 +125,33 @@ NfrProblem<Scalar>::NfrProblem(const MatX<Scalar>& Lambda_t, const Blanket<Scala
   status_ = setUp(Lambda_t, topology, gauge_reference);
 }
 
-template <typename Scalar>
-Status NfrProblem<Scalar>::setUp(const MatX<Scalar>& Lambda_t, const NfrTopology& topology,
-                                 const std::vector<int>& gauge_reference) {
-  const auto invalid = [](std::string message) {
-    return Status::Error(Status::Code::kInvalidArgument, "NFR: " + std::move(message));
-  };
-  n_ = static_cast<int>(Lambda_t.rows());
-  if (Lambda_t.cols() != n_ || n_ == 0) {
-    return invalid(fmt::format("Λ_t is {}x{}, not a non-empty square matrix", Lambda_t.rows(),
-                               Lambda_t.cols()));
-  }
-  if (!Lambda_t.allFinite()) {
-    return Status::Error(Status::Code::kNotFinite, "NFR: Λ_t has a non-finite entry");
-  }
+namespace {
 
-  // Layout: every column of Λ_t belongs to exactly one variable.
+Status invalidArgument(std::string message) {
+  return Status::Error(Status::Code::kInvalidArgument, "NFR: " + std::move(message));
+}
+
+}  // namespace
+
+template <typename Scalar>
+Status NfrProblem<Scalar>::checkLayout(std::vector<int>* owner) const {
   const int n_vars = static_cast<int>(blanket_.size());
-  std::vector<int> owner(n_, -1);
+  owner->assign(n_, -1);
   for (int v = 0; v < n_vars; ++v) {
     const BlanketVariable<Scalar>& var = blanket_[v];
     const int d = blanketKindDim(var.kind);
     if (var.offset < 0 || var.offset + d > n_) {
-      return invalid(fmt::format("variable {} ({}) spans columns [{}, {}) outside Λ_t ({} columns)",
-                                 v, blanketKindName(var.kind), var.offset, var.offset + d, n_));
+      return invalidArgument(
+          fmt::format("variable {} ({}) spans columns [{}, {}) outside Λ_t ({} columns)", v,
+                      blanketKindName(var.kind), var.offset, var.offset + d, n_));
     }
     bool finite = true;
     if (var.kind == BlanketKind::kPose) {
       finite =
           var.T_w_i.unitQuaternion().coeffs().allFinite() && var.T_w_i.translation().allFinite();
     } else if (var.value.size() != d) {
-      return invalid(fmt::format("variable {} ({}) has {} values, expected {}", v,
-                                 blanketKindName(var.kind), var.value.size(), d));
+      return invalidArgument(fmt::format("variable {} ({}) has {} values, expected {}", v,
+                                         blanketKindName(var.kind), var.value.size(), d));
     } else {
       finite = var.value.allFinite();
     }
@@ -137,39 +160,55 @@ Status NfrProblem<Scalar>::setUp(const MatX<Scalar>& Lambda_t, const NfrTopology
                            fmt::format("NFR: variable {} has a non-finite value", v));
     }
     for (int c = var.offset; c < var.offset + d; ++c) {
-      if (owner[c] >= 0) {
-        return invalid(fmt::format("variables {} and {} overlap at column {}", owner[c], v, c));
+      if ((*owner)[c] >= 0) {
+        return invalidArgument(
+            fmt::format("variables {} and {} overlap at column {}", (*owner)[c], v, c));
       }
-      owner[c] = v;
+      (*owner)[c] = v;
     }
   }
   for (int c = 0; c < n_; ++c) {
-    if (owner[c] < 0) return invalid(fmt::format("column {} of Λ_t belongs to no variable", c));
+    if ((*owner)[c] < 0) {
+      return invalidArgument(fmt::format("column {} of Λ_t belongs to no variable", c));
+    }
   }
+  return Status::Ok();
+}
 
-  // Topology: kinds, and H_s square.
+template <typename Scalar>
+Status NfrProblem<Scalar>::checkTopology(const NfrTopology& topology,
+                                         std::vector<int>* unary_of) const {
+  const int n_vars = static_cast<int>(blanket_.size());
   const auto is = [&](int v, BlanketKind kind) {
     return v >= 0 && v < n_vars && blanket_[v].kind == kind;
   };
-  std::vector<int> unary_of(n_vars, -1);
+  unary_of->assign(n_vars, -1);
   int n_rows = 0;
   for (int f = 0; f < static_cast<int>(topology.size()); ++f) {
     const NfrFactorSpec& spec = topology[f];
     if (spec.kind == NfrFactorKind::kUnary) {
       if (spec.var < 0 || spec.var >= n_vars || is(spec.var, BlanketKind::kLandmark)) {
-        return invalid(
+        return invalidArgument(
             fmt::format("factor {}: a unary factor needs a pose, velocity or bias variable, got {}",
                         f, spec.var));
       }
-      if (unary_of[spec.var] >= 0) {
-        return invalid(fmt::format("factors {} and {} are both unary on variable {}",
-                                   unary_of[spec.var], f, spec.var));
+      if ((*unary_of)[spec.var] >= 0) {
+        return invalidArgument(fmt::format("factors {} and {} are both unary on variable {}",
+                                           (*unary_of)[spec.var], f, spec.var));
       }
-      unary_of[spec.var] = f;
+      (*unary_of)[spec.var] = f;
       n_rows += blanketKindDim(blanket_[spec.var].kind);
+    } else if (spec.kind == NfrFactorKind::kRelativePose) {
+      if (!is(spec.var, BlanketKind::kPose) || !is(spec.pose_b, BlanketKind::kPose) ||
+          spec.var == spec.pose_b) {
+        return invalidArgument(fmt::format(
+            "factor {}: a relative-pose factor needs two different poses, got {} and {}", f,
+            spec.var, spec.pose_b));
+      }
+      n_rows += 6;
     } else {
       if (!is(spec.var, BlanketKind::kPose) || !is(spec.landmark, BlanketKind::kLandmark)) {
-        return invalid(fmt::format(
+        return invalidArgument(fmt::format(
             "factor {}: a pose–landmark factor needs a pose and a landmark, got {} and {}", f,
             spec.var, spec.landmark));
       }
@@ -177,36 +216,16 @@ Status NfrProblem<Scalar>::setUp(const MatX<Scalar>& Lambda_t, const NfrTopology
     }
   }
   if (n_rows != n_) {
-    return invalid(fmt::format(
+    return invalidArgument(fmt::format(
         "the topology has {} rows for {} columns; the closed form (eq. 16) needs H_s square",
         n_rows, n_));
   }
+  return Status::Ok();
+}
 
-  // Gauge reference: columns measured by a unary factor, held fixed.
-  std::vector<bool> is_reference(n_, false);
-  for (int c : gauge_reference) {
-    if (c < 0 || c >= n_ || is_reference[c]) {
-      return invalid(fmt::format("gauge reference column {} is out of range or repeated", c));
-    }
-    if (unary_of[owner[c]] < 0) {
-      return invalid(fmt::format(
-          "gauge reference column {} ({} variable {}) is not measured by a unary factor", c,
-          blanketKindName(blanket_[owner[c]].kind), owner[c]));
-    }
-    is_reference[c] = true;
-  }
-  std::vector<int> reduced(n_, -1);
-  std::vector<int> kept;
-  for (int c = 0; c < n_; ++c) {
-    if (!is_reference[c]) {
-      reduced[c] = static_cast<int>(kept.size());
-      kept.push_back(c);
-    }
-  }
-  m_ = static_cast<int>(kept.size());
-  if (m_ == 0) return invalid("every column is a gauge reference");
-
-  // Λ̃_t: positive definite at the rank threshold; Σ̃_t and log det Λ̃_t from its eigenvalues.
+template <typename Scalar>
+Status NfrProblem<Scalar>::factorizeTarget(const MatX<Scalar>& Lambda_t,
+                                           const std::vector<int>& kept) {
   const MatX<Scalar> Lambda_full = Lambda_t.template selfadjointView<Eigen::Lower>();
   const MatX<Scalar> Lambda_red = Lambda_full(kept, kept);
   Eigen::SelfAdjointEigenSolver<MatX<Scalar>> eig(Lambda_red);
@@ -231,44 +250,110 @@ Status NfrProblem<Scalar>::setUp(const MatX<Scalar>& Lambda_t, const NfrTopology
   Sigma_red_ =
       eig.eigenvectors() * lambda.cwiseInverse().asDiagonal() * eig.eigenvectors().transpose();
   log_det_target_ = lambda.array().log().sum();
+  return Status::Ok();
+}
 
-  // The factors linearized at x̄ and their rows of H̃_s.
+// One factor's Jacobian ∂h/∂δ at x̄ over its variables' columns, and its measurement h(x̄).
+template <typename Scalar>
+typename NfrProblem<Scalar>::FactorRows NfrProblem<Scalar>::linearizeFactor(
+    const NfrFactorSpec& spec, const std::vector<bool>& is_reference) const {
+  FactorRows fr;
+  fr.spec = spec;
+  const BlanketVariable<Scalar>& var = blanket_[spec.var];
+  const auto add_cols = [&fr](const BlanketVariable<Scalar>& v) {
+    for (int j = 0; j < blanketKindDim(v.kind); ++j) fr.cols.push_back(v.offset + j);
+  };
+  MatX<Scalar> J_h;
+  add_cols(var);
+  if (spec.kind == NfrFactorKind::kPoseLandmark) {
+    const BlanketVariable<Scalar>& landmark = blanket_[spec.landmark];
+    Mat<Scalar, 3, 6> J_pose;
+    Mat3<Scalar> J_landmark;
+    fr.z.resize(3);  // as in whitenedResidual
+    fr.z.template head<3>() = poseLandmarkResidual<Scalar>(
+        var.T_w_i, Vec3<Scalar>(landmark.value), Vec3<Scalar>::Zero(), &J_pose, &J_landmark);
+    J_h.resize(3, 9);
+    J_h << J_pose, J_landmark;
+    add_cols(landmark);
+    fr.dim = 3;
+    fr.rows = {0, 1, 2};
+  } else if (spec.kind == NfrFactorKind::kRelativePose) {
+    const BlanketVariable<Scalar>& pose_b = blanket_[spec.pose_b];
+    fr.z_pose = var.T_w_i.inverse() * pose_b.T_w_i;
+    Mat<Scalar, 6, 6> J_a, J_b;
+    relativePoseResidual<Scalar>(var.T_w_i, pose_b.T_w_i, fr.z_pose, &J_a, &J_b);
+    J_h.resize(6, 12);
+    J_h << J_a, J_b;
+    add_cols(pose_b);
+    fr.dim = 6;
+    fr.rows = {0, 1, 2, 3, 4, 5};
+  } else {
+    fr.dim = blanketKindDim(var.kind);
+    if (var.kind == BlanketKind::kPose) {
+      fr.z_pose = var.T_w_i;
+      Mat<Scalar, 6, 6> J_pose;
+      posePriorResidual<Scalar>(var.T_w_i, fr.z_pose, &J_pose);  // I at the measurement
+      J_h = J_pose;
+    } else {
+      fr.z = var.value;
+      J_h = MatX<Scalar>::Identity(fr.dim, fr.dim);
+    }
+    for (int j = 0; j < fr.dim; ++j) {
+      if (!is_reference[var.offset + j]) fr.rows.push_back(j);
+    }
+  }
+  fr.J = J_h(fr.rows, Eigen::all);
+  return fr;
+}
+
+template <typename Scalar>
+Status NfrProblem<Scalar>::setUp(const MatX<Scalar>& Lambda_t, const NfrTopology& topology,
+                                 const std::vector<int>& gauge_reference) {
+  n_ = static_cast<int>(Lambda_t.rows());
+  if (Lambda_t.cols() != n_ || n_ == 0) {
+    return invalidArgument(fmt::format("Λ_t is {}x{}, not a non-empty square matrix",
+                                       Lambda_t.rows(), Lambda_t.cols()));
+  }
+  if (!Lambda_t.allFinite()) {
+    return Status::Error(Status::Code::kNotFinite, "NFR: Λ_t has a non-finite entry");
+  }
+  std::vector<int> owner, unary_of;
+  Status status = checkLayout(&owner);
+  if (status.ok()) status = checkTopology(topology, &unary_of);
+  if (!status.ok()) return status;
+
+  // Gauge reference: columns measured by a unary factor, held fixed.
+  std::vector<bool> is_reference(n_, false);
+  for (int c : gauge_reference) {
+    if (c < 0 || c >= n_ || is_reference[c]) {
+      return invalidArgument(
+          fmt::format("gauge reference column {} is out of range or repeated", c));
+    }
+    if (unary_of[owner[c]] < 0) {
+      return invalidArgument(fmt::format(
+          "gauge reference column {} ({} variable {}) is not measured by a unary factor", c,
+          blanketKindName(blanket_[owner[c]].kind), owner[c]));
+    }
+    is_reference[c] = true;
+  }
+  std::vector<int> reduced(n_, -1);
+  std::vector<int> kept;
+  for (int c = 0; c < n_; ++c) {
+    if (!is_reference[c]) {
+      reduced[c] = static_cast<int>(kept.size());
+      kept.push_back(c);
+    }
+  }
+  m_ = static_cast<int>(kept.size());
+  if (m_ == 0) return invalidArgument("every column is a gauge reference");
+  status = factorizeTarget(Lambda_t, kept);
+  if (!status.ok()) return status;
+
+  // The factors linearized at x̄, their rows of H̃_s and C_i = {H̃_s Σ̃_t H̃_sᵀ}^(i).
   MatX<Scalar> H_red = MatX<Scalar>::Zero(m_, m_);
   int row = 0;
   for (const NfrFactorSpec& spec : topology) {
-    FactorRows fr;
-    fr.spec = spec;
-    const BlanketVariable<Scalar>& var = blanket_[spec.var];
-    MatX<Scalar> J_h;
-    if (spec.kind == NfrFactorKind::kPoseLandmark) {
-      const BlanketVariable<Scalar>& landmark = blanket_[spec.landmark];
-      Mat<Scalar, 3, 6> J_pose;
-      Mat3<Scalar> J_landmark;
-      fr.z = poseLandmarkResidual<Scalar>(var.T_w_i, Vec3<Scalar>(landmark.value),
-                                          Vec3<Scalar>::Zero(), &J_pose, &J_landmark);
-      J_h.resize(3, 9);
-      J_h << J_pose, J_landmark;
-      for (int j = 0; j < 6; ++j) fr.cols.push_back(var.offset + j);
-      for (int j = 0; j < 3; ++j) fr.cols.push_back(landmark.offset + j);
-      fr.dim = 3;
-      fr.rows = {0, 1, 2};
-    } else {
-      fr.dim = blanketKindDim(var.kind);
-      if (var.kind == BlanketKind::kPose) {
-        fr.z_pose = var.T_w_i;
-        Mat<Scalar, 6, 6> J_pose;
-        posePriorResidual<Scalar>(var.T_w_i, fr.z_pose, &J_pose);  // I at the measurement
-        J_h = J_pose;
-      } else {
-        fr.z = var.value;
-        J_h = MatX<Scalar>::Identity(fr.dim, fr.dim);
-      }
-      for (int j = 0; j < fr.dim; ++j) {
-        fr.cols.push_back(var.offset + j);
-        if (!is_reference[var.offset + j]) fr.rows.push_back(j);
-      }
-    }
-    fr.J = J_h(fr.rows, Eigen::all);
+    FactorRows fr = linearizeFactor(spec, is_reference);
     std::vector<int> kept_local;
     for (int j = 0; j < static_cast<int>(fr.cols.size()); ++j) {
       if (reduced[fr.cols[j]] >= 0) {
@@ -405,11 +490,12 @@ Sparsification<Scalar> sparsify(const MatX<Scalar>& Lambda_t, const Blanket<Scal
   return NfrProblem<Scalar>(Lambda_t, blanket, topology, gauge_reference).recover();
 }
 
-#define MARGLAB_INST(S)                                                                         \
-  template NfrTopology paperTopology<S>(const Blanket<S>&, int);                                \
-  template struct RecoveredFactor<S>;                                                           \
-  template class NfrProblem<S>;                                                                 \
-  template Sparsification<S> sparsify<S>(const MatX<S>&, const Blanket<S>&, const NfrTopology&, \
+#define MARGLAB_INST(S)                                                                          \
+  template NfrTopology paperTopology<S>(const Blanket<S>&, int);                                 \
+  template NfrTopology relativePoseTopology<S>(const Blanket<S>&, const std::vector<int>&, int); \
+  template struct RecoveredFactor<S>;                                                            \
+  template class NfrProblem<S>;                                                                  \
+  template Sparsification<S> sparsify<S>(const MatX<S>&, const Blanket<S>&, const NfrTopology&,  \
                                          const std::vector<int>&);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST

@@ -18,13 +18,22 @@
 //   unary on v or b   r = v − z,                            ∂r/∂δ = I
 //   pose–landmark     r = Rᵀ(p_w − t) − z,                  ∂r/∂[δt; δφ] = [−Rᵀ  Rᵀ[p_w − t]×],
 //                                                           ∂r/∂p_w = Rᵀ
+//   relative pose     r = [R_aᵀ(t_b − t_a) − t_z; log(R_aᵀ R_b R_zᵀ)]   (h = T_a⁻¹ T_b, z = (R_z,
+//   t_z))
+//                     ∂r/∂[δt_a; δφ_a] = [−R_aᵀ  R_aᵀ[t_b − t_a]×; 0  −Jl⁻¹(e) R_aᵀ],
+//                     ∂r/∂[δt_b; δφ_b] = [ R_aᵀ  0;                 0   Jl⁻¹(e) R_aᵀ]
 // (R' = exp(δφ) R gives R'ᵀa ≈ Rᵀa − Rᵀ[δφ]× a = Rᵀa + Rᵀ[a]× δφ; log(exp(δφ) E) ≈ log E +
-// Jl⁻¹(log E) δφ, so3.h). The measurements are the values at the linearization point,
-// z_i = h_i(x̄): every r_i(x̄) = 0, the sparsified prior has the dense prior's mean μ_s = μ_t = x̄
-// and the mean term of eq. 10 vanishes (as in the paper, the dense prior's gradient at x̄ is not
-// carried over). paperTopology() builds the paper's: a unary factor on every pose, velocity and
-// bias of the blanket and one pose–landmark factor from an anchor pose to every landmark.
-// H_s stacks the factors' Jacobians at x̄ (eq. 13); Λ_r = diag(Λ_r^(i)).
+// Jl⁻¹(log E) δφ, so3.h; R_aᵀ exp(−δφ_a) exp(δφ_b) R_b R_zᵀ ≈ exp(R_aᵀ(δφ_b − δφ_a)) E with
+// e = log E). The relative-pose factor (Mazuran et al.'s pose-graph NFR) is invariant under a rigid
+// motion of the world, like the pose–landmark one. The measurements are the values at the
+// linearization point, z_i = h_i(x̄): every r_i(x̄) = 0, the sparsified prior has the dense prior's
+// mean μ_s = μ_t = x̄ and the mean term of eq. 10 vanishes (as in the paper, the dense prior's
+// gradient at x̄ is not carried over). paperTopology() builds the paper's: a unary factor on every
+// pose, velocity and bias of the blanket and one pose–landmark factor from an anchor pose to every
+// landmark. relativePoseTopology() replaces the unary pose factors by a chain: one unary factor on
+// the anchor pose and a relative-pose factor between consecutive poses — with the pose–landmark
+// factors a tree, so H_s is square and invertible and eq. 16 is its exact optimum. H_s stacks the
+// factors' Jacobians at x̄ (eq. 13); Λ_r = diag(Λ_r^(i)).
 //
 // Recovery (eqs. 14–17). The sparsified information is Λ_s = H_sᵀ Λ_r H_s (eq. 14), and the KLD
 //   D(Λ_r) = KL(N(x̄, Σ_t) ‖ N(x̄, Λ_s⁻¹)) = ½ (⟨Λ_s, Σ_t⟩ − log det Λ_s + log det Λ_t − n)
@@ -94,11 +103,12 @@ struct BlanketVariable {
 template <typename Scalar>
 using Blanket = std::vector<BlanketVariable<Scalar>>;
 
-enum class NfrFactorKind : int { kUnary = 0, kPoseLandmark = 1 };
+enum class NfrFactorKind : int { kUnary = 0, kPoseLandmark = 1, kRelativePose = 2 };
 struct NfrFactorSpec {
   NfrFactorKind kind = NfrFactorKind::kUnary;
-  int var = -1;       // index in the blanket: the measured variable (unary) or the pose
+  int var = -1;       // index in the blanket: the measured variable (unary), the pose, or pose a
   int landmark = -1;  // kPoseLandmark: index of the landmark in the blanket
+  int pose_b = -1;    // kRelativePose: index of pose b (h = T_a⁻¹ T_b, a = var)
 };
 using NfrTopology = std::vector<NfrFactorSpec>;
 
@@ -106,6 +116,14 @@ using NfrTopology = std::vector<NfrFactorSpec>;
 // order, then one pose–landmark factor from anchor_pose (a blanket index) to every landmark.
 template <typename Scalar>
 NfrTopology paperTopology(const Blanket<Scalar>& blanket, int anchor_pose);
+
+// Relative-pose topology (Mazuran et al.'s pose-graph NFR, Hsiung et al. §IV-B topology): a unary
+// factor on anchor_pose, a relative-pose factor between consecutive entries of pose_chain (blanket
+// indices of every pose, in time order; anchor_pose among them), unary factors on every velocity
+// and bias, then one pose–landmark factor from anchor_pose to every landmark.
+template <typename Scalar>
+NfrTopology relativePoseTopology(const Blanket<Scalar>& blanket, const std::vector<int>& pose_chain,
+                                 int anchor_pose);
 
 // Gauge references of a pose whose columns start at pose_offset: VIO position and δφ_z (yaw about
 // the gravity axis z of the world), VO all 6 dof.
@@ -140,6 +158,34 @@ inline Vec3<Scalar> poseLandmarkResidual(const SE3<Scalar>& T_w_i, const Vec3<Sc
   return R_i_w * d_w - z;
 }
 
+template <typename Scalar>
+inline Vec<Scalar, 6> relativePoseResidual(const SE3<Scalar>& T_w_a, const SE3<Scalar>& T_w_b,
+                                           const SE3<Scalar>& z, Mat<Scalar, 6, 6>* J_a = nullptr,
+                                           Mat<Scalar, 6, 6>* J_b = nullptr) {
+  const Mat3<Scalar> R_a_w = T_w_a.rotationMatrix().transpose();
+  const Vec3<Scalar> d_w = T_w_b.translation() - T_w_a.translation();
+  Vec<Scalar, 6> r;
+  r.template head<3>() = R_a_w * d_w - z.translation();
+  r.template tail<3>() = logSO3<Scalar>(T_w_a.unitQuaternion().conjugate() *
+                                        T_w_b.unitQuaternion() * z.unitQuaternion().conjugate());
+  if (J_a || J_b) {
+    const Mat3<Scalar> D_phi =
+        leftJacobianInvSO3<Scalar>(Vec3<Scalar>(r.template tail<3>())) * R_a_w;
+    if (J_a) {
+      J_a->setZero();
+      J_a->template topLeftCorner<3, 3>() = -R_a_w;
+      J_a->template topRightCorner<3, 3>() = R_a_w * hat(d_w);
+      J_a->template bottomRightCorner<3, 3>() = -D_phi;
+    }
+    if (J_b) {
+      J_b->setZero();
+      J_b->template topLeftCorner<3, 3>() = R_a_w;
+      J_b->template bottomRightCorner<3, 3>() = D_phi;
+    }
+  }
+  return r;
+}
+
 // One recovered factor, ready to be inserted as a nonlinear residual.
 template <typename Scalar>
 struct RecoveredFactor {
@@ -147,11 +193,12 @@ struct RecoveredFactor {
   std::vector<int> rows;          // measured components of h (all but gauge-reference ones)
   MatX<Scalar> information;       // Λ_r^(i) over `rows` (eq. 16)
   MatX<Scalar> sqrt_information;  // W_i S_i, |rows| × dim h: its Gram matrix is S_iᵀ Λ_r^(i) S_i
-  SE3<Scalar> z_pose;             // measurement of a unary pose factor
+  SE3<Scalar> z_pose;             // measurement of a unary pose or relative-pose factor
   VecX<Scalar> z;                 // measurement of the other factors
 
   // W_i S_i (h(x) ⊟ z) at the blanket values x — the layout of the recovery, values may differ —
-  // and, if J is given, its Jacobian w.r.t. the ⊞ increments of [spec.var | spec.landmark].
+  // and, if J is given, its Jacobian w.r.t. the ⊞ increments of [spec.var | spec.landmark] or
+  // [spec.var | spec.pose_b].
   VecX<Scalar> whitenedResidual(const Blanket<Scalar>& x, MatX<Scalar>* J = nullptr) const;
 };
 
@@ -208,6 +255,14 @@ class NfrProblem {
 
   Status setUp(const MatX<Scalar>& Lambda_t, const NfrTopology& topology,
                const std::vector<int>& gauge_reference);
+  // owner[c]: the variable of column c; every column exactly one.
+  Status checkLayout(std::vector<int>* owner) const;
+  // Kinds of every factor and H_s square; unary_of[v]: the unary factor on variable v, or −1.
+  Status checkTopology(const NfrTopology& topology, std::vector<int>* unary_of) const;
+  // Λ̃_t = Λ_t(kept, kept) positive definite at the rank threshold; Σ̃_t and log det Λ̃_t.
+  Status factorizeTarget(const MatX<Scalar>& Lambda_t, const std::vector<int>& kept);
+  FactorRows linearizeFactor(const NfrFactorSpec& spec,
+                             const std::vector<bool>& is_reference) const;
   bool fits(const std::vector<MatX<Scalar>>& Lambda_r) const;
 
   Blanket<Scalar> blanket_;

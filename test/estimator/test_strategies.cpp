@@ -1,7 +1,8 @@
-// The keyframe marginalization strategies (Hsiung et al., IROS 2018; config marginalization.strategy)
-// through the estimator's public interface on noise-free MH_01: `dense` keeps the estimate of a
-// batch solve over the same measurements, `nfr` replaces every dense prior by recovered factors
-// with a finite, non-negative KLD and fewer non-zeros, and the strategy is a validated config key.
+// The keyframe marginalization strategies (Hsiung et al., IROS 2018; config
+// marginalization.strategy) through the estimator's public interface on noise-free MH_01: `dense`
+// keeps the estimate of a batch solve over the same measurements, `nfr` replaces every dense prior
+// by recovered factors with a finite, non-negative KLD and fewer non-zeros, and the strategy is a
+// validated config key.
 
 #include <gtest/gtest.h>
 
@@ -141,7 +142,7 @@ void expectRecoveredEvents(const Variant& variant, double max_position_error_m,
     EXPECT_GE(event.kld, 0.0);
     EXPECT_LT(event.nnz_sparse, event.nnz_dense);
     // The factors replace the prior (joint-states: all but the joint state factor).
-    if (topology == SparsifyTopology::kPaper) {
+    if (topology != SparsifyTopology::kJointStates) {
       EXPECT_TRUE(estimator.prior().empty());
     } else {
       EXPECT_FALSE(estimator.prior().empty());
@@ -169,6 +170,15 @@ TEST(NfrStrategy, JointStatesTopologyQrF64) {
 TEST(NfrStrategy, JointStatesTopologySchurF64) {
   expectRecoveredEvents<double>(Variant::parse("sc-sc-sq-f64"), 0.01,
                                 SparsifyTopology::kJointStates);
+}
+
+TEST(NfrStrategy, RelativePoseTopologyQrF64) {
+  expectRecoveredEvents<double>(Variant::parse("ns-qr-sqrt-f64"), 0.01,
+                                SparsifyTopology::kRelativePose);
+}
+TEST(NfrStrategy, RelativePoseTopologySchurF64) {
+  expectRecoveredEvents<double>(Variant::parse("sc-sc-sq-f64"), 0.01,
+                                SparsifyTopology::kRelativePose);
 }
 
 // On the same dense prior (the first keyframe event: both runs are identical until then) the joint
@@ -206,6 +216,17 @@ TEST(MargStrategyConfig, IsAValidatedConfigKey) {
   EXPECT_EQ(round_trip.marg_strategy, MargStrategy::kNfr);
   config.loadTomlString("[marginalization]\nnfr_topology = \"joint-states\"\n", "test.toml");
   EXPECT_EQ(config.nfr_topology, SparsifyTopology::kJointStates);
+  config.loadTomlString("[marginalization]\nnfr_topology = \"relative-pose\"\n", "test.toml");
+  EXPECT_EQ(config.nfr_topology, SparsifyTopology::kRelativePose);
+  round_trip.loadTomlString(config.toToml(), "round_trip.toml");
+  EXPECT_EQ(round_trip.nfr_topology, SparsifyTopology::kRelativePose);
+  try {
+    config.loadTomlString("[marginalization]\nnfr_topology = \"tree\"\n", "bad.toml");
+    FAIL() << "an unknown topology was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.toml:2"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("relative-pose"), std::string::npos) << e.what();
+  }
   try {
     config.loadTomlString("[marginalization]\n\nstrategy = \"sparse\"\n", "bad.toml");
     FAIL() << "an unknown strategy was accepted";

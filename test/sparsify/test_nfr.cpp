@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <tuple>
 #include <vector>
 
 #include "core/sparsify/nfr.h"
@@ -125,7 +126,16 @@ std::vector<MatXd> factorJacobians(const Blanket<double>& x, const NfrTopology& 
   std::vector<MatXd> out;
   for (const NfrFactorSpec& spec : topology) {
     const BlanketVariable<double>& var = x[spec.var];
-    if (spec.kind == NfrFactorKind::kPoseLandmark) {
+    if (spec.kind == NfrFactorKind::kRelativePose) {
+      const BlanketVariable<double>& pose_b = x[spec.pose_b];
+      Mat<double, 6, 6> J_a, J_b;
+      relativePoseResidual<double>(var.T_w_i, pose_b.T_w_i, var.T_w_i.inverse() * pose_b.T_w_i,
+                                   &J_a, &J_b);
+      MatXd J = MatXd::Zero(6, n);
+      J.middleCols(var.offset, 6) = J_a;
+      J.middleCols(pose_b.offset, 6) = J_b;
+      out.push_back(J);
+    } else if (spec.kind == NfrFactorKind::kPoseLandmark) {
       Mat<double, 3, 6> J_pose;
       Eigen::Matrix3d J_landmark;
       poseLandmarkResidual<double>(var.T_w_i, x[spec.landmark].value, Eigen::Vector3d::Zero(),
@@ -158,6 +168,130 @@ MatXd sumOfFactors(std::mt19937_64& rng, const std::vector<MatXd>& J, std::vecto
     Lambda += J_i.transpose() * A->back() * J_i;
   }
   return Lambda;
+}
+
+// A blanket of keyframe poses (rotation vectors phis, columns 6k), the velocity and bias of the
+// newest one, and n_landmarks world points 2–6 m from it: the layout of the estimator's blankets.
+Blanket<double> posesWithLandmarks(std::mt19937_64& rng, const std::vector<Eigen::Vector3d>& phis,
+                                   int n_landmarks) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uniform_real_distribution<double> range(2.0, 6.0);
+  Blanket<double> x;
+  int offset = 0;
+  for (size_t k = 0; k < phis.size(); ++k) {
+    BlanketVariable<double> pose;
+    pose.kind = BlanketKind::kPose;
+    pose.offset = offset;
+    pose.T_w_i = SE3d(expSO3<double>(phis[k]),
+                      Eigen::Vector3d(0.7 * double(k), -0.3, 0.2) + 0.1 * gaussian(rng, 3, 1));
+    x.push_back(pose);
+    offset += 6;
+  }
+  BlanketVariable<double> velocity;
+  velocity.kind = BlanketKind::kVelocity;
+  velocity.offset = offset;
+  velocity.value = Eigen::Vector3d(0.8, -0.3, 0.1);
+  x.push_back(velocity);
+  BlanketVariable<double> bias;
+  bias.kind = BlanketKind::kBias;
+  bias.offset = offset + 3;
+  bias.value = 0.01 * gaussian(rng, 6, 1);
+  x.push_back(bias);
+  offset += 9;
+  const Eigen::Vector3d t_newest = x[phis.size() - 1].T_w_i.translation();
+  for (int j = 0; j < n_landmarks; ++j) {
+    BlanketVariable<double> landmark;
+    landmark.kind = BlanketKind::kLandmark;
+    landmark.offset = offset + 3 * j;
+    landmark.value = t_newest + range(rng) * gaussian(rng, 3, 1).normalized();
+    x.push_back(landmark);
+  }
+  return x;
+}
+
+// The relative-pose topology over posesWithLandmarks: the chain in blanket order, the anchor the
+// newest pose.
+NfrTopology chainTopology(const Blanket<double>& x, int n_poses) {
+  std::vector<int> chain(static_cast<size_t>(n_poses));
+  for (int k = 0; k < n_poses; ++k) chain[static_cast<size_t>(k)] = k;
+  return relativePoseTopology(x, chain, n_poses - 1);
+}
+
+// Rotations of the chain tests: at 0, near π and π, and generic.
+std::vector<Eigen::Vector3d> chainRotations() {
+  return {Eigen::Vector3d::Zero(), (M_PI - 1e-3) * Eigen::Vector3d(1, 2, -1).normalized(),
+          M_PI * Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0.3, -0.2, 1.1)};
+}
+
+// A gauge-free prior over posesWithLandmarks: relative-pose factors between every pair of poses,
+// pose–landmark factors from every pose, gravity-direction factors Rᵀg, the newest pose's
+// body-frame velocity Rᵀv and its bias — all invariant under translations and yaw, so the
+// nullspace is the VIO gauge; the topology cannot represent it (landmarks seen from every pose,
+// the velocity in the body frame, every pair of poses linked).
+MatXd gaugeFreeChainPrior(std::mt19937_64& rng, const Blanket<double>& x, int n_poses) {
+  const int n = blanketDim(x);
+  MatXd H = MatXd::Zero(n, n);
+  const auto add = [&](const MatXd& J) {
+    H += J.transpose() * randomSpd(rng, static_cast<int>(J.rows()), 10.0) * J;
+  };
+  for (int a = 0; a < n_poses; ++a) {
+    for (int b = a + 1; b < n_poses; ++b) {
+      add(factorJacobians(x, {{NfrFactorKind::kRelativePose, a, -1, b}})[0]);
+    }
+    for (int v = 0; v < static_cast<int>(x.size()); ++v) {
+      if (x[v].kind == BlanketKind::kLandmark) {
+        add(factorJacobians(x, {{NfrFactorKind::kPoseLandmark, a, v, -1}})[0]);
+      }
+    }
+    MatXd J = MatXd::Zero(3, n);
+    J.middleCols(x[a].offset + 3, 3) =
+        x[a].T_w_i.rotationMatrix().transpose() * hat<double>(Eigen::Vector3d(0, 0, -1));
+    add(J);
+  }
+  const BlanketVariable<double>& newest = x[n_poses - 1];
+  const Eigen::Matrix3d R_i_w = newest.T_w_i.rotationMatrix().transpose();
+  MatXd J_v = MatXd::Zero(3, n);
+  J_v.middleCols(newest.offset + 3, 3) = R_i_w * hat<double>(x[n_poses].value);
+  J_v.middleCols(x[n_poses].offset, 3) = R_i_w;
+  add(J_v);
+  MatXd J_b = MatXd::Zero(6, n);
+  J_b.middleCols(x[n_poses + 1].offset, 6).setIdentity();
+  add(J_b);
+  return H;
+}
+
+// Independent optimum of a tree topology (H_s square): in the measurement coordinates y = H_s δx
+// the target has covariance Σ_y = H_s Σ_t H_sᵀ, the factors make the blocks of y independent, so
+// Λ_r^(i) = (Σ_y^(ii))⁻¹ and D is the total correlation ½ (Σ_i log det Σ_y^(ii) − log det Σ_y).
+// Dense inverse and LU determinants in double over the non-reference columns; the unary rows of a
+// reference coordinate are dropped as in nfr.h.
+struct TreeOptimum {
+  std::vector<MatXd> information;
+  double kld = 0;
+};
+TreeOptimum treeOptimum(const MatXd& Lambda_t, const Blanket<double>& x,
+                        const NfrTopology& topology, const std::vector<int>& reference) {
+  std::vector<int> kept;
+  for (int c = 0; c < blanketDim(x); ++c) {
+    if (std::find(reference.begin(), reference.end(), c) == reference.end()) kept.push_back(c);
+  }
+  const std::vector<MatXd> J = factorJacobians(x, topology, reference);
+  MatXd H(0, static_cast<Eigen::Index>(kept.size()));
+  for (const MatXd& J_i : J) {
+    H.conservativeResize(H.rows() + J_i.rows(), Eigen::NoChange);
+    H.bottomRows(J_i.rows()) = J_i(Eigen::all, kept);
+  }
+  const MatXd Sigma_y = H * MatXd(Lambda_t(kept, kept)).inverse() * H.transpose();
+  TreeOptimum out;
+  out.kld = -0.5 * std::log(Sigma_y.determinant());
+  Eigen::Index row = 0;
+  for (const MatXd& J_i : J) {
+    const MatXd block = Sigma_y.block(row, row, J_i.rows(), J_i.rows());
+    out.information.push_back(block.inverse());
+    out.kld += 0.5 * std::log(block.determinant());
+    row += J_i.rows();
+  }
+  return out;
 }
 
 // A gauge-free dense prior over the blanket of imuStateWithLandmarks: pose–landmark factors from
@@ -537,19 +671,14 @@ TYPED_TEST(NfrTest, RecoversAReducedTopologyPriorGivenAReference) {
   expectExactRecovery(sp, A, Lambda_t, tol);
 }
 
-// The square-root factors: zero residuals at x̄ whose Jacobians give Λ_s = Σ J_iᵀ J_i, and
+// The square-root factors of sp: zero residuals at x̄ whose Jacobians give Λ_s = Σ J_iᵀ J_i, and
 // Jacobians of W S (h(x) ⊟ z) equal to central differences at a state 0.1–0.2 away from x̄.
-TYPED_TEST(NfrTest, SquareRootFactorsReproduceTheSparseInformation) {
-  using S = TypeParam;
-  std::mt19937_64 rng(17);
-  const Blanket<double> x = imuStateWithLandmarks(rng, Eigen::Vector3d(2.0, -1.0, 0.5), 3);
+template <typename S>
+void expectSquareRootFactors(std::mt19937_64& rng, const Blanket<double>& x,
+                             const Sparsification<S>& sp) {
+  ASSERT_TRUE(sp.status.ok()) << sp.status.toString();
   const int n = blanketDim(x);
   const Blanket<S> x_s = castBlanket<S>(x);
-  const MatXd Lambda_t = gaugeFreePrior(rng, x);
-  const Sparsification<S> sp =
-      sparsify<S>(Lambda_t.cast<S>(), x_s, paperTopology(x, 0), vioGaugeReference(0));
-  ASSERT_TRUE(sp.status.ok()) << sp.status.toString();
-
   Blanket<S> x_moved = x_s;
   for (auto& v : x_moved) {
     const Vec<S, 6> d = (0.1 * gaussian(rng, 6, 1)).cast<S>();
@@ -562,7 +691,7 @@ TYPED_TEST(NfrTest, SquareRootFactorsReproduceTheSparseInformation) {
   MatXd Lambda_from_sqrt = MatXd::Zero(n, n);
   for (const RecoveredFactor<S>& f : sp.factors) {
     std::vector<int> cols;
-    for (int v : {f.spec.var, f.spec.landmark}) {
+    for (int v : {f.spec.var, f.spec.landmark, f.spec.pose_b}) {
       if (v < 0) continue;
       for (int k = 0; k < blanketKindDim(x[v].kind); ++k) cols.push_back(x[v].offset + k);
     }
@@ -575,7 +704,7 @@ TYPED_TEST(NfrTest, SquareRootFactorsReproduceTheSparseInformation) {
     const auto residual_at = [&](const VecX<S>& delta) {
       Blanket<S> x_d = x_moved;
       int k = 0;
-      for (int v : {f.spec.var, f.spec.landmark}) {
+      for (int v : {f.spec.var, f.spec.landmark, f.spec.pose_b}) {
         if (v < 0) continue;
         const int dim = blanketKindDim(x[v].kind);
         if (x[v].kind == BlanketKind::kPose) {
@@ -602,6 +731,24 @@ TYPED_TEST(NfrTest, SquareRootFactorsReproduceTheSparseInformation) {
   }
   const MatXd Lambda_s = sp.Lambda_s.template cast<double>();
   EXPECT_LE(relError(Lambda_from_sqrt, Lambda_s), 100 * n * eps<S>());
+}
+
+// The square-root form of the paper topology (a gauge-free prior, with a reference) and of the
+// relative-pose topology (its pose chain at rotations up to π).
+TYPED_TEST(NfrTest, SquareRootFactorsReproduceTheSparseInformation) {
+  using S = TypeParam;
+  std::mt19937_64 rng(17);
+  const Blanket<double> x = imuStateWithLandmarks(rng, Eigen::Vector3d(2.0, -1.0, 0.5), 3);
+  const MatXd Lambda_t = gaugeFreePrior(rng, x);
+  expectSquareRootFactors<S>(rng, x,
+                             sparsify<S>(Lambda_t.cast<S>(), castBlanket<S>(x), paperTopology(x, 0),
+                                         vioGaugeReference(0)));
+  const Blanket<double> chain = posesWithLandmarks(rng, chainRotations(), 3);
+  const MatXd Lambda_chain = gaugeFreeChainPrior(rng, chain, 4);
+  expectSquareRootFactors<S>(
+      rng, chain,
+      sparsify<S>(Lambda_chain.cast<S>(), castBlanket<S>(chain), chainTopology(chain, 4),
+                  vioGaugeReference(chain[3].offset)));
 }
 
 TYPED_TEST(NfrTest, BadInputIsAStatus) {
@@ -642,10 +789,139 @@ TYPED_TEST(NfrTest, BadInputIsAStatus) {
       {NfrFactorKind::kPoseLandmark, 0, 3}, {NfrFactorKind::kPoseLandmark, 0, 3},
       {NfrFactorKind::kPoseLandmark, 0, 4}, {NfrFactorKind::kPoseLandmark, 0, 4}};
   EXPECT_EQ(code(Lambda_t, x_s, singular), Code::kRankDeficient);
+  // A relative-pose factor needs two different poses.
+  const NfrTopology relative_to_itself = {{NfrFactorKind::kRelativePose, 0, -1, 0}};
+  EXPECT_EQ(code(Lambda_t, x_s, relative_to_itself), Code::kInvalidArgument);
+  const NfrTopology relative_to_landmark = {{NfrFactorKind::kRelativePose, 0, -1, 3}};
+  EXPECT_EQ(code(Lambda_t, x_s, relative_to_landmark), Code::kInvalidArgument);
   const Sparsification<S> failed = sparsify<S>(Lambda_t, x_s, missing);
   EXPECT_FALSE(failed.status.ok());
   EXPECT_TRUE(failed.factors.empty());
   EXPECT_TRUE(std::isnan(failed.kld));
+}
+
+// r = [R_aᵀ(t_b − t_a) − t_z; log(R_aᵀ R_b R_zᵀ)] at every pair of hard rotations (z 0.4 rad
+// away), and with the residual rotation itself at 0 … π − 0.1. |r| ≤ 8 and the third derivatives
+// ≲ |t_b − t_a| + 1 ≈ 5 for these inputs.
+TYPED_TEST(NfrTest, RelativePoseJacobiansMatchCentralDifferences) {
+  using S = TypeParam;
+  const Vec3<S> t_a(S(1), S(-2), S(0.5)), t_b(S(3), S(1), S(-1));
+  Vec<S, 6> offset;
+  offset << S(0.1), S(-0.2), S(0.05), S(0.2), S(-0.1), S(0.3);
+  std::vector<std::tuple<SE3<S>, SE3<S>, SE3<S>>> cases;  // (T_a, T_b, z)
+  const std::vector<Vec3<S>> phis = test::hardRotationVectors<S>();
+  for (size_t i = 0; i < phis.size(); ++i) {
+    const SE3<S> T_a(expSO3<S>(phis[i]), t_a);
+    const SE3<S> T_b(expSO3<S>(phis[phis.size() - 1 - i]), t_b);
+    cases.emplace_back(T_a, T_b, boxPlus(SE3<S>(T_a.inverse() * T_b), offset));
+  }
+  const Vec3<S> axis = Vec3<S>(S(0.3), S(-0.5), S(0.8)).normalized();
+  const SE3<S> T_a(expSO3<S>(Vec3<S>(S(0.4), S(1.0), S(-0.2))), t_a);
+  const SE3<S> T_b(expSO3<S>(Vec3<S>(S(-2.0), S(0.5), S(1.0))), t_b);
+  for (double theta : {0.0, double(test::tinyAngle<S>()), 1e-3, 0.5, 1.0, 2.0, 3.0, M_PI - 0.1}) {
+    // log(R_aᵀ R_b R_zᵀ) = θ axis.
+    const Mat3<S> R_z = expSO3<S>(Vec3<S>(S(theta) * axis)).transpose() *
+                        T_a.rotationMatrix().transpose() * T_b.rotationMatrix();
+    cases.emplace_back(T_a, T_b, SE3<S>(R_z, Vec3<S>(S(0.2), S(0.1), S(-0.3))));
+  }
+  for (const auto& [T_a_i, T_b_i, z] : cases) {
+    Mat<S, 6, 6> J_a, J_b;
+    relativePoseResidual<S>(T_a_i, T_b_i, z, &J_a, &J_b);
+    const auto f = [&](const Vec<S, 12>& d) -> Vec<S, 6> {
+      return relativePoseResidual<S>(boxPlus(T_a_i, Vec<S, 6>(d.template head<6>())),
+                                     boxPlus(T_b_i, Vec<S, 6>(d.template tail<6>())), z);
+    };
+    Mat<S, 6, 12> J;
+    J << J_a, J_b;
+    const Mat<S, 6, 12> J_fd = test::fdJacobian<S, 6, 12>(f, Vec<S, 12>::Zero().eval());
+    EXPECT_TRUE(test::matricesNear(J, J_fd, test::fdTolerance<S>(S(8), S(5))))
+        << "θ_a = " << logSO3<S>(T_a_i.unitQuaternion()).norm()
+        << ", |r_φ| = " << relativePoseResidual<S>(T_a_i, T_b_i, z).template tail<3>().norm();
+  }
+}
+
+// Λ_t = Σ H_iᵀ A_i H_i over the relative-pose topology (poses at 0, near π, π and generic): eq. 16
+// returns every A_i, Λ_s = Λ_t and D = 0 — full rank, and rank-deficient with the gauge held by a
+// reference (the anchor's unary factor on roll and pitch only: Λ_t has rank n − 4).
+TYPED_TEST(NfrTest, RelativePoseTopologyRecoversASumOfItsFactors) {
+  using S = TypeParam;
+  std::mt19937_64 rng(19);
+  const Blanket<double> x = posesWithLandmarks(rng, chainRotations(), 4);
+  const NfrTopology topology = chainTopology(x, 4);
+  for (const std::vector<int>& reference : {std::vector<int>{}, vioGaugeReference(x[3].offset)}) {
+    std::vector<MatXd> A;
+    const MatXd Lambda_t = sumOfFactors(rng, factorJacobians(x, topology, reference), &A);
+    const NfrProblem<S> problem(Lambda_t.cast<S>(), castBlanket<S>(x), topology, reference);
+    ASSERT_TRUE(problem.status().ok()) << problem.status().toString();
+    const Sparsification<S> sp = problem.recover();
+    ASSERT_TRUE(sp.status.ok()) << sp.status.toString();
+    std::vector<int> kept;
+    for (int c = 0; c < blanketDim(x); ++c) {
+      if (std::find(reference.begin(), reference.end(), c) == reference.end()) kept.push_back(c);
+    }
+    const int m = problem.reducedDim();
+    EXPECT_EQ(m, blanketDim(x) - static_cast<int>(reference.size()));
+    const double tol = 100 * m * eps<S>() * conditionNumber(Lambda_t(kept, kept));
+    expectExactRecovery(sp, A, Lambda_t, tol);
+  }
+}
+
+// Priors the relative-pose topology cannot represent — a generic dense one and the gauge-free
+// chain prior (nullspace x, y, z, yaw) with the anchor's position and yaw held — against the
+// tree's optimum computed independently (treeOptimum: dense inverse, block marginals, LU
+// determinants): the same Λ_r^(i) and D, D > 0, the gradient of eq. 17 zero. The gauge-free
+// prior is refused without a reference, and Λ_s keeps the translation gauge in its nullspace
+// (the relative-pose and pose–landmark factors are invariant under a rigid motion).
+TYPED_TEST(NfrTest, RelativePoseTopologyIsTheTreeOptimum) {
+  using S = TypeParam;
+  std::mt19937_64 rng(20);
+  const Blanket<double> x = posesWithLandmarks(rng, chainRotations(), 3);
+  const int n = blanketDim(x);
+  const NfrTopology topology = chainTopology(x, 4);
+  const MatXd gauge_free = gaugeFreeChainPrior(rng, x, 4);
+  const MatXd N = gaugeBasis(x);
+  ASSERT_LE((gauge_free * N).norm(), 1e-12 * gauge_free.norm() * N.norm());  // the construction
+  const NfrProblem<S> no_reference(gauge_free.cast<S>(), castBlanket<S>(x), topology);
+  EXPECT_EQ(no_reference.status().code(), Status::Code::kRankDeficient);
+
+  const std::vector<int> reference = vioGaugeReference(x[3].offset);
+  for (const bool gauge : {false, true}) {
+    const MatXd Lambda_t = gauge ? gauge_free : randomSpd(rng, n, 100.0);
+    const std::vector<int> ref = gauge ? reference : std::vector<int>{};
+    const NfrProblem<S> problem(Lambda_t.cast<S>(), castBlanket<S>(x), topology, ref);
+    ASSERT_TRUE(problem.status().ok()) << problem.status().toString();
+    const Sparsification<S> sp = problem.recover();
+    ASSERT_TRUE(sp.status.ok()) << sp.status.toString();
+    std::vector<int> kept;
+    for (int c = 0; c < n; ++c) {
+      if (std::find(ref.begin(), ref.end(), c) == ref.end()) kept.push_back(c);
+    }
+    const MatXd Lambda_s = sp.Lambda_s.template cast<double>();
+    const int m = problem.reducedDim();
+    const double tol = 100 * m * eps<S>() *
+                       std::max(conditionNumber(Lambda_t(kept, kept)),
+                                conditionNumber(MatXd(Lambda_s(kept, kept))));
+    const TreeOptimum expected = treeOptimum(Lambda_t, x, topology, ref);
+    ASSERT_EQ(sp.factors.size(), expected.information.size());
+    for (size_t i = 0; i < sp.factors.size(); ++i) {
+      EXPECT_LE(
+          relError(sp.factors[i].information.template cast<double>(), expected.information[i]), tol)
+          << "factor " << i << (gauge ? ", gauge-free" : "");
+    }
+    EXPECT_NEAR(double(sp.kld), expected.kld, tol) << (gauge ? "gauge-free" : "");
+    EXPECT_GT(double(sp.kld), tol);
+
+    const std::vector<MatX<S>> Lambda_r = informationBlocks(sp);
+    std::vector<MatX<S>> G;
+    ASSERT_TRUE(problem.kldGradient(Lambda_r, &G).ok());
+    for (size_t i = 0; i < G.size(); ++i) {
+      const double scale = (Lambda_r[i].inverse()).template cast<double>().norm();
+      EXPECT_LE(G[i].template cast<double>().norm(), tol * scale) << "factor " << i;
+    }
+    if (gauge) {
+      EXPECT_LE((Lambda_s * N.leftCols(3)).norm(), tol * Lambda_s.norm() * N.leftCols(3).norm());
+    }
+  }
 }
 
 }  // namespace
