@@ -2,12 +2,14 @@
 """What the simulator assumes, measured on a track stream at a run's converged estimate.
 
 For each source (real image tracks, simulated tracks) the script reads the track file (HDF5,
-core/sim/track_io.h), the run's results file (its /frames p_est, q_est: the estimate of each frame
-right after its optimization) and the stereo calibration (EuRoC mav0/cam*/sensor.yaml: T_BS and
-the pinhole intrinsics of the undistorted image the tracks are in). Each track's landmark is
-triangulated at the run's poses (Gauss-Newton on all its cam0 and cam1 pixels, Huber-weighted so
-that a wrong association does not drag the point), and the residuals r = uv - pi(T_w_c^-1 p_w)
-give:
+core/sim/track_io.h), the run's results file (its frames; with --gt their ground-truth poses, else
+its /frames p_est, q_est) and the stereo calibration (EuRoC mav0/cam*/sensor.yaml: T_BS and the
+pinhole intrinsics of the undistorted image the tracks are in). Each track's landmark is
+triangulated at those poses (Gauss-Newton on all its cam0 and cam1 pixels, Huber-weighted so that
+a wrong association does not drag the point); --refine-poses rounds then refine each frame's pose
+on its pixels and re-triangulate (a bundle adjustment by blocks: the converged estimate), so that
+the poses' own error (mocap noise; the VIO estimate's yaw drift) is not counted as front-end
+noise. The residuals r = uv - pi(T_w_c^-1 p_w) give:
   residuals   quantiles of |r| per coordinate and of the norm, robust sigma (1.4826 MAD), excess
               kurtosis, a Student-t fit (nu, scale) against a Gaussian (log-likelihood);
   outliers    share of observations whose cam0 or cam1 residual norm exceeds --outlier-px;
@@ -448,7 +450,8 @@ def source_stats(name, tracks_path, run_path, rig, args):
     if len(res["tid"]) == 0:
         fail(f"{tracks_path}: no track with three or more pixels at the run's frames")
     out = {"source": name, "tracks_file": tracks_path, "run_file": run_path,
-           "poses": f"ground truth {args.gt}" if args.gt else "the run's per-frame estimate"}
+           "poses": f"the ground truth ({args.gt})" if args.gt else "the run's per-frame estimate",
+           "pose_refinement_rounds": args.refine_poses}
     out.update(track_stats(tracks, run[0]))
     out["depth_m"] = distribution(res["depth"])
     out["residuals"] = residual_stats(res, outlier_px)
@@ -546,8 +549,9 @@ def markdown(sources, command, profile):
         "# Front-end statistics at the converged estimate", "",
         f"`{command}`", "",
         "Residuals r = uv − π(T_w_c⁻¹ p_w) of every pixel (cam0, and cam1 where matched) at the "
-        "run's per-frame estimate, each track's landmark triangulated at those poses "
-        "(Huber-IRLS, 1 px; scaled by √(m/(m−3)) for the 3 fitted landmark dof). Outlier: cam0 or "
+        f"converged estimate: poses from {sources[0]['poses']}, refined per frame alternately "
+        "with the landmarks (each triangulated by Huber-IRLS, 1 px; residuals scaled by "
+        "√(m/(m−3)) for the 3 fitted landmark dof). Outlier: cam0 or "
         f"cam1 residual norm above {sources[0]['residuals']['outlier_px']:g} px. Drift: "
         "E[(r(k+L) − r(k))²] per coordinate = 2 s_w² + q L over lags L = 1..20 (cam0 inliers).",
         "", "| measure | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names),
