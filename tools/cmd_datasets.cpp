@@ -3,7 +3,8 @@
 //   marglab datasets list                   table of the shipped sequences
 //   marglab datasets check [--all | SEQ...]  load + validate, one line per sequence; exit 1 on
 //   error
-//   marglab datasets simulate --dataset SEQ [--seed S] [--frames N] [--no-noise] -o FILE
+//   marglab datasets simulate --dataset SEQ [--seed S] [--frames N] [--no-noise]
+//                             [--profile ideal|realistic] -o FILE
 //                                           simulated stereo tracks along the GT spline -> track
 //                                           file (.h5 / .hdf5: HDF5, else text) + statistics
 //   marglab datasets track --dataset PATH [--frames N] [--passes P] -o FILE
@@ -24,6 +25,7 @@
 #include "core/data/sequence.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/feature_tracker.h"
+#include "core/sim/sim_profile.h"
 #include "core/sim/track_io.h"
 #include "core/sim/trajectory_spline.h"
 #include "tools/command.h"
@@ -133,6 +135,7 @@ struct SimulateOptions {
   uint64_t seed = 0;
   std::size_t frames = 0;
   bool no_noise = false;
+  std::string profile = "ideal";
   std::string output;
 };
 
@@ -144,6 +147,9 @@ CommandRun setupSimulate(CLI::App& app) {
   app.add_option("--frames", options->frames, "simulate only the first N frames (0: all)")
       ->check(nonNegativeInt("the number of frames (0: all)"));
   app.add_flag("--no-noise", options->no_noise, "exact projections: no pixel noise, no outliers");
+  app.add_option("--profile", options->profile,
+                 "measurement profile (sim.profile, core/sim/sim_profile.h): ideal | realistic")
+      ->check(CLI::IsMember({"ideal", "realistic"}));
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   return [options] {
@@ -160,6 +166,9 @@ CommandRun setupSimulate(CLI::App& app) {
     const TrajectorySpline spline = TrajectorySpline::fromSequence(seq);
     SimulationOptions sim = defaultSimulationOptions(seq, options->seed);
     sim.tracker.max_frames = options->frames;
+    if (options->profile == "realistic") {
+      applyRealisticProfile(readRealisticProfile(defaultRealisticProfilePath()), &sim.tracker);
+    }
     if (options->no_noise) {
       sim.tracker.noise = false;
       sim.tracker.outliers = false;

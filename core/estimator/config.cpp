@@ -167,6 +167,8 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
     orSentinel(above(0), -1, "dataset default"));
   list.push_back(choice("imu", "noise_profile", &c.imu_noise_profile, parseImuNoiseProfile,
                         "\"kalibr\" or \"basalt\""));
+  list.push_back(
+      choice("sim", "profile", &c.sim_profile, parseSimProfile, "\"ideal\" or \"realistic\""));
   list.push_back({"diagnostics", "enabled", nullptr, nullptr, &c.diagnostics});
   I("diagnostics", "store_prior_every", &c.store_prior_every,
     between(0, std::numeric_limits<int>::max()));

@@ -20,7 +20,9 @@
 //   [failure]       max_position_error_m (−1: dataset default)
 //   [imu]           noise_profile ("kalibr"|"basalt": the IMU densities of VIO runs, for the
 //                   synthetic IMU and the estimator's weights; see core/imu/noise_profile.h)
-//   [diagnostics]   enabled, store_prior_every (0: never; k: every k-th event, default 25), seed
+//   [sim]           profile ("ideal"|"realistic": simulated tracks' noise model,
+//   core/sim/sim_profile.h) [diagnostics]   enabled, store_prior_every (0: never; k: every k-th
+//   event, default 25), seed
 //
 // Validation (docs/design.md §9): every key has a range; a value outside it, a non-finite number
 // or a violated relation between keys (lambda_min ≤ lambda_init ≤ lambda_max; a relative
@@ -37,6 +39,7 @@
 
 #include "core/imu/noise_profile.h"
 #include "core/linalg/flat_qr.h"
+#include "core/sim/sim_profile.h"
 
 namespace marglab {
 
@@ -143,6 +146,8 @@ struct EstimatorConfig {
   double max_position_error_m = -1;
   // imu
   ImuNoiseProfile imu_noise_profile = ImuNoiseProfile::kKalibr;
+  // sim
+  SimProfile sim_profile = SimProfile::kIdeal;
   // diagnostics
   bool diagnostics = true;
   int store_prior_every = 25;

@@ -94,10 +94,17 @@ void simulate(const TrackSourceOptions& options, TrackSource* source) {
   }
   SimulationOptions simulation = defaultSimulationOptions(seq, options.seed);
   if (options.max_frames > 0) simulation.tracker.max_frames = options.max_frames;
+  std::string profile = toString(options.sim_profile);
+  if (options.sim_profile == SimProfile::kRealistic) {
+    const std::string path = defaultRealisticProfilePath();
+    applyRealisticProfile(readRealisticProfile(path), &simulation.tracker);
+    profile += " (" + path + ")";
+  }
   source->stream = simulateSequence(seq, *source->trajectory, simulation);
   source->stats = streamFrontendStats(source->stream);
   source->frontend = "simulated";
   source->provenance.emplace_back("measurements", "simulated stereo tracks, undistorted pinhole");
+  source->provenance.emplace_back("sim_profile", profile);
 }
 
 }  // namespace

@@ -28,6 +28,7 @@
 #include "core/frontend/image_folder.h"
 #include "core/frontend/optical_flow.h"
 #include "core/io/results_file.h"
+#include "core/sim/sim_profile.h"
 #include "core/sim/tracks.h"
 #include "core/sim/trajectory_spline.h"
 
@@ -43,6 +44,7 @@ struct TrackSourceOptions {
   std::string tracks_file;  // non-empty: the tracks come from this file (frontend "tracks")
   int max_frames = 0;       // estimator frames; 0: all
   std::uint64_t seed = 1;   // simulation seed
+  SimProfile sim_profile = SimProfile::kIdeal;  // the simulation's measurement model
 };
 
 struct TrackSource {

@@ -63,6 +63,7 @@ TrackSourceOptions trackSourceOptions(const RunOptions& options) {
   source.tracks_file = options.tracks_file;
   source.max_frames = options.max_frames;
   source.seed = options.seed;
+  source.sim_profile = options.config.sim_profile;
   return source;
 }
 

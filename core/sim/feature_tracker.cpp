@@ -125,6 +125,7 @@ class WallBuffer {
 struct ActiveTrack {
   int64_t track_id;
   int64_t landmark_id;
+  Eigen::Vector2d drift = Eigen::Vector2d::Zero();  // [px] the realistic profile's walk
 };
 
 class Simulator {
@@ -156,12 +157,17 @@ class Simulator {
     std::vector<ActiveTrack> kept;
     kept.reserve(active_.size());
     std::vector<char> occupied(static_cast<std::size_t>(cols_ * rows_), 0);
-    for (const ActiveTrack& track : active_) {
+    for (ActiveTrack track : active_) {
       Eigen::Vector2d uv0;
       const Eigen::Vector3d& p_w = world_.points_w[track.landmark_id];
       if (!visible0(track.landmark_id, &uv0) || rng_.bernoulli(o_.loss_probability)) {
         tracked_[track.landmark_id] = 0;
         continue;
+      }
+      if (o_.drift_step_px > 0) {
+        const double du = rng_.normal();
+        const double dv = rng_.normal();
+        track.drift += o_.drift_step_px * Eigen::Vector2d(du, dv);
       }
       kept.push_back(track);
       frame.observations.push_back(measure(track, uv0, p_w, cam1));
@@ -194,6 +200,7 @@ class Simulator {
     }
     for (const auto& [score, landmark] : best) {
       if (landmark < 0) continue;
+      if (o_.cell_fill_probability < 1 && !rng_.bernoulli(o_.cell_fill_probability)) continue;
       const ActiveTrack track{next_track_id_++, landmark};
       tracked_[landmark] = 1;
       kept.push_back(track);
@@ -216,6 +223,11 @@ class Simulator {
 
   Eigen::Vector2d pixelNoise() {
     if (!o_.noise) return Eigen::Vector2d::Zero();
+    if (o_.student_nu > 0) {
+      const double tu = rng_.studentT(o_.student_nu);
+      const double tv = rng_.studentT(o_.student_nu);
+      return o_.pixel_sigma * Eigen::Vector2d(tu, tv);
+    }
     const double nu = rng_.normal();
     const double nv = rng_.normal();
     return o_.pixel_sigma * Eigen::Vector2d(nu, nv);
@@ -235,11 +247,13 @@ class Simulator {
     obs.track_id = track.track_id;
     obs.landmark_id = track.landmark_id;
     obs.uv0 = uv0_true + pixelNoise();
+    if (o_.drift_step_px > 0) obs.uv0 += track.drift;
     Eigen::Vector2d uv1;
     if (world_.facing(track.landmark_id, cam1.p_w_c) && cam1.project(p_w, &uv1) &&
         !rng_.bernoulli(o_.stereo_failure_probability)) {
       obs.has_right = true;
       obs.uv1 = uv1 + pixelNoise();
+      if (o_.drift_step_px > 0) obs.uv1 += track.drift;
     }
     if (o_.outliers && rng_.bernoulli(o_.outlier_probability)) {
       obs.is_outlier = true;

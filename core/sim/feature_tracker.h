@@ -29,6 +29,11 @@
 //      independent uniformly random directions by a distance uniform in
 //      [outlier_min_px, outlier_max_px], then clamped to the image.
 //   With noise = false and outliers = false the measurements are exact projections.
+//   The realistic profile (sim_profile.h) adds, each drawn only when enabled (so that the ideal
+//   stream is unchanged): Student-t pixel noise (student_nu > 0: σ t_ν instead of σ n); a drift
+//   of each continued track, d += drift_step_px (n_u, n_v) after its loss draw and before it is
+//   measured (d = 0 at detection; uv0 and uv1 both get + d, before outliers); and in step 2 a
+//   Bernoulli(cell_fill_probability) per free cell that has a candidate, in cell order.
 // Track ids count from 0 in order of detection; landmark_id indexes TrackStream::landmarks_w
 // (= World::points_w).
 
@@ -53,7 +58,10 @@ struct TrackerOptions {
   double loss_probability = 0.03;            // per frame and track
   double stereo_failure_probability = 0.03;  // per observation
   bool noise = true;
-  double pixel_sigma = 0.5;  // [px]
+  double pixel_sigma = 0.5;  // [px] Gaussian σ, or the Student-t scale
+  double student_nu = 0;     // > 0: pixel noise pixel_sigma · t_ν per coordinate (sim_profile.h)
+  double drift_step_px = 0;  // > 0: each track's offset walks by this σ per coordinate and frame
+  double cell_fill_probability = 1.0;  // < 1: a free cell yields its new track with this chance
   bool outliers = true;
   double outlier_probability = 0.01;
   double outlier_min_px = 5.0, outlier_max_px = 20.0;

@@ -66,6 +66,25 @@ class SimRandom {
     const double u2 = uniform();
     return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
   }
+  // Gamma(shape, 1), shape > 0: Marsaglia–Tsang (2000) for shape ≥ 1, and Gamma(shape + 1)
+  // U^{1/shape} below 1 (normal() and uniform() only, so the stream is platform independent).
+  double gamma(double shape) {
+    if (shape < 1) return gamma(shape + 1) * std::pow(1.0 - uniform(), 1.0 / shape);
+    const double d = shape - 1.0 / 3.0, c = 1.0 / std::sqrt(9 * d);
+    for (;;) {
+      const double x = normal();
+      const double v = std::pow(1 + c * x, 3);
+      if (v <= 0) continue;
+      const double u = 1.0 - uniform();  // (0, 1]
+      if (std::log(u) < 0.5 * x * x + d - d * v + d * std::log(v)) return d * v;
+    }
+  }
+  // Student-t with nu > 0 degrees of freedom: z / sqrt(g / (nu/2)), g ~ Gamma(nu/2, 1), so that
+  // 2g is χ²_ν.
+  double studentT(double nu) {
+    const double z = normal();
+    return z / std::sqrt(2 * gamma(0.5 * nu) / nu);
+  }
   // Derives an independent seed for a named sub-stream (SplitMix64 finalizer of seed ^ salt).
   static uint64_t subSeed(uint64_t seed, uint64_t salt) {
     uint64_t z = seed ^ (salt * 0x9E3779B97F4A7C15ULL);

@@ -44,6 +44,31 @@ TEST(CliSimulate, ShortPrefixWritesTracksAndPrintsStatistics) {
   EXPECT_EQ(readTrackFile(text).frames.size(), 20u);
 }
 
+// --profile realistic: the stream of the shipped profile (fewer stereo matches than ideal with the
+// same seed: its stereo failure probability is 0.52 against 0.03); an unknown name is a usage
+// error.
+TEST(CliSimulate, RealisticProfile) {
+  test::TempDir dir;
+  const std::string ideal = dir.file("ideal.h5"), realistic = dir.file("realistic.h5");
+  const std::string base = "datasets simulate --dataset kitti/04 --seed 2 --frames 30 ";
+  ASSERT_EQ(runCli(base + "-o '" + ideal + "'").exit_code, 0);
+  const CliResult r = runCli(base + "--profile realistic -o '" + realistic + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto stereo = [](const TrackStream& s) {
+    double n = 0, right = 0;
+    for (const TrackFrame& f : s.frames) {
+      for (const StereoObservation& o : f.observations) {
+        n += 1;
+        right += o.has_right ? 1 : 0;
+      }
+    }
+    return right / n;
+  };
+  EXPECT_GT(stereo(readTrackFile(ideal)), 0.8);
+  EXPECT_LT(stereo(readTrackFile(realistic)), 0.6);
+  EXPECT_EQ(runCli(base + "--profile noisy -o '" + dir.file("x.h5") + "'").exit_code, 2);
+}
+
 TEST(CliSimulate, ErrorsAndUsage) {
   test::TempDir dir;
   const CliResult no_gt =
