@@ -83,7 +83,7 @@ experiment::ParseOptions sweepParseOptions() {
       app.parse(args);
     } catch (const CLI::ParseError& e) {
       return e.what();
-    } catch (const InputError& e) {  // a missing --config or --tracks
+    } catch (const InputError& e) {  // a missing --tracks file
       return e.what();
     }
     return {};

@@ -1,7 +1,8 @@
 #pragma once
 // CLI11 validators shared by the verbs: option values are checked while the command line is
 // parsed, so `marglab run` and the sweep validation (which parses a sweep's `args` with the real
-// `run` verb) reject them before anything runs, with exit code 2 (usage error).
+// `run` verb) reject them before anything runs: a bad value with exit code 2 (usage error), a
+// missing input path or dataset with exit code 1 (input error, `existingPath`).
 
 #include <fmt/core.h>
 #include <fmt/format.h>
