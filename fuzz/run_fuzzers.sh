@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # Runs fuzz targets of a MARGLAB_FUZZ build from their seed corpus, deterministically (-seed=1),
 # for SECONDS each, one after the other; exits 1 when a target found anything (the input is left in
-# BUILD_DIR/fuzz-out/artifacts/). scripts/run_sanitizers.sh runs all of them for 20 s in CI; a
+# BUILD_DIR/fuzz-out/artifacts/). scripts/run_sanitizers.sh runs all of them for a fixed number of inputs in CI; a
 # longer campaign runs them for longer (fuzz/README.md).
 #   usage: fuzz/run_fuzzers.sh BUILD_DIR SECONDS [TARGET...]     (default: every target)
 #   MARGLAB_FUZZ_FLAGS   extra libFuzzer flags; a campaign that should go on after a finding uses
 #                        "-fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1"
+#   MARGLAB_FUZZ_RUNS    stop each target after this many inputs (libFuzzer -runs), SECONDS being
+#                        only a cap: the same inputs on every machine, as CI needs (a time bound
+#                        alone runs more inputs on a faster machine, so it may find more there)
 #   MARGLAB_FUZZ_OUT     output folder (default: BUILD_DIR/fuzz-out), so that a campaign and the
 #                        CI run of the same build keep their corpora and findings apart
 set -euo pipefail
@@ -58,7 +61,11 @@ for t in "${TARGETS[@]}"; do
   # A hang (> 10 s per input), > 2 GB of memory or a single allocation > 512 MB is a finding too.
   status=0
   # shellcheck disable=SC2086  # MARGLAB_FUZZ_FLAGS is a list of flags
-  "$BUILD_DIR/fuzz/fuzz_$t" -seed=1 -max_total_time="$SECONDS_PER_TARGET" -timeout=10 \
+  runs_flag=()
+  per_target="MARGLAB_FUZZ_RUNS_$t"  # e.g. MARGLAB_FUZZ_RUNS_track_hdf5 overrides the count
+  runs_n="${!per_target:-${MARGLAB_FUZZ_RUNS:-}}"
+  [ -n "$runs_n" ] && runs_flag=("-runs=$runs_n")
+  "$BUILD_DIR/fuzz/fuzz_$t" -seed=1 -max_total_time="$SECONDS_PER_TARGET" "${runs_flag[@]}" -timeout=10 \
     -rss_limit_mb=2048 -malloc_limit_mb=512 -print_final_stats=1 ${MARGLAB_FUZZ_FLAGS:-} \
     -artifact_prefix="$OUT/artifacts/$t-" "${dict[@]}" "${dirs[@]}" >"$log" 2>&1 || status=$?
   # The last status line: "#RUNS ... cov: E ft: F corp: ..." (also in fork mode).
@@ -73,7 +80,7 @@ for t in "${TARGETS[@]}"; do
     if compgen -G "$OUT/artifacts/$t-$kind-*" >/dev/null; then found=1; fi
   done
   if [ "$status" -eq 0 ] && [ "$found" -eq 0 ]; then
-    echo "fuzz_$t: ok, $runs executions in ${SECONDS_PER_TARGET} s, $cov, $(ls "$corpus" | wc -l) new corpus inputs"
+    echo "fuzz_$t: ok, $runs executions (at most ${SECONDS_PER_TARGET} s), $cov, $(ls "$corpus" | wc -l) new corpus inputs"
   else
     echo "fuzz_$t: FOUND A PROBLEM after $runs executions ($cov; inputs in $OUT/artifacts/$t-*); the end of $log:"
     tail -40 "$log"
