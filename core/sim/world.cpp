@@ -26,12 +26,12 @@ std::vector<PathSample> samplePath(const TrajectoryFunction& trajectory, double 
   std::vector<PathSample> samples;
   const int64_t t0 = trajectory.startTimeNs();
   const int64_t t1 = trajectory.endTimeNs();
-  const int64_t dt = 10'000'000;  // 10 ms: fine enough for 25 m/s at 0.25 m steps
+  const int64_t dt = 10 * 1000 * 1000;  // 10 ms: fine enough for 25 m/s at 0.25 m steps
   int64_t last_kept = t0;
   for (int64_t t = t0;; t = std::min(t + dt, t1)) {
     const TrajectorySample s = trajectory.evaluate(t);
     if (samples.empty() || t == t1 || (s.p_w_b - samples.back().p_w).norm() >= max_step ||
-        t - last_kept >= 1'000'000'000) {
+        t - last_kept >= 1000 * 1000 * 1000) {
       samples.push_back({s.p_w_b, s.R_w_b});
       last_kept = t;
     }

@@ -23,7 +23,7 @@ namespace {
 using test::kEps;
 
 constexpr int64_t kT0 = 1403636580838555648;  // an EuRoC-like epoch: exercises int64 time handling
-constexpr int64_t k200Hz = 5'000'000;
+constexpr int64_t k200Hz = 5000000;
 
 TrajectorySplineOptions knots(double pos_dt, double rot_dt) {
   TrajectorySplineOptions o;
@@ -44,7 +44,7 @@ TEST(TrajectorySpline, InterpolatesAnalyticTrajectory) {
     EXPECT_EQ(spline.startTimeNs(), gt.t_ns.front());
     EXPECT_EQ(spline.endTimeNs(), gt.t_ns.back());
     // Between the samples too (the analytic motion is known everywhere).
-    for (int64_t t = gt.t_ns.front() + 1'234'567; t < gt.t_ns.back(); t += 97'000'013) {
+    for (int64_t t = gt.t_ns.front() + 1234567; t < gt.t_ns.back(); t += 97000013) {
       const TrajectorySample s = spline.evaluate(t);
       const double ts = static_cast<double>(t - kT0) * 1e-9;
       EXPECT_LT((s.p_w_b - test::analyticPosition(ts)).norm(), 1e-6);
@@ -56,7 +56,7 @@ TEST(TrajectorySpline, InterpolatesAnalyticTrajectory) {
 // Irregular times (±1 ms jitter) and a 0.6 s gap, as in mocap ground truth.
 TEST(TrajectorySpline, IrregularSamplesWithGap) {
   std::mt19937_64 rng(7);
-  std::uniform_int_distribution<int64_t> jitter(-1'000'000, 1'000'000);
+  std::uniform_int_distribution<int64_t> jitter(-1000000, 1000000);
   Trajectory gt;
   for (int k = 0; k < 2000; ++k) {
     const int64_t t_ns = kT0 + k * k200Hz + (k > 0 ? jitter(rng) : 0);
@@ -70,7 +70,7 @@ TEST(TrajectorySpline, IrregularSamplesWithGap) {
   EXPECT_NEAR(spline.fitReport().max_gt_gap_s, 0.6, 0.01);
   // Across the gap the spline continues smoothly (constant-velocity fill of the control points):
   // it stays near the true motion (whose acceleration is < 1 m/s²) and |a| stays plausible.
-  for (int64_t t = kT0 + 4'000'000'000; t < kT0 + 4'600'000'000; t += 10'000'000) {
+  for (int64_t t = kT0 + 4000000000; t < kT0 + 4600000000; t += 10000000) {
     const TrajectorySample s = spline.evaluate(t);
     const double ts = static_cast<double>(t - kT0) * 1e-9;
     EXPECT_LT((s.p_w_b - test::analyticPosition(ts)).norm(), 0.05);
@@ -88,7 +88,7 @@ TEST(TrajectorySpline, IrregularSamplesWithGap) {
 // Rounding: evaluate() sums terms of the size of the control points, |c| ≈ |p| (position), |c|/Δ
 // (velocity), and rotation matrices of norm 1; a difference quotient multiplies it by 1/h.
 void checkDerivatives(const TrajectorySpline& spline, uint64_t seed, int count) {
-  const int64_t h_ns = 10'000;  // 10 µs
+  const int64_t h_ns = 10000;  // 10 µs
   const double h = 1e-5;
   std::mt19937_64 rng(seed);
   std::uniform_int_distribution<int64_t> pick(spline.startTimeNs() + 4 * h_ns,
@@ -158,7 +158,7 @@ TEST(TrajectorySpline, ErrorNamesTheTrajectoryFileOnce) {
 }
 
 TEST(TrajectorySpline, EvaluatesAtBothEnds) {
-  const Trajectory gt = test::sampleAnalytic(kT0, 7'000'000, 150);  // span not a knot multiple
+  const Trajectory gt = test::sampleAnalytic(kT0, 7000000, 150);  // span not a knot multiple
   const TrajectorySpline spline(gt, knots(0.05, 0.02));
   for (int64_t t : {spline.startTimeNs(), spline.endTimeNs()}) {
     const TrajectorySample s = spline.evaluate(t);
