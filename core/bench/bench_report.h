@@ -5,6 +5,7 @@
 // child processes (their peak resident memory from wait4). Ratios are what carries over between
 // machines; absolute times do not.
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -22,10 +23,17 @@ struct BenchOptions {
   bool verbose = false;
 };
 
+// One window's kernels with one ISA's code (core/linalg/isa.h), seconds; zero when the CPU lacks
+// the ISA.
+struct IsaTimes {
+  double ns_f32 = 0, ns_f64 = 0, sc_f32 = 0, sc_f64 = 0;  // LM iteration
+  double qr_f32_s = 0, qr_f64_s = 0;                      // landmark-block QR kernel
+};
+
 struct WindowTimes {
   std::string name;
   int landmarks = 0;
-  // LM iteration (linearize + eliminate + solve), seconds.
+  // LM iteration (linearize + eliminate + solve) with the bench's ISA, seconds.
   double ns_f32 = 0, ns_f64 = 0, sc_f32 = 0, sc_f64 = 0, ns_mixed = 0;
   // To convergence with the window's LM settings, f64 (FEJ as captured).
   int marglab_iterations = 0, dense_iterations = 0, sparse_iterations = 0;
@@ -33,8 +41,9 @@ struct WindowTimes {
   double marglab_cost = 0, dense_cost = 0, sparse_cost = 0;
   // Marginalization event, seconds.
   double marg_qr_f32 = 0, marg_sc_f32 = 0, marg_qr_f64 = 0, marg_sc_f64 = 0;
-  // Landmark-block QR kernel.
-  double qr_flops = 0, qr_f32_s = 0, qr_f64_s = 0;
+  // Landmark-block QR kernel (flops of one pass over the window's landmarks).
+  double qr_flops = 0;
+  std::array<IsaTimes, 3> per_isa;  // indexed by Isa
 };
 
 struct WholeRun {
@@ -48,16 +57,20 @@ struct BenchReport {
   std::string date_utc, git_sha, cpu, load_before, load_after;
   int rounds = 0;
   std::vector<WindowTimes> windows;
-  double peak_f32 = 0, peak_f64 = 0, isa_peak_f32 = 0, isa_peak_f64 = 0;
-  std::string peak_isa, build_isa;
+  std::string isa;                    // the ISA of the iteration, convergence and whole-run timings
+  double peak_f32 = 0, peak_f64 = 0;  // machine peak (widest FMA the CPU has)
+  std::string peak_isa;
+  std::array<double, 3> isa_peak_f32{}, isa_peak_f64{};  // per ISA (0: not supported)
   std::vector<WholeRun> runs;
   int run_frames = 0;
   // Derived.
   double speedup_ns_f32_over_sc_f64 = 0;
   double speedup_over_ceres_dense_schur = 0;  // per iteration, ns-f64 vs DENSE_SCHUR
   double speedup_over_ceres_sparse_schur = 0;
-  double qr_gflops_f32 = 0, qr_gflops_f64 = 0;
-  double qr_kernel_peak_fraction = 0;  // f32 kernel / f32 machine peak
+  double speedup_over_ceres_best = 0;  // the faster of the two Ceres solvers
+  std::array<double, 3> qr_gflops_f32_isa{}, qr_gflops_f64_isa{};
+  double qr_gflops_f32 = 0, qr_gflops_f64 = 0;  // with the bench's ISA
+  double qr_kernel_peak_fraction = 0;           // f32 kernel / f32 peak of the bench's ISA
 };
 
 BenchReport runBench(const BenchOptions& options);
