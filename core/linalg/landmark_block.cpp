@@ -42,7 +42,8 @@ void scatterReducedBlocks(const PoseBlockMap& map, const MatX<Scalar>& H_loc_low
   const int n_blocks = static_cast<int>(map.rcs_offset.size());
   for (int i = 0; i < n_blocks; ++i) {
     const int oi = map.rcs_offset[i];
-    b.template segment<PD>(oi, pd) += b_loc.template segment<PD>(i * pd, pd).template cast<HScalar>();
+    b.template segment<PD>(oi, pd) +=
+        b_loc.template segment<PD>(i * pd, pd).template cast<HScalar>();
     if constexpr (std::is_same_v<Scalar, HScalar>) {
       H.template block<PD, PD>(oi, oi, pd, pd) +=
           H_loc_lower.template block<PD, PD>(i * pd, i * pd, pd, pd)
@@ -229,7 +230,9 @@ Status LandmarkBlockNs<Scalar>::backSubstitute(const VecX<Scalar>& delta_rcs,
   const auto delta_p = gatherLocalScratch(map_, delta_rcs);
   const Vec3<Scalar> rhs =
       storage_.topLeftCorner(3, n_p_) * delta_p + storage_.col(n_p_ + 3).head(3);
-  const auto R1 = storage_.block(0, n_p_, 3, 3);
+  // A fixed-size row-major copy: the same row-by-row substitution as on the dynamic block (sums
+  // of at most two products, so the same rounding), without the dynamic kernel's vector paths.
+  const Eigen::Matrix<Scalar, 3, 3, Eigen::RowMajor> R1 = storage_.template block<3, 3>(0, n_p_);
   if ((R1.diagonal().array() == Scalar(0)).any()) {
     return Status::Error(Status::Code::kRankDeficient,
                          "landmark back-substitution: R1 is singular (landmark not observable)");
@@ -328,19 +331,19 @@ Scalar LandmarkBlockSc<Scalar>::linearizedCostChange(const VecX<Scalar>& delta_r
   return b_p_.dot(delta_p) + b_l_.dot(delta_l) + Scalar(0.5) * quadratic;
 }
 
-#define MARGLAB_INST(S)                                                                  \
-  template class LandmarkBlockNs<S>;                                                     \
-  template class LandmarkBlockSc<S>;                                                     \
-  template Status LandmarkBlockNs<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const;   \
-  template Status LandmarkBlockSc<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const;   \
-  template VecX<S> gatherLocal<S>(const PoseBlockMap&, const VecX<S>&); \
+#define MARGLAB_INST(S)                                                                \
+  template class LandmarkBlockNs<S>;                                                   \
+  template class LandmarkBlockSc<S>;                                                   \
+  template Status LandmarkBlockNs<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const; \
+  template Status LandmarkBlockSc<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const; \
+  template VecX<S> gatherLocal<S>(const PoseBlockMap&, const VecX<S>&);                \
   template void householderLandmarkColumns<S>(S*, Eigen::Index, Eigen::Index, Eigen::Index);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 #if defined(MARGLAB_WITH_FLOAT)
 // Mixed precision: float landmark blocks in a double reduced system.
 template Status LandmarkBlockNs<float>::addToReducedSystem<double>(MatX<double>&,
-                                                                  VecX<double>&) const;
+                                                                   VecX<double>&) const;
 #endif
 
 }  // namespace marglab
