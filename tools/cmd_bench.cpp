@@ -12,6 +12,7 @@
 #include "core/bench/bench_report.h"
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
+#include "core/linalg/isa.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
 
@@ -26,6 +27,7 @@ struct BenchArgs {
   int frames = 0;
   bool no_runs = false;
   bool quick = false;
+  std::string isa = "auto";
 };
 
 std::string selfExe() {
@@ -37,6 +39,7 @@ std::string selfExe() {
 }
 
 int runBenchCommand(const BenchArgs& a) {
+  setActiveIsa(resolveIsa(a.isa));
   BenchOptions o;
   o.rounds = a.quick ? 1 : a.rounds;
   o.batch_s = (a.quick ? 2 : a.batch_ms) * 1e-3;
@@ -78,6 +81,12 @@ const bool kRegistered = cli::registerCommand(
                       "Whole runs: only the first N frames of EuRoC MH_01 and KITTI 00 (0: all)")
            ->capture_default_str()
            ->check(cli::nonNegativeInt("the number of frames (0: all)"));
+       sub.add_option("--isa", a->isa,
+                      "Instruction set of the kernels for the iteration, marginalization and "
+                      "convergence timings and the whole runs (the QR kernel is timed for every "
+                      "ISA the CPU has)")
+           ->check(CLI::IsMember({"auto", "sse2", "avx2", "avx512"}))
+           ->capture_default_str();
        sub.add_flag("--no-runs", a->no_runs, "Skip the whole runs");
        sub.add_flag("--quick", a->quick, "One round, short batches (for tests; noisy)");
        return [a] { return runBenchCommand(*a); };

@@ -13,6 +13,7 @@
 #include "core/common/error.h"
 #include "core/common/interrupt.h"
 #include "core/data/sequence.h"
+#include "core/linalg/isa.h"
 #include "core/pipeline/run.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
@@ -41,6 +42,7 @@ struct RunArgs {
   int inject_nan_frame = -1;
   std::vector<int> dump_windows;
   std::string dump_dir = "windows";
+  std::string isa = "auto";
 };
 
 // The results file, its TUM trajectory and the captured windows against the files and folders
@@ -58,6 +60,7 @@ void refuseOverwritingInputs(const RunArgs& args) {
 
 int runRun(const RunArgs& args) {
   cli::checkDatasetArgument(args.dataset);
+  setActiveIsa(resolveIsa(args.isa));
   RunOptions options;
   options.dataset = args.dataset;
   options.variant = Variant::parse(args.variant);
@@ -180,6 +183,11 @@ const bool kRegistered = cli::registerCommand(
                       "opt-marg-storage-precision, e.g. ns-qr-sqrt-f32 (opt ns|sc, marg qr|sc, "
                       "storage sqrt|sq, precision f32|f64|mixed)")
            ->required();
+       sub.add_option("--isa", args->isa,
+                      "Instruction set of the kernels (auto: the widest this CPU has); recorded in "
+                      "the results file's isa attribute")
+           ->check(CLI::IsMember({"auto", "sse2", "avx2", "avx512"}))
+           ->capture_default_str();
        sub.add_option("--mode", args->mode,
                       "vo (stereo), vio (stereo + IMU) or auto: vio where the dataset has an IMU "
                       "(EuRoC, TUM-VI), vo on KITTI")

@@ -5,6 +5,7 @@
 // child processes (their peak resident memory from wait4). Ratios are what carries over between
 // machines; absolute times do not.
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -43,10 +44,17 @@ struct CeresSolverTotals {
   CeresTimeSplit split;        // summed over windows
 };
 
+// One window's kernels with one ISA's code (core/linalg/isa.h), seconds; zero when the CPU lacks
+// the ISA.
+struct IsaTimes {
+  double ns_f32 = 0, ns_f64 = 0, sc_f32 = 0, sc_f64 = 0;  // LM iteration
+  double qr_f32_s = 0, qr_f64_s = 0;                      // landmark-block QR kernel
+};
+
 struct WindowTimes {
   std::string name;
   int landmarks = 0;
-  // LM iteration (linearize + eliminate + solve), seconds.
+  // LM iteration (linearize + eliminate + solve) with the bench's ISA, seconds.
   double ns_f32 = 0, ns_f64 = 0, sc_f32 = 0, sc_f64 = 0, ns_mixed = 0;
   // To convergence with the window's LM settings, f64 (FEJ as captured).
   int marglab_iterations = 0;
@@ -55,8 +63,9 @@ struct WindowTimes {
   std::vector<CeresSolverTimes> ceres;  // one per solver of the comparison
   // Marginalization event, seconds.
   double marg_qr_f32 = 0, marg_sc_f32 = 0, marg_qr_f64 = 0, marg_sc_f64 = 0;
-  // Landmark-block QR kernel.
-  double qr_flops = 0, qr_f32_s = 0, qr_f64_s = 0;
+  // Landmark-block QR kernel (flops of one pass over the window's landmarks).
+  double qr_flops = 0;
+  std::array<IsaTimes, 3> per_isa;  // indexed by Isa
 };
 
 struct WholeRun {
@@ -70,8 +79,10 @@ struct BenchReport {
   std::string date_utc, git_sha, cpu, load_before, load_after;
   int rounds = 0;
   std::vector<WindowTimes> windows;
-  double peak_f32 = 0, peak_f64 = 0, isa_peak_f32 = 0, isa_peak_f64 = 0;
-  std::string peak_isa, build_isa;
+  std::string isa;                    // the ISA of the iteration, convergence and whole-run timings
+  double peak_f32 = 0, peak_f64 = 0;  // machine peak (widest FMA the CPU has)
+  std::string peak_isa;
+  std::array<double, 3> isa_peak_f32{}, isa_peak_f64{};  // per ISA (0: not supported)
   std::vector<WholeRun> runs;
   int run_frames = 0;
   // Derived.
@@ -81,8 +92,9 @@ struct BenchReport {
   double speedup_over_ceres_best = 0;  // over the fastest Ceres solver per iteration
   std::string ceres_best_solver;
   std::vector<CeresSolverTotals> ceres;
-  double qr_gflops_f32 = 0, qr_gflops_f64 = 0;
-  double qr_kernel_peak_fraction = 0;  // f32 kernel / f32 machine peak
+  std::array<double, 3> qr_gflops_f32_isa{}, qr_gflops_f64_isa{};
+  double qr_gflops_f32 = 0, qr_gflops_f64 = 0;  // with the bench's ISA
+  double qr_kernel_peak_fraction = 0;           // f32 kernel / f32 peak of the bench's ISA
 };
 
 BenchReport runBench(const BenchOptions& options);

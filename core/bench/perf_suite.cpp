@@ -8,8 +8,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "core/estimator/window_io.h"
 #include "core/data/sequence.h"
+#include "core/estimator/window_io.h"
 
 namespace marglab {
 namespace {
@@ -179,7 +179,7 @@ FmaPeak avx512Peak(bool sp, double seconds) {
 FmaPeak avx2Peak(bool sp, double seconds) {
   return {peakOf(fmaAvx2, sp, 2.0 * kChains * (sp ? 8 : 4), seconds), "avx2+fma"};
 }
-[[maybe_unused]] FmaPeak sse2Peak(bool sp, double seconds) {
+FmaPeak sse2Peak(bool sp, double seconds) {
   return {peakOf(mulAddSse2, sp, 2.0 * kChains * (sp ? 4 : 2), seconds), "sse2 mul+add"};
 }
 
@@ -190,17 +190,19 @@ FmaPeak machinePeak(bool sp, double seconds) {
   if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
     return avx2Peak(sp, seconds);
   }
-  return buildIsaPeak(sp, seconds);
+  return sse2Peak(sp, seconds);
 }
 
-FmaPeak buildIsaPeak(bool sp, double seconds) {
-#if defined(__AVX512F__)
-  return avx512Peak(sp, seconds);
-#elif defined(__AVX2__) && defined(__FMA__)
-  return avx2Peak(sp, seconds);
-#else
+FmaPeak isaPeak(Isa isa, bool sp, double seconds) {
+  switch (isa) {
+    case Isa::kAvx512:
+      return avx512Peak(sp, seconds);
+    case Isa::kAvx2:
+      return avx2Peak(sp, seconds);
+    case Isa::kSse2:
+      break;
+  }
   return sse2Peak(sp, seconds);
-#endif
 }
 
 std::vector<double> timeSideBySide(const std::vector<std::function<void()>>& candidates, int rounds,

@@ -112,6 +112,10 @@ PoseBlockMap WindowKernels<Scalar>::blockMap(int i) const {
   return marglab::blockMap(s_->lin->landmarks()[i], s_->lin->columns());
 }
 template <typename Scalar>
+const std::vector<LandmarkJacobians<Scalar>>& WindowKernels<Scalar>::landmarkJacobians() const {
+  return s_->lin->landmarks();
+}
+template <typename Scalar>
 int WindowKernels<Scalar>::numColumns() const {
   return s_->lin->numColumns();
 }

@@ -48,6 +48,7 @@ class WindowKernels {
   const Mat<Scalar, Eigen::Dynamic, 3>& blockJl(int i) const;
   const VecX<Scalar>& blockR(int i) const;
   PoseBlockMap blockMap(int i) const;
+  const std::vector<LandmarkJacobians<Scalar>>& landmarkJacobians() const;
   int numColumns() const;
   const VecX<Scalar>& step() const;  // after solve()
 

@@ -10,6 +10,7 @@
 #include "core/common/error.h"
 #include "core/common/utc_time.h"
 #include "core/diagnostics/ate.h"
+#include "core/linalg/isa.h"
 #include "marglab/version.h"
 
 namespace marglab {
@@ -106,6 +107,7 @@ ResultsWriter ResultsWriter::create(const std::string& path, const RunMetadata& 
   f.setAttr("qr_threshold", metadata.qr_threshold);
   f.setAttr("marg_strategy", metadata.marg_strategy);
   f.setAttr("frontend", metadata.frontend);
+  f.setAttr("isa", metadata.isa.empty() ? std::string(isaName(activeIsa())) : metadata.isa);
   for (const auto& [key, value] : metadata.extra) f.setAttr(key, value);
   // Provisional status: replaced by finish(); only visible if someone inspects the temporary.
   f.setAttr("status", "running");
@@ -414,11 +416,12 @@ ResultsReader::ResultsReader(const std::string& path) : path_(path) {
       file_.hasAttr("marg_strategy") ? file_.attr<std::string>("marg_strategy") : "discard";
   // Files written before the image front-end existed all used simulated tracks.
   m.frontend = file_.hasAttr("frontend") ? file_.attr<std::string>("frontend") : "simulated";
+  m.isa = file_.hasAttr("isa") ? file_.attr<std::string>("isa") : "";
   static const char* const kKnown[] = {
       "schema_version", "marglab_version",   "git_sha",      "created_utc", "dataset",
       "sequence",       "variant",           "precision",    "mode",        "seed",
       "config_toml",    "qr_threshold_mode", "qr_threshold", "status",      "failure_frame",
-      "failure_reason", "marg_strategy",     "frontend"};
+      "failure_reason", "marg_strategy",     "frontend",     "isa"};
   for (const std::string& name : file_.attrNames()) {
     if (std::find(std::begin(kKnown), std::end(kKnown), name) != std::end(kKnown)) continue;
     try {

@@ -23,6 +23,8 @@
 //   marg_strategy   str     "discard" | "dense" | "nfr" (absent in older files: "discard")
 //   frontend        str     "images" | "simulated" | "tracks": where the feature tracks came from
 //                           (core/frontend/track_source.h; absent in older files: "simulated")
+//   isa             str     "sse2" | "avx2" | "avx512": the instruction set of the kernels
+//                           (core/linalg/isa.h; absent in older files, built for SSE2 by default)
 //   + RunMetadata::extra (str)
 // /frames  one row per processed frame (extendible, chunked along time):
 //   t_ns int64 (n) · is_keyframe uint8 (n) · n_landmarks, n_observations, lm_iterations int32 (n)
@@ -115,6 +117,7 @@ struct RunMetadata {
   double qr_threshold = std::numeric_limits<double>::quiet_NaN();
   std::string marg_strategy = "discard";
   std::string frontend = "simulated";
+  std::string isa;  // empty: the writer records the process's active ISA (core/linalg/isa.h)
   std::vector<std::pair<std::string, std::string>> extra;  // more root string attributes
 };
 

@@ -42,7 +42,8 @@ void scatterReducedBlocks(const PoseBlockMap& map, const MatX<Scalar>& H_loc_low
   const int n_blocks = static_cast<int>(map.rcs_offset.size());
   for (int i = 0; i < n_blocks; ++i) {
     const int oi = map.rcs_offset[i];
-    b.template segment<PD>(oi, pd) += b_loc.template segment<PD>(i * pd, pd).template cast<HScalar>();
+    b.template segment<PD>(oi, pd) +=
+        b_loc.template segment<PD>(i * pd, pd).template cast<HScalar>();
     if constexpr (std::is_same_v<Scalar, HScalar>) {
       H.template block<PD, PD>(oi, oi, pd, pd) +=
           H_loc_lower.template block<PD, PD>(i * pd, i * pd, pd, pd)
@@ -70,6 +71,39 @@ void scatterReduced(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
     scatterReducedBlocks<6>(map, H_loc_lower, b_loc, H, b);
   } else {
     scatterReducedBlocks<Eigen::Dynamic>(map, H_loc_lower, b_loc, H, b);
+  }
+}
+
+// The reduced rows A (row-major, `rows` rows, row stride ld ≥ n_p + 4, pose blocks of 6 columns,
+// r in column r_col) added straight into H and b, pose-block pair by pair: H(o_i, o_j) +=
+// Σ_k a_kiᵀ a_kj (both triangles), b(o_i) += Σ_k a_kiᵀ r_k, only over the poses the landmark
+// touches and without a local system to zero and scatter. Each product is a 6 × 8 register block
+// (8 = a whole vector of every ISA; the two extra columns are the next block's or J_l's, in the
+// storage and discarded), sums in row order.
+template <typename Scalar, typename HScalar>
+void addPoseBlockPairs(const Scalar* A, Eigen::Index ld, Eigen::Index rows, Eigen::Index r_col,
+                       const std::vector<int>& offsets, MatX<HScalar>& H, VecX<HScalar>& b) {
+  using Row8 = Eigen::Map<const Eigen::Matrix<Scalar, 1, 8>>;
+  const int n_blocks = static_cast<int>(offsets.size());
+  for (int i = 0; i < n_blocks; ++i) {
+    const int oi = offsets[static_cast<size_t>(i)];
+    Eigen::Matrix<Scalar, 1, 8> b_i = Eigen::Matrix<Scalar, 1, 8>::Zero();
+    for (Eigen::Index k = 0; k < rows; ++k) b_i += A[k * ld + r_col] * Row8(A + k * ld + 6 * i);
+    b.template segment<6>(oi) += b_i.template head<6>().transpose().template cast<HScalar>();
+    for (int j = 0; j <= i; ++j) {
+      Eigen::Matrix<Scalar, 6, 8, Eigen::RowMajor> acc =
+          Eigen::Matrix<Scalar, 6, 8, Eigen::RowMajor>::Zero();
+      for (Eigen::Index k = 0; k < rows; ++k) {
+        const Scalar* x = A + k * ld + 6 * i;
+        const Row8 y(A + k * ld + 6 * j);
+        for (int a = 0; a < 6; ++a) acc.row(a) += x[a] * y;
+      }
+      const int oj = offsets[static_cast<size_t>(j)];
+      const Eigen::Matrix<HScalar, 6, 6> block =
+          acc.template leftCols<6>().template cast<HScalar>();
+      H.template block<6, 6>(oi, oj) += block;
+      if (j != i) H.template block<6, 6>(oj, oi) += block.transpose();
+    }
   }
 }
 
@@ -198,9 +232,13 @@ Status LandmarkBlockNs<Scalar>::addToReducedSystem(MatX<HScalar>& H, VecX<HScala
     return Status::Error(Status::Code::kRankDeficient,
                          "landmark elimination: R1 is singular (landmark not observable)");
   }
-  // Eigen's symmetric rank update (lower triangle) into a per-thread local system that keeps its
-  // storage; hand-written rank-1 loops and per-entry dot products over these ~20 × 6k blocks
-  // measured slower (more instructions, callgrind).
+  if (map_.pose_dim == 6) {
+    addPoseBlockPairs(storage_.data() + 3 * storage_.cols(), storage_.cols(), reduced_rows_,
+                      n_p_ + 3, map_.rcs_offset, H, b);
+    return Status::Ok();
+  }
+  // Other pose sizes: Eigen's symmetric rank update (lower triangle) into a per-thread local
+  // system that keeps its storage, scattered block by block.
   const auto Jr = reducedJp();
   thread_local MatX<Scalar> H_loc;
   thread_local VecX<Scalar> b_loc;
@@ -229,7 +267,9 @@ Status LandmarkBlockNs<Scalar>::backSubstitute(const VecX<Scalar>& delta_rcs,
   const auto delta_p = gatherLocalScratch(map_, delta_rcs);
   const Vec3<Scalar> rhs =
       storage_.topLeftCorner(3, n_p_) * delta_p + storage_.col(n_p_ + 3).head(3);
-  const auto R1 = storage_.block(0, n_p_, 3, 3);
+  // A fixed-size row-major copy: the same row-by-row substitution as on the dynamic block (sums
+  // of at most two products, so the same rounding), without the dynamic kernel's vector paths.
+  const Eigen::Matrix<Scalar, 3, 3, Eigen::RowMajor> R1 = storage_.template block<3, 3>(0, n_p_);
   if ((R1.diagonal().array() == Scalar(0)).any()) {
     return Status::Error(Status::Code::kRankDeficient,
                          "landmark back-substitution: R1 is singular (landmark not observable)");
@@ -330,19 +370,19 @@ Scalar LandmarkBlockSc<Scalar>::linearizedCostChange(const VecX<Scalar>& delta_r
   return b_p_.dot(delta_p) + b_l_.dot(delta_l) + Scalar(0.5) * quadratic;
 }
 
-#define MARGLAB_INST(S)                                                                  \
-  template class LandmarkBlockNs<S>;                                                     \
-  template class LandmarkBlockSc<S>;                                                     \
-  template Status LandmarkBlockNs<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const;   \
-  template Status LandmarkBlockSc<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const;   \
-  template VecX<S> gatherLocal<S>(const PoseBlockMap&, const VecX<S>&); \
+#define MARGLAB_INST(S)                                                                \
+  template class LandmarkBlockNs<S>;                                                   \
+  template class LandmarkBlockSc<S>;                                                   \
+  template Status LandmarkBlockNs<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const; \
+  template Status LandmarkBlockSc<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const; \
+  template VecX<S> gatherLocal<S>(const PoseBlockMap&, const VecX<S>&);                \
   template void householderLandmarkColumns<S>(S*, Eigen::Index, Eigen::Index, Eigen::Index);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 #if defined(MARGLAB_WITH_FLOAT)
 // Mixed precision: float landmark blocks in a double reduced system.
 template Status LandmarkBlockNs<float>::addToReducedSystem<double>(MatX<double>&,
-                                                                  VecX<double>&) const;
+                                                                   VecX<double>&) const;
 #endif
 
 }  // namespace marglab

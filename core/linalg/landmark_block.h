@@ -69,7 +69,8 @@ class LandmarkBlockNs {
   auto reducedJp() const { return storage_.block(3, 0, reduced_rows_, n_p_); }
   auto reducedR() const { return storage_.col(n_p_ + 3).segment(3, reduced_rows_); }
   // H += (Q2ᵀJ_p)ᵀ(Q2ᵀJ_p), b += (Q2ᵀJ_p)ᵀQ2ᵀr on the reduced camera system (upper and lower),
-  // formed in Scalar and accumulated in HScalar. Fails (adds nothing) when R1 is singular.
+  // formed in Scalar and accumulated in HScalar, pose-block pair by pair (6-column pose blocks;
+  // other sizes: a rank update scattered by blocks). Fails (adds nothing) when R1 is singular.
   template <typename HScalar>
   Status addToReducedSystem(MatX<HScalar>& H, VecX<HScalar>& b) const;
   // Copies the reduced rows into rows [row, row + numReducedRows()) of a stacked square-root
@@ -88,8 +89,8 @@ class LandmarkBlockNs {
   Eigen::Index n_p_ = 0;
   Eigen::Index reduced_rows_ = 0;
   // Rows: [3 Q1ᵀ rows | m − 3 Q2ᵀ rows | 3 damping rows]; columns [J_p | J_l | r]. Row-major:
-  // the reflections and the rank update work on contiguous rows (axpys that vectorize, no
-  // short reductions).
+  // the reflections and the pose-pair accumulation into the reduced system work on contiguous
+  // rows (axpys that vectorize, no short reductions).
   Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> storage_;
   Mat<Scalar, 3, Eigen::Dynamic> undamped_top_;  // Q1ᵀ rows before damping
   Vec3<Scalar> H_ll_diagonal_ = Vec3<Scalar>::Zero();

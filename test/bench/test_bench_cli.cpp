@@ -10,6 +10,7 @@
 
 #include "common/cli_runner.h"
 #include "core/estimator/window_io.h"
+#include "core/linalg/isa.h"
 
 namespace marglab {
 namespace {
@@ -34,9 +35,17 @@ TEST(BenchCli, QuickJsonHasTheIssueKeysAndWritesTheTable) {
   }
   EXPECT_NE(r.output.find("\"run_frames_note\": \"whole-run RTFs over the first 15 frames\""),
             std::string::npos);
+  // The bench's ISA (auto: the widest this CPU has), and the per-ISA figures of every ISA it has.
+  EXPECT_NE(r.output.find(std::string("\"isa\": \"") + isaName(bestIsa()) + "\""),
+            std::string::npos);
+  for (const Isa isa : kAllIsas) {
+    EXPECT_EQ(r.output.find(std::string("\"") + isaName(isa) + "\": {") != std::string::npos,
+              cpuSupports(isa))
+        << isaName(isa);
+  }
   std::ifstream md(dir / "bench.md");
   const std::string table((std::istreambuf_iterator<char>(md)), {});
-  EXPECT_NE(table.find("## Targets (issue #8)"), std::string::npos);
+  EXPECT_NE(table.find("## Targets (issue #21)"), std::string::npos);
   EXPECT_NE(table.find("| euroc/MH_01_easy | ok | 15 |"), std::string::npos) << table;
   EXPECT_NE(table.find("| kitti/00 | ok | 15 |"), std::string::npos) << table;
   EXPECT_TRUE(fs::exists(dir / "bench.json"));

@@ -200,6 +200,44 @@ TYPED_TEST(LandmarkBlockTest, ReducedRowsAreNullspaceProjection) {
             10 * eps<Scalar>());
 }
 
+// addToReducedSystem against the product of the reduced rows copied into a stacked system
+// (computed here in double): the 6-column pose blocks (the pose-pair kernel) and another pose size
+// (the rank-update path), undamped and damped, for a landmark seen from non-adjacent poses.
+TYPED_TEST(LandmarkBlockTest, ReducedSystemIsTheProductOfTheReducedRowsForEveryPoseSize) {
+  using Scalar = TypeParam;
+  std::mt19937_64 rng(38);
+  for (const int pd : {6, 4}) {
+    const PoseBlockMap map{pd, {0, 2 * pd, 3 * pd, 5 * pd}};
+    const int n_rcs = 6 * pd, m = 9;
+    const MatXd J_p = test::randomGaussian(rng, m, map.localCols());
+    const MatXd J_l = test::randomGaussian(rng, m, 3), r = test::randomGaussian(rng, m, 1);
+    for (const double d : {0.0, 2.0}) {
+      SCOPED_TRACE(testing::Message() << "pose_dim " << pd << " damping " << d);
+      LandmarkBlockNs<Scalar> ns;
+      ASSERT_TRUE(ns.setFromJacobians(J_p.cast<Scalar>(), J_l.cast<Scalar>(),
+                                      VecX<Scalar>(r.cast<Scalar>()), map)
+                      .ok());
+      ns.setLandmarkDamping(Vec3<Scalar>::Constant(static_cast<Scalar>(d)));
+      MatX<Scalar> stacked = MatX<Scalar>::Zero(ns.numReducedRows(), n_rcs + 1);
+      ns.copyReducedRows(stacked, 0);
+      const MatXd Js = stacked.leftCols(n_rcs).template cast<double>();
+      const VecXd rs = stacked.col(n_rcs).template cast<double>();
+      MatX<Scalar> H = MatX<Scalar>::Zero(n_rcs, n_rcs);
+      VecX<Scalar> b = VecX<Scalar>::Zero(n_rcs);
+      ASSERT_TRUE(ns.addToReducedSystem(H, b).ok());
+      // Sums of R = numReducedRows() products of the same Scalar rows: entrywise error ≤ R ε
+      // times the sum of absolute products.
+      const double g = (ns.numReducedRows() + 1) * eps<Scalar>();
+      const MatXd Ja = Js.cwiseAbs();
+      EXPECT_LE(relError(H, MatXd(Js.transpose() * Js)),
+                g * (Ja.transpose() * Ja).norm() / (Js.transpose() * Js).norm());
+      EXPECT_LE(relError(b, VecXd(Js.transpose() * rs)),
+                g * (Ja.transpose() * rs.cwiseAbs()).norm() / (Js.transpose() * rs).norm());
+      EXPECT_TRUE(H == H.transpose()) << "not symmetric";
+    }
+  }
+}
+
 // Mixed precision (variant ...-mixed): a float elimination accumulated into a double reduced
 // system agrees with the double elimination to float accuracy (same bound as the reduced rows
 // above), and is not the double result (the elimination did run in float).
@@ -209,9 +247,9 @@ TEST(LandmarkBlockMixed, FloatBlocksIntoDoubleSystem) {
   for (const LandmarkData& lm : makeLandmarks(rng, 20)) {
     LandmarkBlockNs<float> f;
     LandmarkBlockNs<double> d;
-    ASSERT_TRUE(f.setFromJacobians(lm.J_p.cast<float>(), lm.J_l.cast<float>(), lm.r.cast<float>(),
-                                   lm.map)
-                    .ok());
+    ASSERT_TRUE(
+        f.setFromJacobians(lm.J_p.cast<float>(), lm.J_l.cast<float>(), lm.r.cast<float>(), lm.map)
+            .ok());
     ASSERT_TRUE(d.setFromJacobians(lm.J_p, lm.J_l, lm.r, lm.map).ok());
     ASSERT_TRUE(f.addToReducedSystem(mixed.H, mixed.b).ok());
     ASSERT_TRUE(d.addToReducedSystem(reference.H, reference.b).ok());

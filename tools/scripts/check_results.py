@@ -10,7 +10,8 @@ frame_index within /frames, nnz_sparse <= nnz_dense and KLD >= 0 where the prior
 KLD NaN where it was kept dense), that /frontend agrees with the frontend attribute (images /
 simulated / tracks; equal column lengths, t_ns strictly increasing and, unless it has zero rows,
 containing every /frames t_ns, n_features = n_tracked + n_new, 0 <= n_stereo <= n_features, t_frontend_s finite and >= 0 for
-images; both absent in files written before the front-end existed), and recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
+images; both absent in files written before the front-end existed), that the isa attribute, when
+present, names an ISA (sse2 / avx2 / avx512), and recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
 Umeyama/Kabsch alignment without scale (reflection fix diag(1, 1, det(U V^T))), comparing it with
 /summary ate_rmse and /frames/ate_error. Prints "OK ..." and exits 0, or lists every problem and
 exits 1 (2 for usage errors).
@@ -31,6 +32,7 @@ from marglab_results import (FRAME_1D, FRONTEND_1D, FRONTEND_KINDS, MARG_1D,  # 
                              SUMMARY_ATTRS, decode)
 
 FRAME_2D = {"p_est": 3, "q_est": 4, "p_gt": 3}
+ISAS = ("sse2", "avx2", "avx512")  # the isa attribute (absent in files written before it existed)
 
 
 def umeyama_rmse(src, dst):
@@ -142,6 +144,8 @@ def check_file(path):
                             f"{', '.join(map(str, SCHEMA_VERSIONS))}")
         if decode(f.attrs.get("status")) not in ("ok", "failed"):
             problems.append(f"status {f.attrs.get('status')!r} is neither ok nor failed")
+        if "isa" in f.attrs and decode(f.attrs["isa"]) not in ISAS:
+            problems.append(f"isa {f.attrs['isa']!r} is not one of {', '.join(ISAS)}")
         for group in ["frames", "marg", "marg/eigenvalues", "summary"]:
             if group not in f:
                 problems.append(f"missing group /{group}")

@@ -118,8 +118,8 @@ def _columns(group, names, n, where, optional=False):
 class Run:
     """One results file read into memory (the full priors of /marg/priors stay on disk: prior(k)).
 
-    attrs      root attributes (decoded), with marg_strategy defaulting to "discard" and frontend
-               to "" when absent
+    attrs      root attributes (decoded), with marg_strategy defaulting to "discard", frontend and
+               isa to "" when absent
     summary    /summary attributes; R_gt_est as a 3x3 array, t_gt_est as a 3-vector
     frames, marg, sparsify: DataFrames (numpy dicts when pandas is missing); frontend: DataFrame or
     None; eigenvalues: list of ascending arrays, one per /marg row
@@ -139,6 +139,7 @@ class Run:
                                   % (path, version, ", ".join(map(str, SCHEMA_VERSIONS))))
             self.attrs.setdefault("marg_strategy", "discard")
             self.attrs.setdefault("frontend", "")
+            self.attrs.setdefault("isa", "")
             for group in ("frames", "marg", "summary"):
                 if group not in f:
                     raise SchemaError("%s: missing group /%s" % (path, group))

@@ -1,0 +1,74 @@
+#include "core/linalg/isa.h"
+
+#include <fmt/core.h>
+
+#include <atomic>
+#include <cstdlib>
+
+#include "core/common/error.h"
+
+namespace marglab {
+namespace {
+
+std::atomic<int> g_active{-1};  // −1: not set, bestIsa()
+
+}  // namespace
+
+const char* isaName(Isa isa) {
+  switch (isa) {
+    case Isa::kAvx512:
+      return "avx512";
+    case Isa::kAvx2:
+      return "avx2";
+    case Isa::kSse2:
+      break;
+  }
+  return "sse2";
+}
+
+bool cpuSupports(Isa isa) {
+  __builtin_cpu_init();
+  switch (isa) {
+    case Isa::kAvx512:
+      return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+             __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512bw") &&
+             cpuSupports(Isa::kAvx2);
+    case Isa::kAvx2:
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    case Isa::kSse2:
+      break;
+  }
+  return true;  // the x86-64 baseline
+}
+
+Isa bestIsa() {
+  if (cpuSupports(Isa::kAvx512)) return Isa::kAvx512;
+  if (cpuSupports(Isa::kAvx2)) return Isa::kAvx2;
+  return Isa::kSse2;
+}
+
+Isa activeIsa() {
+  const int isa = g_active.load(std::memory_order_relaxed);
+  return isa < 0 ? bestIsa() : static_cast<Isa>(isa);
+}
+
+void setActiveIsa(Isa isa) { g_active.store(static_cast<int>(isa), std::memory_order_relaxed); }
+
+Isa resolveIsa(const std::string& name) {
+  if (name == "auto") return bestIsa();
+  for (const Isa isa : kAllIsas) {
+    if (name != isaName(isa)) continue;
+    if (!cpuSupports(isa)) {
+      throw InputError("--isa", 0, fmt::format("this CPU does not support {}", name));
+    }
+    return isa;
+  }
+  throw UsageError(fmt::format("--isa {}: expected auto, sse2, avx2 or avx512", name));
+}
+
+}  // namespace marglab
+
+extern "C" void* marglab_isa_aligned_malloc(std::size_t size) {
+  void* p = nullptr;
+  return posix_memalign(&p, 64, size) == 0 ? p : nullptr;
+}

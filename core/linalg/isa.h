@@ -1,0 +1,37 @@
+#pragma once
+// The instruction set the hot kernels run with (docs/design.md §ISA dispatch). The landmark
+// elimination, the reduced-system accumulation and its damped solve are compiled three times —
+// baseline x86-64 (SSE2), AVX2 + FMA and AVX-512 (F, DQ, VL, BW) — each copy isolated in its own
+// partially linked object (core/estimator/linearization_kernels.h), and one is chosen per process:
+// the best the CPU supports unless `--isa` forces one. The same ISA gives the same numbers bit for
+// bit; the ISAs differ in the last bits (FMA contraction, vector width changes the order of sums).
+
+#include <cstddef>
+#include <string>
+
+namespace marglab {
+
+enum class Isa { kSse2, kAvx2, kAvx512 };
+
+inline constexpr Isa kAllIsas[] = {Isa::kSse2, Isa::kAvx2, Isa::kAvx512};
+
+// "sse2" | "avx2" | "avx512" (the results file's isa attribute and the bench's isa key).
+const char* isaName(Isa isa);
+// Whether this CPU can run the ISA's kernels.
+bool cpuSupports(Isa isa);
+// The widest ISA the CPU supports.
+Isa bestIsa();
+
+// The process-wide ISA: bestIsa() until set. Set it once at start-up, before any estimator object
+// is built: a linearization keeps the ISA it was made with.
+Isa activeIsa();
+void setActiveIsa(Isa isa);
+// "auto" | "sse2" | "avx2" | "avx512" → the ISA to run; UsageError for another name, InputError
+// (exit 1) when the CPU lacks the ISA asked for.
+Isa resolveIsa(const std::string& name);
+
+}  // namespace marglab
+
+// malloc of the ISA copies (core/isa_kernels.cmake renames their calls to it): 64-byte-aligned
+// blocks that free() releases, as Eigen's AVX / AVX-512 code expects of its buffers.
+extern "C" void* marglab_isa_aligned_malloc(std::size_t size);
