@@ -10,8 +10,26 @@
 # defined elsewhere: no code is shared between ISA copies.
 # Sets MARGLAB_ISA_OBJECTS (one relocatable object per ISA, added to libmarglab) and
 # MARGLAB_ISA_ONLY_SOURCES (compiled per ISA only, not into libmarglab itself).
-find_package(Python3 REQUIRED COMPONENTS Interpreter)
+#
+# A sanitizer build (MARGLAB_SANITIZE, clang) has the SSE2 kernels only, not isolated: the
+# isolation is GNU-specific (-fno-gnu-unique, the partial link) and the sanitizers' runtime
+# references (__asan_*, the coverage sections) are exactly the undefined and shared symbols the
+# check refuses. The sources are the same for every ISA; what the sanitizers check is the code.
+# MARGLAB_ISA_SSE2_ONLY tells core/linalg/isa.cpp that the other ISAs are not built.
 set(MARGLAB_ISA_ONLY_SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/estimator/linearization_kernels.cpp)
+if(MARGLAB_SANITIZE)
+  add_library(marglab_isa_sse2 OBJECT ${MARGLAB_ISA_ONLY_SOURCES})
+  target_compile_definitions(marglab_isa_sse2 PRIVATE MARGLAB_ISA_NS=isa_sse2 MARGLAB_ISA_ENUM=kSse2
+    $<$<BOOL:${MARGLAB_FLOAT}>:MARGLAB_WITH_FLOAT=1> MARGLAB_WITH_DOUBLE=1)
+  target_include_directories(marglab_isa_sse2 PRIVATE ${CMAKE_SOURCE_DIR} ${CMAKE_BINARY_DIR}/generated)
+  target_link_libraries(marglab_isa_sse2 PRIVATE Eigen3::Eigen fmt::fmt PkgConfig::TOMLPP
+                                                 Threads::Threads Ceres::ceres)
+  set(MARGLAB_ISA_OBJECTS $<TARGET_OBJECTS:marglab_isa_sse2>)
+  set(MARGLAB_ISA_DEFINITIONS MARGLAB_ISA_SSE2_ONLY=1)
+  return()
+endif()
+set(MARGLAB_ISA_DEFINITIONS "")
+find_package(Python3 REQUIRED COMPONENTS Interpreter)
 set(MARGLAB_ISA_KERNEL_SOURCES
     ${MARGLAB_ISA_ONLY_SOURCES}
     ${CMAKE_CURRENT_SOURCE_DIR}/linalg/landmark_block.cpp

@@ -97,7 +97,7 @@ std::unique_ptr<WindowKernels<Scalar>> kernelsWith(Isa isa, const WindowSnapshot
 std::vector<Isa> supportedIsas() {
   std::vector<Isa> out;
   for (const Isa isa : kAllIsas) {
-    if (cpuSupports(isa)) out.push_back(isa);
+    if (isaAvailable(isa)) out.push_back(isa);
   }
   return out;
 }

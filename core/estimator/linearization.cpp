@@ -9,6 +9,9 @@
 namespace marglab {
 
 const IsaKernels& kernelsOf(Isa isa) {
+#ifdef MARGLAB_ISA_SSE2_ONLY
+  (void)isa;  // the only ISA built (core/isa_kernels.cmake)
+#else
   switch (isa) {
     case Isa::kAvx512:
       return isa_avx512::kernels();
@@ -17,6 +20,7 @@ const IsaKernels& kernelsOf(Isa isa) {
     case Isa::kSse2:
       break;
   }
+#endif
   return isa_sse2::kernels();
 }
 

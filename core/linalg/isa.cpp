@@ -41,9 +41,18 @@ bool cpuSupports(Isa isa) {
   return true;  // the x86-64 baseline
 }
 
+bool isaBuilt(Isa isa) {
+#ifdef MARGLAB_ISA_SSE2_ONLY
+  return isa == Isa::kSse2;
+#else
+  (void)isa;
+  return true;
+#endif
+}
+
 Isa bestIsa() {
-  if (cpuSupports(Isa::kAvx512)) return Isa::kAvx512;
-  if (cpuSupports(Isa::kAvx2)) return Isa::kAvx2;
+  if (isaAvailable(Isa::kAvx512)) return Isa::kAvx512;
+  if (isaAvailable(Isa::kAvx2)) return Isa::kAvx2;
   return Isa::kSse2;
 }
 
@@ -60,6 +69,12 @@ Isa resolveIsa(const std::string& name) {
     if (name != isaName(isa)) continue;
     if (!cpuSupports(isa)) {
       throw InputError("--isa", 0, fmt::format("this CPU does not support {}", name));
+    }
+    if (!isaBuilt(isa)) {
+      throw InputError("--isa", 0,
+                       fmt::format("this build has only the sse2 kernels (a sanitizer build), "
+                                   "not {}",
+                                   name));
     }
     return isa;
   }

@@ -19,7 +19,12 @@ inline constexpr Isa kAllIsas[] = {Isa::kSse2, Isa::kAvx2, Isa::kAvx512};
 const char* isaName(Isa isa);
 // Whether this CPU can run the ISA's kernels.
 bool cpuSupports(Isa isa);
-// The widest ISA the CPU supports.
+// Whether this build has the ISA's kernels: every ISA, except in a sanitizer build (SSE2 only,
+// core/isa_kernels.cmake says why).
+bool isaBuilt(Isa isa);
+// Built and supported by this CPU: the ISAs a run can use.
+inline bool isaAvailable(Isa isa) { return isaBuilt(isa) && cpuSupports(isa); }
+// The widest available ISA.
 Isa bestIsa();
 
 // The process-wide ISA: bestIsa() until set. Set it once at start-up, before any estimator object
@@ -27,7 +32,7 @@ Isa bestIsa();
 Isa activeIsa();
 void setActiveIsa(Isa isa);
 // "auto" | "sse2" | "avx2" | "avx512" → the ISA to run; UsageError for another name, InputError
-// (exit 1) when the CPU lacks the ISA asked for.
+// (exit 1) when the ISA asked for is not available (the CPU lacks it, or the build does).
 Isa resolveIsa(const std::string& name);
 
 }  // namespace marglab

@@ -40,7 +40,7 @@ TEST(BenchCli, QuickJsonHasTheIssueKeysAndWritesTheTable) {
             std::string::npos);
   for (const Isa isa : kAllIsas) {
     EXPECT_EQ(r.output.find(std::string("\"") + isaName(isa) + "\": {") != std::string::npos,
-              cpuSupports(isa))
+              isaAvailable(isa))
         << isaName(isa);
   }
   std::ifstream md(dir / "bench.md");
