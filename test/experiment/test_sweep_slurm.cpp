@@ -69,6 +69,17 @@ fs::path freshDir(const std::string& name) {
   return dir;
 }
 
+// DIR/NAME.toml: a sweep of one VO group, "vo", of the variants (a TOML list's items) on one
+// sequence over the first frames.
+fs::path writeVoSweep(const fs::path& dir, const std::string& name, const std::string& dataset,
+                      const std::string& variants, int frames) {
+  const fs::path file = dir / (name + ".toml");
+  std::ofstream(file) << "name = \"" << name << "\"\n[[group]]\nname = \"vo\"\ndatasets = [\""
+                      << dataset << "\"]\nvariants = [" << variants << "]\nframes = " << frames
+                      << "\n";
+  return file;
+}
+
 std::vector<double> readDoubles(const fs::path& file, const std::string& dataset) {
   const ResultsReader reader(file.string());
   return reader.file().readVector<double>(dataset);
@@ -266,16 +277,11 @@ frames = 20
 TEST(SlurmSweep, RejectedSubmissionFailsWithSlurmsMessageAndStaysResumable) {
   REQUIRE_SLURM();
   const fs::path dir = freshDir("reject");
-  std::ofstream(dir / "r.toml") << R"(name = "r"
-[[group]]
-name = "vo"
-datasets = ["kitti/04"]
-variants = ["ns-qr-sqrt-f64", "sc-sc-sq-f64"]
-frames = 20
-)";
+  const fs::path toml =
+      writeVoSweep(dir, "r", "kitti/04", "\"ns-qr-sqrt-f64\", \"sc-sc-sq-f64\"", 20);
   const fs::path out = dir / "out";
   const auto rejected =
-      runCli("sweep " + quote(dir / "r.toml") +
+      runCli("sweep " + quote(toml) +
              " --backend slurm --slurm-arg=--partition=no_such_partition --out " + quote(out));
   EXPECT_EQ(rejected.exit_code, 1) << rejected.output;
   EXPECT_NE(rejected.output.find("Invalid partition name specified"), std::string::npos)
@@ -286,8 +292,8 @@ frames = 20
     EXPECT_EQ(row.get("status"), "pending");
     EXPECT_EQ(row.get("slurm_job"), "");
   }
-  const auto resume = runCli("sweep " + quote(dir / "r.toml") +
-                             " --backend slurm --resume --wait " + "--out " + quote(out));
+  const auto resume =
+      runCli("sweep " + quote(toml) + " --backend slurm --resume --wait " + "--out " + quote(out));
   ASSERT_EQ(resume.exit_code, 0) << resume.output;
   rows = readIndex((out / "index.csv").string());
   for (const IndexRow& row : rows) EXPECT_EQ(row.get("status"), "ok") << row.get("id");
@@ -299,17 +305,10 @@ frames = 20
 TEST(SlurmSweep, LockedFolderIsRefusedNamingTheOwner) {
   REQUIRE_SLURM();
   const fs::path dir = freshDir("lock");
-  std::ofstream(dir / "l.toml") << R"(name = "l"
-[[group]]
-name = "vo"
-datasets = ["kitti/04"]
-variants = ["ns-qr-sqrt-f64"]
-frames = 20
-)";
+  const fs::path toml = writeVoSweep(dir, "l", "kitti/04", "\"ns-qr-sqrt-f64\"", 20);
   const fs::path out = dir / "out";
   const detail::SweepLock lock(out);
-  const auto refused =
-      runCli("sweep " + quote(dir / "l.toml") + " --backend slurm --out " + quote(out));
+  const auto refused = runCli("sweep " + quote(toml) + " --backend slurm --out " + quote(out));
   EXPECT_EQ(refused.exit_code, 1) << refused.output;
   EXPECT_NE(refused.output.find("in use by another marglab sweep (pid " + std::to_string(getpid())),
             std::string::npos)
@@ -324,15 +323,9 @@ frames = 20
 TEST(SlurmSweep, ForceIsRefusedWhileTheFoldersTasksAreStillQueued) {
   REQUIRE_SLURM();
   const fs::path dir = freshDir("queued");
-  std::ofstream(dir / "q.toml") << R"(name = "q"
-[[group]]
-name = "vo"
-datasets = ["kitti/10"]
-variants = ["headline"]
-frames = 600
-)";
+  const fs::path toml = writeVoSweep(dir, "q", "kitti/10", "\"headline\"", 600);
   const fs::path out = dir / "out";
-  const std::string sweep = "sweep " + quote(dir / "q.toml") + " --backend slurm --jobs 1 ";
+  const std::string sweep = "sweep " + quote(toml) + " --backend slurm --jobs 1 ";
   const auto submit = runCli(sweep + "--out " + quote(out));
   ASSERT_EQ(submit.exit_code, 0) << submit.output;
   // Each row's task: the refused sweep may bring the states up to date, not the tasks.
@@ -384,16 +377,10 @@ pid_t startCli(const std::vector<std::string>& args, const fs::path& log) {
 TEST(SlurmSweep, CtrlCWhileFollowingCancelsTheArrayAndForceWaitsForIt) {
   REQUIRE_SLURM();
   const fs::path dir = freshDir("sigint");
-  std::ofstream(dir / "i.toml") << R"(name = "i"
-[[group]]
-name = "vo"
-datasets = ["kitti/10"]
-variants = ["headline"]
-frames = 600
-)";
+  const fs::path toml = writeVoSweep(dir, "i", "kitti/10", "\"headline\"", 600);
   const fs::path out = dir / "out";
-  const pid_t sweep = startCli({"sweep", (dir / "i.toml").string(), "--backend", "slurm", "--wait",
-                                "--jobs", "1", "--out", out.string()},
+  const pid_t sweep = startCli({"sweep", toml.string(), "--backend", "slurm", "--wait", "--jobs",
+                                "1", "--out", out.string()},
                                dir / "sweep.log");
   ASSERT_GT(sweep, 0);
   std::string first_task;
@@ -411,7 +398,7 @@ frames = 600
   // --force must not start a new sweep under tasks still running in the folder: while the sweep
   // follows them it holds the folder's lock, and the second sweep is refused naming it.
   const auto force =
-      runCli("sweep " + quote(dir / "i.toml") + " --backend slurm --force --out " + quote(out));
+      runCli("sweep " + quote(toml) + " --backend slurm --force --out " + quote(out));
   EXPECT_EQ(force.exit_code, 1) << force.output;
   EXPECT_NE(force.output.find("in use by another marglab sweep (pid " + std::to_string(sweep)),
             std::string::npos)
