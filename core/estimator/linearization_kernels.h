@@ -1,9 +1,10 @@
 #pragma once
 // The per-ISA entry points of the hot kernels (docs/design.md §ISA dispatch).
 //
-// linearization_kernels.cpp (the landmark linearization), core/linalg/landmark_block.cpp and
-// core/linalg/rcs_solve.cpp are compiled once per instruction set (core/CMakeLists.txt: SSE2,
-// AVX2 + FMA, AVX-512) with hidden visibility; each ISA's objects are partially linked and their
+// linearization_kernels.cpp (the landmark linearization), window_landmark.cpp (a landmark's
+// reprojection rows), core/linalg/landmark_block.cpp and core/linalg/rcs_solve.cpp are compiled
+// once per instruction set (core/isa_kernels.cmake: SSE2, AVX2 + FMA, AVX-512) with hidden
+// visibility; each ISA's objects are partially linked and their
 // hidden symbols made local, so every Eigen instantiation and every marglab function inside stays
 // private to that ISA's copy (no weak symbol shared between copies for the linker to pick one of).
 // The only symbol each copy exports is its kernels() table below; makeLinearization
