@@ -1,9 +1,9 @@
 #pragma once
 // `marglab bench`: the key measurements of the benchmark suite in one process, side by side
 // (timeSideBySide: every candidate in every round, best batch kept), on the shipped captured
-// windows, plus whole runs of ns-qr-sqrt-f32 (diagnostics off) on EuRoC MH_01 and KITTI 00 in
-// child processes (their peak resident memory from wait4). Ratios are what carries over between
-// machines; absolute times do not.
+// windows, plus whole runs (diagnostics off) of ns-qr-sqrt-f32 on EuRoC MH_01 and KITTI 00 and of
+// sc-sc-sq-f64 on EuRoC MH_01 in child processes (their peak resident memory from wait4). Ratios
+// are what carries over between machines; absolute times do not.
 
 #include <array>
 #include <string>
@@ -69,9 +69,9 @@ struct WindowTimes {
 };
 
 struct WholeRun {
-  std::string dataset;
+  std::string dataset, variant;
   int frames = 0;
-  double data_s = 0, estimator_s = 0, realtime_factor = 0, peak_rss_mb = 0, wall_s = 0;
+  double data_s = 0, opt_s = 0, estimator_s = 0, realtime_factor = 0, peak_rss_mb = 0, wall_s = 0;
   std::string status;
 };
 

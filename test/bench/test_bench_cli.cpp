@@ -26,7 +26,7 @@ TEST(BenchCli, QuickJsonHasTheIssueKeysAndWritesTheTable) {
   for (const char* key :
        {"speedup_ns_f32_over_sc_f64", "speedup_over_ceres_dense_schur", "speedup_over_ceres_best",
         "qr_kernel_peak_fraction", "realtime_factor_euroc_mh01", "realtime_factor_kitti00",
-        "peak_rss_mb_euroc_mh01"}) {
+        "whole_run_opt_ratio_sc_f64_over_ns_f32_euroc_mh01", "peak_rss_mb_euroc_mh01"}) {
     // A finite positive number, not null.
     const std::regex value(std::string("\"") + key + "\": ([0-9.e+-]+)[,}]");
     std::smatch m;
@@ -46,8 +46,12 @@ TEST(BenchCli, QuickJsonHasTheIssueKeysAndWritesTheTable) {
   std::ifstream md(dir / "bench.md");
   const std::string table((std::istreambuf_iterator<char>(md)), {});
   EXPECT_NE(table.find("## Targets (issue #21)"), std::string::npos);
-  EXPECT_NE(table.find("| euroc/MH_01_easy | ok | 15 |"), std::string::npos) << table;
-  EXPECT_NE(table.find("| kitti/00 | ok | 15 |"), std::string::npos) << table;
+  for (const char* run : {"| euroc/MH_01_easy | ns-qr-sqrt-f32 | ok | 15 |",
+                          "| kitti/00 | ns-qr-sqrt-f32 | ok | 15 |",
+                          "| euroc/MH_01_easy | sc-sc-sq-f64 | ok | 15 |"}) {
+    EXPECT_NE(table.find(run), std::string::npos) << run << " in " << table;
+  }
+  EXPECT_NE(table.find("| RTF KITTI 00 ≥ 40× |"), std::string::npos) << table;
   EXPECT_TRUE(fs::exists(dir / "bench.json"));
   fs::remove_all(dir);
 }
