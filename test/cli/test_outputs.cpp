@@ -15,7 +15,6 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <thread>
 
 #include "common/cli_runner.h"
@@ -26,6 +25,7 @@ namespace marglab {
 namespace {
 
 namespace fs = std::filesystem;
+using test::readText;
 using test::runCli;
 
 class OutputsCliTest : public ::testing::Test {
@@ -49,13 +49,6 @@ std::vector<std::string> listing(const fs::path& dir) {
   }
   std::sort(names.begin(), names.end());
   return names;
-}
-
-std::string readText(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // A run of 60 frames writes ~250 kB; the track file of the whole sequence ~2 MB.

@@ -1,7 +1,8 @@
 #pragma once
 // Runs the real `marglab` binary (path from test_paths.h) in a shell and
 // captures its exit code and combined output, for the CLI tests of every module; or starts it in
-// the background (startCli) for the tests that signal it.
+// the background (startCli) for the tests that signal it. Also the small file helpers those
+// tests share (readText, quote).
 
 #include <fcntl.h>
 #include <sys/wait.h>
@@ -9,12 +10,26 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "test_paths.h"
 
 namespace marglab::test {
+
+// The whole content of a file ("" when it cannot be read).
+inline std::string readText(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// A path single-quoted for a shell command line.
+inline std::string quote(const std::filesystem::path& p) { return "'" + p.string() + "'"; }
 
 struct CliResult {
   int exit_code;

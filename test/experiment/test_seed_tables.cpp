@@ -12,8 +12,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
 
+#include "common/cli_runner.h"
 #include "core/experiment/sweep_index.h"
 #include "core/experiment/tables.h"
 #include "core/io/results_file.h"
@@ -22,13 +22,7 @@ namespace marglab::experiment {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string readText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using test::readText;
 
 double meanOf(const std::vector<double>& v) {
   double s = 0;

@@ -24,16 +24,10 @@ namespace marglab::experiment {
 namespace {
 
 namespace fs = std::filesystem;
+using test::readText;
 
 constexpr int kFrames = 24;
 constexpr int kMaxKfs = 3;
-
-std::string readText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 // What the tables must show for one run, computed from the values written.
 struct Expected {

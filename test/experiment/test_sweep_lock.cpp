@@ -28,6 +28,7 @@ namespace marglab::experiment {
 namespace {
 
 namespace fs = std::filesystem;
+using test::readText;
 using test::runCli;
 using test::startCli;
 
@@ -57,13 +58,6 @@ std::string hostName() {
   char host[256] = {};
   gethostname(host, sizeof(host) - 1);
   return host;
-}
-
-std::string readText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // A process that is gone or a zombie (a container's init may not reap orphans).

@@ -29,17 +29,10 @@ namespace marglab::experiment {
 namespace {
 
 namespace fs = std::filesystem;
+using test::quote;
+using test::readText;
 using test::runCli;
 using test::startCli;
-
-std::string readText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-std::string quote(const fs::path& p) { return "'" + p.string() + "'"; }
 
 const IndexRow* findRow(const std::vector<IndexRow>& rows, const std::string& id) {
   for (const IndexRow& row : rows) {

@@ -6,9 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <chrono>
@@ -32,8 +30,11 @@ namespace marglab::experiment {
 namespace {
 
 namespace fs = std::filesystem;
+using test::quote;
+using test::readText;
 using test::runCli;
 using test::runShell;
+using test::startCli;
 
 #define REQUIRE_SLURM()                                                                  \
   do {                                                                                   \
@@ -44,15 +45,6 @@ using test::runShell;
                       "start` (root, Debian slurm-wlm + munge)";                         \
     }                                                                                    \
   } while (0)
-
-std::string readText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-std::string quote(const fs::path& p) { return "'" + p.string() + "'"; }
 
 const IndexRow* findRow(const std::vector<IndexRow>& rows, const std::string& id) {
   for (const IndexRow& row : rows) {
@@ -356,24 +348,6 @@ TEST(SlurmSweep, ForceIsRefusedWhileTheFoldersTasksAreStillQueued) {
   fs::remove_all(dir);
 }
 
-// Starts the marglab CLI with stdout and stderr into log; returns its pid.
-pid_t startCli(const std::vector<std::string>& args, const fs::path& log) {
-  std::vector<std::string> argv = {test::cliPath()};
-  argv.insert(argv.end(), args.begin(), args.end());
-  std::vector<char*> c_argv;
-  for (std::string& a : argv) c_argv.push_back(a.data());
-  c_argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(),
-                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, c_argv[0], &actions, nullptr, c_argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  return rc == 0 ? pid : -1;
-}
-
 TEST(SlurmSweep, CtrlCWhileFollowingCancelsTheArrayAndForceWaitsForIt) {
   REQUIRE_SLURM();
   const fs::path dir = freshDir("sigint");
@@ -381,7 +355,7 @@ TEST(SlurmSweep, CtrlCWhileFollowingCancelsTheArrayAndForceWaitsForIt) {
   const fs::path out = dir / "out";
   const pid_t sweep = startCli({"sweep", toml.string(), "--backend", "slurm", "--wait", "--jobs",
                                 "1", "--out", out.string()},
-                               dir / "sweep.log");
+                               (dir / "sweep.log").string());
   ASSERT_GT(sweep, 0);
   std::string first_task;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);

@@ -14,7 +14,6 @@
 #include <filesystem>
 #include <fstream>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -30,6 +29,7 @@ namespace marglab {
 namespace {
 
 namespace fs = std::filesystem;
+using test::readText;
 
 class AtomicOutputTest : public ::testing::Test {
  protected:
@@ -52,13 +52,6 @@ class AtomicOutputTest : public ::testing::Test {
   }
   fs::path dir_;
 };
-
-std::string readText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 template <typename F>
 std::string inputErrorOf(F&& f) {
