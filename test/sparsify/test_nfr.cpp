@@ -104,6 +104,15 @@ int blanketDim(const Blanket<double>& x) {
   return n;
 }
 
+// The columns 0..n-1 not in the gauge reference: the subspace S the recovery works on.
+std::vector<int> columnsOutside(int n, const std::vector<int>& reference) {
+  std::vector<int> kept;
+  for (int c = 0; c < n; ++c) {
+    if (std::find(reference.begin(), reference.end(), c) == reference.end()) kept.push_back(c);
+  }
+  return kept;
+}
+
 template <typename S>
 Blanket<S> castBlanket(const Blanket<double>& x) {
   Blanket<S> out;
@@ -271,10 +280,7 @@ struct TreeOptimum {
 };
 TreeOptimum treeOptimum(const MatXd& Lambda_t, const Blanket<double>& x,
                         const NfrTopology& topology, const std::vector<int>& reference) {
-  std::vector<int> kept;
-  for (int c = 0; c < blanketDim(x); ++c) {
-    if (std::find(reference.begin(), reference.end(), c) == reference.end()) kept.push_back(c);
-  }
+  const std::vector<int> kept = columnsOutside(blanketDim(x), reference);
   const std::vector<MatXd> J = factorJacobians(x, topology, reference);
   MatXd H(0, static_cast<Eigen::Index>(kept.size()));
   for (const MatXd& J_i : J) {
@@ -615,10 +621,7 @@ TYPED_TEST(NfrTest, GaugeFreePriorIsSparsifiedGivenAReference) {
   EXPECT_EQ(problem.reducedDim(), n - 4);
   const Sparsification<S> sp = problem.recover();
   ASSERT_TRUE(sp.status.ok()) << sp.status.toString();
-  std::vector<int> kept;
-  for (int c = 0; c < n; ++c) {
-    if (std::find(reference.begin(), reference.end(), c) == reference.end()) kept.push_back(c);
-  }
+  const std::vector<int> kept = columnsOutside(n, reference);
   const MatXd Lambda_red = Lambda_t(kept, kept);
   const MatXd Lambda_s = sp.Lambda_s.template cast<double>();
   const MatXd Lambda_s_red = Lambda_s(kept, kept);
@@ -662,10 +665,7 @@ TYPED_TEST(NfrTest, RecoversAReducedTopologyPriorGivenAReference) {
   ASSERT_TRUE(problem.status().ok()) << problem.status().toString();
   const Sparsification<S> sp = problem.recover();
   ASSERT_TRUE(sp.status.ok()) << sp.status.toString();
-  std::vector<int> kept;
-  for (int c = 0; c < blanketDim(x); ++c) {
-    if (std::find(reference.begin(), reference.end(), c) == reference.end()) kept.push_back(c);
-  }
+  const std::vector<int> kept = columnsOutside(blanketDim(x), reference);
   const int m = problem.reducedDim();
   const double tol = 100 * m * eps<S>() * conditionNumber(Lambda_t(kept, kept));
   expectExactRecovery(sp, A, Lambda_t, tol);
@@ -855,10 +855,7 @@ TYPED_TEST(NfrTest, RelativePoseTopologyRecoversASumOfItsFactors) {
     ASSERT_TRUE(problem.status().ok()) << problem.status().toString();
     const Sparsification<S> sp = problem.recover();
     ASSERT_TRUE(sp.status.ok()) << sp.status.toString();
-    std::vector<int> kept;
-    for (int c = 0; c < blanketDim(x); ++c) {
-      if (std::find(reference.begin(), reference.end(), c) == reference.end()) kept.push_back(c);
-    }
+    const std::vector<int> kept = columnsOutside(blanketDim(x), reference);
     const int m = problem.reducedDim();
     EXPECT_EQ(m, blanketDim(x) - static_cast<int>(reference.size()));
     const double tol = 100 * m * eps<S>() * conditionNumber(Lambda_t(kept, kept));
@@ -892,10 +889,7 @@ TYPED_TEST(NfrTest, RelativePoseTopologyIsTheTreeOptimum) {
     ASSERT_TRUE(problem.status().ok()) << problem.status().toString();
     const Sparsification<S> sp = problem.recover();
     ASSERT_TRUE(sp.status.ok()) << sp.status.toString();
-    std::vector<int> kept;
-    for (int c = 0; c < n; ++c) {
-      if (std::find(ref.begin(), ref.end(), c) == ref.end()) kept.push_back(c);
-    }
+    const std::vector<int> kept = columnsOutside(n, ref);
     const MatXd Lambda_s = sp.Lambda_s.template cast<double>();
     const int m = problem.reducedDim();
     const double tol = 100 * m * eps<S>() *
