@@ -121,6 +121,45 @@ Eigen::Map<const VecX<Scalar>> gatherLocalScratch(const PoseBlockMap& map,
   return Eigen::Map<const VecX<Scalar>>(buffer.data(), map.localCols());
 }
 
+// The widest vector register of the ISA this copy is compiled for (core/isa_kernels.cmake).
+#if defined(__AVX512F__)
+constexpr int kVectorBytes = 64;
+#elif defined(__AVX__)
+constexpr int kVectorBytes = 32;
+#else
+constexpr int kVectorBytes = 16;
+#endif
+
+// w(j .. j + C) = row_k + Σ_{i = k+1}^{m−1} v_i row_i over C columns from j, summed in row order.
+// The C sums stay in registers over the rows: a running sum kept in memory would chain every
+// row's multiply-add through a store and a reload (store-forwarding latency), which was the
+// kernel's bottleneck. Each column's sum is the same sequence of operations either way.
+template <int C, typename Scalar>
+void reflectorProductChunk(const Scalar* A, Eigen::Index ld, Eigen::Index k, Eigen::Index m,
+                           const Scalar* v, Eigen::Index j, Scalar* w) {
+  using Chunk = Eigen::Array<Scalar, C, 1>;
+  Chunk acc = Eigen::Map<const Chunk>(A + k * ld + j);
+  for (Eigen::Index i = k + 1; i < m; ++i) acc += v[i] * Eigen::Map<const Chunk>(A + i * ld + j);
+  Eigen::Map<Chunk>(w + j) = acc;
+}
+
+// The columns [j, n) in chunks of C, then of C/2, C/4, ... down to one SSE register; the last
+// columns by one more SSE-register chunk that ends at n and overlaps columns already done (it
+// recomputes them identically), so n ≥ 16 bytes. (A chunk narrower than an SSE register, or a
+// loop over the last columns, is vectorized in half a register, where GCC does not fuse the
+// multiply-add: another rounding than the fused code of the other columns.)
+template <int C, typename Scalar>
+void reflectorProduct(const Scalar* A, Eigen::Index ld, Eigen::Index k, Eigen::Index m,
+                      const Scalar* v, Eigen::Index j, Eigen::Index n, Scalar* w) {
+  for (; n - j >= C; j += C) reflectorProductChunk<C>(A, ld, k, m, v, j, w);
+  if (j == n) return;
+  if constexpr (C * sizeof(Scalar) > 16) {
+    reflectorProduct<C / 2>(A, ld, k, m, v, j, n, w);
+  } else {
+    reflectorProductChunk<C>(A, ld, k, m, v, n - C, w);
+  }
+}
+
 }  // namespace
 
 template <typename Scalar>
@@ -146,13 +185,9 @@ void householderLandmarkColumns(Scalar* A, Eigen::Index ld, Eigen::Index m, Eige
       const Scalar denom = c0 - beta;
       for (Eigen::Index i = k + 1; i < m; ++i) v[i] = A[i * ld + col] / denom;
       const Scalar tau = (beta - c0) / beta;
-      const Scalar* row_k = A + k * ld;
-      for (Eigen::Index j = 0; j < n_total; ++j) w[j] = row_k[j];
-      for (Eigen::Index i = k + 1; i < m; ++i) {
-        const Scalar vi = v[i];
-        const Scalar* row = A + i * ld;
-        for (Eigen::Index j = 0; j < n_total; ++j) w[j] += vi * row[j];
-      }
+      // Four vector registers of sums at a time: independent multiply-add chains.
+      constexpr int kChunk = 4 * kVectorBytes / static_cast<int>(sizeof(Scalar));
+      reflectorProduct<kChunk>(A, ld, k, m, v, 0, n_total, w);
       for (Eigen::Index j = 0; j < n_total; ++j) w[j] *= tau;
       Scalar* row_k_mut = A + k * ld;
       for (Eigen::Index j = 0; j < n_total; ++j) row_k_mut[j] -= w[j];

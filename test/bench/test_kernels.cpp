@@ -42,8 +42,9 @@ MatXd randomBlock(int m, int n_p, int rank_l, std::mt19937& rng) {
 TYPED_TEST(KernelTest, HouseholderLandmarkColumnsIsAnOrthogonalTriangularization) {
   using S = TypeParam;
   std::mt19937 rng(3);
-  for (int trial = 0; trial < 40; ++trial) {
-    const int n_p = 6 * (1 + trial % 4);
+  // Pose blocks 0 .. 11: every split of the row into the kernel's column chunks.
+  for (int trial = 0; trial < 48; ++trial) {
+    const int n_p = 6 * (trial % 12);
     const int m = 4 + trial % 20;
     const int rank_l = trial % 5 == 4 ? 2 : 3;
     const MatXd A = randomBlock(m, n_p, rank_l, rng);
