@@ -12,6 +12,7 @@ PACKAGES=(
   build-essential cmake pkg-config git
   libeigen3-dev libsuitesparse-dev libceres-dev libcli11-dev libfmt-dev libhdf5-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtomlplusplus-dev libopencv-dev
+  libpng-dev libjpeg-dev  # core/frontend/image_file.cpp
   python3 python3-matplotlib python3-h5py python3-numpy
   python3-pandas jupyter-nbconvert python3-nbclient python3-nbformat python3-ipykernel
   chromium python3-websocket

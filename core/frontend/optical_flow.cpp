@@ -6,12 +6,12 @@
 #include <cmath>
 #include <ctime>
 #include <filesystem>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 #include <unordered_map>
 
 #include "core/common/error.h"
+#include "core/frontend/image_file.h"
 #include "core/geometry/so3.h"
 
 namespace marglab {
@@ -27,8 +27,7 @@ cv::Mat readGreyImage(const std::string& path, int width, int height) {
   if (!std::filesystem::is_regular_file(path, ec)) {
     throw InputError(path, 0, "expected an image file (not found)");
   }
-  cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (image.empty()) throw InputError(path, 0, "cannot decode the image (not a PNG/JPEG?)");
+  cv::Mat image = decodeImageFile(path);
   if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
   if (image.depth() == CV_16U) image.convertTo(image, CV_8U, 1.0 / 256.0);
   if (image.type() != CV_8UC1) {

@@ -3,12 +3,12 @@
 #include <fmt/core.h>
 
 #include <filesystem>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <unordered_map>
 
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
+#include "core/frontend/image_file.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/track_io.h"
 
@@ -109,8 +109,7 @@ std::string drawTrackFigure(const TrackFigureRequest& request) {
   for (char& c : name) c = c == '/' ? '-' : c;
   const std::string path =
       (fs::path(request.out_dir) / fmt::format("tracks_{}_{:04d}.png", name, k)).string();
-  std::vector<uchar> png;
-  if (!cv::imencode(".png", canvas, png)) throw InputError(path, 0, "cannot encode the figure");
+  const std::vector<uint8_t> png = encodePng(canvas);
   writeFileAtomically(path,
                       std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   return path;
