@@ -13,6 +13,15 @@
 namespace marglab {
 namespace {
 
+// The widest vector register of the ISA this copy is compiled for (core/isa_kernels.cmake).
+#if defined(__AVX512F__)
+constexpr int kVectorBytes = 64;
+#elif defined(__AVX__)
+constexpr int kVectorBytes = 32;
+#else
+constexpr int kVectorBytes = 16;
+#endif
+
 template <typename Scalar>
 Status checkInput(const MatX<Scalar>& J_p, const Mat<Scalar, Eigen::Dynamic, 3>& J_l,
                   const VecX<Scalar>& r, const PoseBlockMap& map) {
@@ -74,33 +83,76 @@ void scatterReduced(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
   }
 }
 
+// G(0..6, j .. j + C) = Σ_k x_kᵀ row_k(j .. j + C) with x_k = row_k(xc .. xc + 6), over the first
+// `rows` rows of the row-major A (row stride ld); G row-major with row stride ldg. The 6 × C sums
+// stay in registers over the rows (six chains of C / lanes multiply-adds), summed in row order.
+template <int C, typename Scalar>
+void gramChunk(const Scalar* A, Eigen::Index ld, Eigen::Index rows, Eigen::Index xc, Eigen::Index j,
+               Scalar* G, Eigen::Index ldg) {
+  using RowC = Eigen::Matrix<Scalar, 1, C>;
+  RowC g0 = RowC::Zero(), g1 = RowC::Zero(), g2 = RowC::Zero(), g3 = RowC::Zero(),
+       g4 = RowC::Zero(), g5 = RowC::Zero();
+  for (Eigen::Index k = 0; k < rows; ++k) {
+    const Scalar* x = A + k * ld + xc;
+    const Eigen::Map<const RowC> y(A + k * ld + j);
+    g0 += x[0] * y;
+    g1 += x[1] * y;
+    g2 += x[2] * y;
+    g3 += x[3] * y;
+    g4 += x[4] * y;
+    g5 += x[5] * y;
+  }
+  Eigen::Map<RowC>(G + j) = g0;
+  Eigen::Map<RowC>(G + ldg + j) = g1;
+  Eigen::Map<RowC>(G + 2 * ldg + j) = g2;
+  Eigen::Map<RowC>(G + 3 * ldg + j) = g3;
+  Eigen::Map<RowC>(G + 4 * ldg + j) = g4;
+  Eigen::Map<RowC>(G + 5 * ldg + j) = g5;
+}
+
+// G(0..6, j .. n) in chunks of C, C/2, ... down to one SSE register, the rest by one more
+// SSE-register chunk that ends at n (as reflectorProduct below, for the same reason): n ≥ 16 bytes.
+template <int C, typename Scalar>
+void gramRow(const Scalar* A, Eigen::Index ld, Eigen::Index rows, Eigen::Index xc, Eigen::Index j,
+             Eigen::Index n, Scalar* G, Eigen::Index ldg) {
+  for (; n - j >= C; j += C) gramChunk<C>(A, ld, rows, xc, j, G, ldg);
+  if (j == n) return;
+  if constexpr (C * sizeof(Scalar) > 16) {
+    gramRow<C / 2>(A, ld, rows, xc, j, n, G, ldg);
+  } else {
+    gramChunk<C>(A, ld, rows, xc, n - C, G, ldg);
+  }
+}
+
 // The reduced rows A (row-major, `rows` rows, row stride ld ≥ n_p + 4, pose blocks of 6 columns,
-// r in column r_col) added straight into H and b, pose-block pair by pair: H(o_i, o_j) +=
-// Σ_k a_kiᵀ a_kj (both triangles), b(o_i) += Σ_k a_kiᵀ r_k, only over the poses the landmark
-// touches and without a local system to zero and scatter. Each product is a 6 × 8 register block
-// (8 = a whole vector of every ISA; the two extra columns are the next block's or J_l's, in the
-// storage and discarded), sums in row order.
+// r in column r_col) added straight into H and b, pose block by pose block: block row i of the
+// local lower triangle, G_i = Σ_k a_kiᵀ [a_k0 … a_ki] (6 × 6(i + 1), two vector registers of
+// columns at a time), goes to H(o_i, o_j) and its transpose to H(o_j, o_i); b(o_i) += Σ_k a_kiᵀ r_k
+// (a 6 × 8 register block: 8 is a whole vector of every ISA; the two extra columns are the next
+// block's or J_l's, discarded). Only the poses the landmark touches, no local system to zero and
+// scatter; every sum in row order.
 template <typename Scalar, typename HScalar>
 void addPoseBlockPairs(const Scalar* A, Eigen::Index ld, Eigen::Index rows, Eigen::Index r_col,
                        const std::vector<int>& offsets, MatX<HScalar>& H, VecX<HScalar>& b) {
   using Row8 = Eigen::Map<const Eigen::Matrix<Scalar, 1, 8>>;
+  using GramRow = Eigen::Map<const Eigen::Matrix<Scalar, 6, Eigen::Dynamic, Eigen::RowMajor>, 0,
+                             Eigen::OuterStride<>>;
+  constexpr int kChunk = 2 * kVectorBytes / static_cast<int>(sizeof(Scalar));
   const int n_blocks = static_cast<int>(offsets.size());
+  thread_local std::vector<Scalar> G_buffer;
+  const Eigen::Index ldg = 6 * n_blocks;
+  G_buffer.resize(static_cast<size_t>(6 * ldg));
   for (int i = 0; i < n_blocks; ++i) {
     const int oi = offsets[static_cast<size_t>(i)];
     Eigen::Matrix<Scalar, 1, 8> b_i = Eigen::Matrix<Scalar, 1, 8>::Zero();
     for (Eigen::Index k = 0; k < rows; ++k) b_i += A[k * ld + r_col] * Row8(A + k * ld + 6 * i);
     b.template segment<6>(oi) += b_i.template head<6>().transpose().template cast<HScalar>();
+    gramRow<kChunk>(A, ld, rows, 6 * i, 0, 6 * (i + 1), G_buffer.data(), ldg);
+    const GramRow G_i(G_buffer.data(), 6, 6 * (i + 1), Eigen::OuterStride<>(ldg));
     for (int j = 0; j <= i; ++j) {
-      Eigen::Matrix<Scalar, 6, 8, Eigen::RowMajor> acc =
-          Eigen::Matrix<Scalar, 6, 8, Eigen::RowMajor>::Zero();
-      for (Eigen::Index k = 0; k < rows; ++k) {
-        const Scalar* x = A + k * ld + 6 * i;
-        const Row8 y(A + k * ld + 6 * j);
-        for (int a = 0; a < 6; ++a) acc.row(a) += x[a] * y;
-      }
       const int oj = offsets[static_cast<size_t>(j)];
       const Eigen::Matrix<HScalar, 6, 6> block =
-          acc.template leftCols<6>().template cast<HScalar>();
+          G_i.template block<6, 6>(0, 6 * j).template cast<HScalar>();
       H.template block<6, 6>(oi, oj) += block;
       if (j != i) H.template block<6, 6>(oj, oi) += block.transpose();
     }
@@ -120,15 +172,6 @@ Eigen::Map<const VecX<Scalar>> gatherLocalScratch(const PoseBlockMap& map,
   }
   return Eigen::Map<const VecX<Scalar>>(buffer.data(), map.localCols());
 }
-
-// The widest vector register of the ISA this copy is compiled for (core/isa_kernels.cmake).
-#if defined(__AVX512F__)
-constexpr int kVectorBytes = 64;
-#elif defined(__AVX__)
-constexpr int kVectorBytes = 32;
-#else
-constexpr int kVectorBytes = 16;
-#endif
 
 // w(j .. j + C) = row_k + Σ_{i = k+1}^{m−1} v_i row_i over C columns from j, summed in row order.
 // The C sums stay in registers over the rows: a running sum kept in memory would chain every
