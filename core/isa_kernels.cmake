@@ -34,6 +34,7 @@ set(MARGLAB_ISA_KERNEL_SOURCES
     ${MARGLAB_ISA_ONLY_SOURCES}
     ${CMAKE_CURRENT_SOURCE_DIR}/estimator/window_landmark.cpp
     ${CMAKE_CURRENT_SOURCE_DIR}/linalg/landmark_block.cpp
+    ${CMAKE_CURRENT_SOURCE_DIR}/linalg/landmark_block_sc.cpp
     ${CMAKE_CURRENT_SOURCE_DIR}/linalg/rcs_solve.cpp)
 set(MARGLAB_ISA_FLAGS_sse2 "")
 set(MARGLAB_ISA_ENUM_sse2 kSse2)

@@ -9,9 +9,14 @@
 #include <vector>
 
 #include "core/common/scalar.h"
+#include "core/linalg/landmark_block_common.h"
 
 namespace marglab {
 namespace {
+
+using landmark_block_detail::checkInput;
+using landmark_block_detail::gatherLocalScratch;
+using landmark_block_detail::scatterReduced;
 
 // The widest vector register of the ISA this copy is compiled for (core/isa_kernels.cmake).
 #if defined(__AVX512F__)
@@ -21,67 +26,6 @@ constexpr int kVectorBytes = 32;
 #else
 constexpr int kVectorBytes = 16;
 #endif
-
-template <typename Scalar>
-Status checkInput(const MatX<Scalar>& J_p, const Mat<Scalar, Eigen::Dynamic, 3>& J_l,
-                  const VecX<Scalar>& r, const PoseBlockMap& map) {
-  const Eigen::Index m = J_l.rows();
-  if (m < 3 || J_p.rows() != m || r.size() != m || J_p.cols() != map.localCols()) {
-    return Status::Error(
-        Status::Code::kInvalidArgument,
-        fmt::format("landmark block: J_p {}x{}, J_l {}x3, r {} with {} pose "
-                    "blocks of {} (needs ≥ 3 consistent rows)",
-                    J_p.rows(), J_p.cols(), m, r.size(), map.rcs_offset.size(), map.pose_dim));
-  }
-  // J_p is not scanned: a non-finite entry reaches the reduced system, whose solve reports it.
-  if (!J_l.allFinite() || !r.allFinite()) {
-    return Status::Error(Status::Code::kNotFinite,
-                         "landmark block: non-finite Jacobian or residual");
-  }
-  return Status::Ok();
-}
-
-// Adds a local system whose H_loc holds only its lower triangle (from a symmetric rank update,
-// half the flops of a full product) to both triangles of the global H. PD is the pose block size
-// when known at compile time (fixed-size block copies), Eigen::Dynamic otherwise.
-template <int PD, typename Scalar, typename HScalar>
-void scatterReducedBlocks(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
-                          const VecX<Scalar>& b_loc, MatX<HScalar>& H, VecX<HScalar>& b) {
-  const int pd = map.pose_dim;
-  const int n_blocks = static_cast<int>(map.rcs_offset.size());
-  for (int i = 0; i < n_blocks; ++i) {
-    const int oi = map.rcs_offset[i];
-    b.template segment<PD>(oi, pd) +=
-        b_loc.template segment<PD>(i * pd, pd).template cast<HScalar>();
-    if constexpr (std::is_same_v<Scalar, HScalar>) {
-      H.template block<PD, PD>(oi, oi, pd, pd) +=
-          H_loc_lower.template block<PD, PD>(i * pd, i * pd, pd, pd)
-              .template selfadjointView<Eigen::Lower>();
-    } else {
-      const Eigen::Matrix<Scalar, PD, PD> diag =
-          H_loc_lower.template block<PD, PD>(i * pd, i * pd, pd, pd)
-              .template selfadjointView<Eigen::Lower>();
-      H.template block<PD, PD>(oi, oi, pd, pd) += diag.template cast<HScalar>();
-    }
-    for (int j = 0; j < i; ++j) {
-      const int oj = map.rcs_offset[j];
-      const auto block =
-          H_loc_lower.template block<PD, PD>(i * pd, j * pd, pd, pd).template cast<HScalar>();
-      H.template block<PD, PD>(oi, oj, pd, pd) += block;
-      H.template block<PD, PD>(oj, oi, pd, pd) += block.transpose();
-    }
-  }
-}
-
-template <typename Scalar, typename HScalar>
-void scatterReduced(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
-                    const VecX<Scalar>& b_loc, MatX<HScalar>& H, VecX<HScalar>& b) {
-  if (map.pose_dim == 6) {
-    scatterReducedBlocks<6>(map, H_loc_lower, b_loc, H, b);
-  } else {
-    scatterReducedBlocks<Eigen::Dynamic>(map, H_loc_lower, b_loc, H, b);
-  }
-}
 
 // G(0..6, j .. j + C) = Σ_k x_kᵀ row_k(j .. j + C) with x_k = row_k(xc .. xc + 6), over the first
 // `rows` rows of the row-major A (row stride ld); G row-major with row stride ldg. The 6 × C sums
@@ -157,20 +101,6 @@ void addPoseBlockPairs(const Scalar* A, Eigen::Index ld, Eigen::Index rows, Eige
       if (j != i) H.template block<6, 6>(oj, oi) += block.transpose();
     }
   }
-}
-
-// The landmark's local pose increment gathered into a per-thread buffer that keeps its capacity
-// (no allocation per landmark and LM trial once warm).
-template <typename Scalar>
-Eigen::Map<const VecX<Scalar>> gatherLocalScratch(const PoseBlockMap& map,
-                                                  const VecX<Scalar>& delta_rcs) {
-  thread_local std::vector<Scalar> buffer;
-  const int pd = map.pose_dim;
-  buffer.resize(static_cast<size_t>(map.localCols()));
-  for (size_t j = 0; j < map.rcs_offset.size(); ++j) {
-    for (int i = 0; i < pd; ++i) buffer[j * pd + i] = delta_rcs[map.rcs_offset[j] + i];
-  }
-  return Eigen::Map<const VecX<Scalar>>(buffer.data(), map.localCols());
 }
 
 // w(j .. j + C) = row_k + Σ_{i = k+1}^{m−1} v_i row_i over C columns from j, summed in row order.
@@ -377,82 +307,9 @@ Scalar LandmarkBlockNs<Scalar>::linearizedCostChange(const VecX<Scalar>& delta_r
                         Scalar(2) * Q2_r.dot(J_step));
 }
 
-template <typename Scalar>
-Status LandmarkBlockSc<Scalar>::setFromJacobians(const MatX<Scalar>& J_p,
-                                                 const Mat<Scalar, Eigen::Dynamic, 3>& J_l,
-                                                 const VecX<Scalar>& r, PoseBlockMap map) {
-  Status status = checkInput(J_p, J_l, r, map);
-  if (!status.ok()) return status;
-  map_ = std::move(map);
-  // Lower triangle only: the symmetric rank update halves the flops of the full product.
-  H_pp_.setZero(J_p.cols(), J_p.cols());
-  // Eigen's rank update of an empty J_p binds a reference to its null data (UBSan, §11).
-  if (J_p.size() > 0) H_pp_.template selfadjointView<Eigen::Lower>().rankUpdate(J_p.transpose());
-  H_pl_ = J_p.transpose() * J_l;
-  H_ll_ = J_l.transpose() * J_l;
-  b_p_ = J_p.transpose() * r;
-  b_l_ = J_l.transpose() * r;
-  return Status::Ok();
-}
-
-template <typename Scalar>
-Status LandmarkBlockSc<Scalar>::dampedFactor(Eigen::LLT<Mat3<Scalar>>* llt) const {
-  Mat3<Scalar> H_ll = H_ll_;
-  H_ll.diagonal() += damping_;
-  llt->compute(H_ll);
-  if (llt->info() != Eigen::Success || !llt->matrixLLT().allFinite()) {
-    return Status::Error(Status::Code::kRankDeficient,
-                         "landmark Schur complement: H_ll is not positive definite");
-  }
-  return Status::Ok();
-}
-
-template <typename Scalar>
-template <typename HScalar>
-Status LandmarkBlockSc<Scalar>::addToReducedSystem(MatX<HScalar>& H, VecX<HScalar>& b) const {
-  Eigen::LLT<Mat3<Scalar>> llt;
-  Status status = dampedFactor(&llt);
-  if (!status.ok()) return status;
-  // No pose block, nothing to add (Eigen's rank update of an empty M binds a null reference).
-  if (H_pl_.rows() == 0) return Status::Ok();
-  // H_pl H_ll⁻¹ H_lp = MᵀM with M = L⁻¹ H_lp, H_ll = L Lᵀ.
-  const Mat<Scalar, 3, Eigen::Dynamic> M =
-      llt.matrixL().solve(Mat<Scalar, 3, Eigen::Dynamic>(H_pl_.transpose()));
-  MatX<Scalar> H_loc = H_pp_;
-  H_loc.template selfadjointView<Eigen::Lower>().rankUpdate(M.transpose(), Scalar(-1));
-  const VecX<Scalar> b_loc = b_p_ - M.transpose() * llt.matrixL().solve(b_l_);
-  scatterReduced(map_, H_loc, b_loc, H, b);
-  return Status::Ok();
-}
-
-template <typename Scalar>
-Status LandmarkBlockSc<Scalar>::backSubstitute(const VecX<Scalar>& delta_rcs,
-                                               Vec3<Scalar>* delta_l) const {
-  Eigen::LLT<Mat3<Scalar>> llt;
-  Status status = dampedFactor(&llt);
-  if (!status.ok()) return status;
-  const auto delta_p = gatherLocalScratch(map_, delta_rcs);
-  *delta_l = -llt.solve(b_l_ + H_pl_.transpose() * delta_p);
-  if (!delta_l->allFinite()) {
-    return Status::Error(Status::Code::kNotFinite, "landmark back-substitution: non-finite step");
-  }
-  return Status::Ok();
-}
-
-template <typename Scalar>
-Scalar LandmarkBlockSc<Scalar>::linearizedCostChange(const VecX<Scalar>& delta_rcs,
-                                                     const Vec3<Scalar>& delta_l) const {
-  const auto delta_p = gatherLocalScratch(map_, delta_rcs);
-  const Scalar quadratic = delta_p.dot(H_pp_.template selfadjointView<Eigen::Lower>() * delta_p) +
-                           Scalar(2) * delta_p.dot(H_pl_ * delta_l) + delta_l.dot(H_ll_ * delta_l);
-  return b_p_.dot(delta_p) + b_l_.dot(delta_l) + Scalar(0.5) * quadratic;
-}
-
 #define MARGLAB_INST(S)                                                                \
   template class LandmarkBlockNs<S>;                                                   \
-  template class LandmarkBlockSc<S>;                                                   \
   template Status LandmarkBlockNs<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const; \
-  template Status LandmarkBlockSc<S>::addToReducedSystem<S>(MatX<S>&, VecX<S>&) const; \
   template VecX<S> gatherLocal<S>(const PoseBlockMap&, const VecX<S>&);                \
   template void householderLandmarkColumns<S>(S*, Eigen::Index, Eigen::Index, Eigen::Index);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
