@@ -18,7 +18,7 @@
 namespace marglab {
 namespace {
 
-// ---- PNG (libpng) --------------------------------------------------------------------------------
+// ---- PNG (libpng) ----
 // libpng reports an error by longjmp to the last setjmp: the functions that call setjmp hold no
 // object with a destructor, and every allocation happens between them, in ordinary C++ code.
 
@@ -87,8 +87,7 @@ bool pngReadRows(png_structp png, png_bytepp rows) {
 
 cv::Mat decodePng(const std::vector<uint8_t>& bytes, const std::string& path) {
   PngContext context{bytes.data(), bytes.size()};
-  png_structp png =
-      png_create_read_struct(PNG_LIBPNG_VER_STRING, &context, &pngError, &pngWarning);
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &context, &pngError, &pngWarning);
   png_infop info = png != nullptr ? png_create_info_struct(png) : nullptr;
   if (info == nullptr) throw std::bad_alloc();
   struct Release {
@@ -112,9 +111,10 @@ cv::Mat decodePng(const std::vector<uint8_t>& bytes, const std::string& path) {
 
 bool pngWriteRows(png_structp png, png_infop info, const cv::Mat& image, png_bytepp rows) {
   if (setjmp(png_jmpbuf(png))) return false;
-  png_set_IHDR(png, info, static_cast<png_uint_32>(image.cols), static_cast<png_uint_32>(image.rows),
-               8, image.channels() == 1 ? PNG_COLOR_TYPE_GRAY : PNG_COLOR_TYPE_RGB,
-               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(image.cols),
+               static_cast<png_uint_32>(image.rows), 8,
+               image.channels() == 1 ? PNG_COLOR_TYPE_GRAY : PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   png_write_info(png, info);
   png_set_bgr(png);
   png_write_image(png, rows);
@@ -122,7 +122,7 @@ bool pngWriteRows(png_structp png, png_infop info, const cv::Mat& image, png_byt
   return true;
 }
 
-// ---- JPEG (libjpeg) ------------------------------------------------------------------------------
+// ---- JPEG (libjpeg) ----
 // The same pattern: libjpeg's error_exit longjmps back into the function that called setjmp.
 
 struct JpegError {
@@ -148,7 +148,8 @@ bool jpegStart(jpeg_decompress_struct* cinfo, JpegError* error, const std::vecto
   } else if (cinfo->jpeg_color_space == JCS_YCbCr || cinfo->jpeg_color_space == JCS_RGB) {
     cinfo->out_color_space = JCS_EXT_BGR;
   } else {
-    std::snprintf(error->message, sizeof error->message, "colour space %d (expected grey or colour)",
+    std::snprintf(error->message, sizeof error->message,
+                  "colour space %d (expected grey or colour)",
                   static_cast<int>(cinfo->jpeg_color_space));
     return false;
   }
@@ -188,7 +189,8 @@ cv::Mat decodeJpeg(const std::vector<uint8_t>& bytes, const std::string& path) {
 std::vector<uint8_t> readBytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, 0, "cannot open the image file");
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                             std::istreambuf_iterator<char>());
   if (in.bad()) throw InputError(path, 0, "cannot read the image file");
   return bytes;
 }

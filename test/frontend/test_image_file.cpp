@@ -1,8 +1,8 @@
 // core/frontend/image_file.h against OpenCV's own codecs (imgcodecs, linked by this test only):
 // decodeImageFile gives what cv::imread(path, IMREAD_UNCHANGED) gives, pixel for pixel, on the
 // shipped real EuRoC frames and on images of every layout the decoder handles (grey 1 / 8 / 16 bit,
-// colour 8 / 16 bit, alpha, grey, colour and progressive JPEG); encodePng round-trips through cv::imdecode;
-// truncated and foreign files are input errors naming the file.
+// colour 8 / 16 bit, alpha, grey, colour and progressive JPEG); encodePng round-trips through
+// cv::imdecode; truncated and foreign files are input errors naming the file.
 
 #include <gtest/gtest.h>
 
@@ -57,8 +57,7 @@ class ImageFile : public ::testing::Test {
 };
 
 TEST_F(ImageFile, ShippedEurocFramesDecodeAsImread) {
-  const fs::path data =
-      fs::path(sourceDir()) / "datasets/euroc/V1_01_easy_images/mav0/cam1/data";
+  const fs::path data = fs::path(sourceDir()) / "datasets/euroc/V1_01_easy_images/mav0/cam1/data";
   int n = 0;
   for (const auto& entry : fs::directory_iterator(data)) {
     if (n++ == 5) break;
