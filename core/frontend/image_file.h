@@ -1,6 +1,6 @@
 #pragma once
 // PNG and JPEG files in and out, with libpng and libjpeg(-turbo) directly rather than OpenCV's
-// imgcodecs: Debian's imgcodecs links ~120 more shared libraries (GDAL, DICOM, HEIF, OpenEXR, ...)
+// imgcodecs: Debian's imgcodecs links ~80 more shared libraries (GDAL, DICOM, HEIF, OpenEXR, ...)
 // whose loading and relocation cost every marglab process ~0.2 s at start-up, images or not.
 //
 // decodeImageFile gives what cv::imread(path, cv::IMREAD_UNCHANGED) gives for these formats (test/
