@@ -69,8 +69,9 @@ class LandmarkBlockNs {
   auto reducedJp() const { return storage_.block(3, 0, reduced_rows_, n_p_); }
   auto reducedR() const { return storage_.col(n_p_ + 3).segment(3, reduced_rows_); }
   // H += (Q2ᵀJ_p)ᵀ(Q2ᵀJ_p), b += (Q2ᵀJ_p)ᵀQ2ᵀr on the reduced camera system (upper and lower),
-  // formed in Scalar and accumulated in HScalar, pose-block pair by pair (6-column pose blocks;
-  // other sizes: a rank update scattered by blocks). Fails (adds nothing) when R1 is singular.
+  // formed in Scalar and accumulated in HScalar, only over the pose blocks the landmark touches,
+  // one block row of its Gram matrix at a time (6-column pose blocks; other sizes: a rank update
+  // scattered by blocks). Fails (adds nothing) when R1 is singular.
   template <typename HScalar>
   Status addToReducedSystem(MatX<HScalar>& H, VecX<HScalar>& b) const;
   // Copies the reduced rows into rows [row, row + numReducedRows()) of a stacked square-root
