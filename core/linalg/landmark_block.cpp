@@ -27,6 +27,23 @@ constexpr int kVectorBytes = 32;
 constexpr int kVectorBytes = 16;
 #endif
 
+// Calls chunk(std::integral_constant<int, C'>{}, j') over the columns [j, n): chunks of C, then of
+// C/2, C/4, ... down to one SSE register, and the last columns by one more SSE-register chunk that
+// ends at n and overlaps columns already done (the chunk recomputes them identically), so
+// n ≥ 16 bytes of Scalar. A chunk narrower than an SSE register, or a loop over the last columns,
+// would be vectorized by GCC in half a register, where it does not fuse the multiply-add: another
+// rounding than the fused code of the other columns.
+template <int C, typename Scalar, typename Chunk>
+void forColumnChunks(Eigen::Index j, Eigen::Index n, const Chunk& chunk) {
+  for (; n - j >= C; j += C) chunk(std::integral_constant<int, C>{}, j);
+  if (j == n) return;
+  if constexpr (C * sizeof(Scalar) > 16) {
+    forColumnChunks<C / 2, Scalar>(j, n, chunk);
+  } else {
+    chunk(std::integral_constant<int, C>{}, n - C);
+  }
+}
+
 // G(0..6, j .. j + C) = Σ_k x_kᵀ row_k(j .. j + C) with x_k = row_k(xc .. xc + 6), over the first
 // `rows` rows of the row-major A (row stride ld); G row-major with row stride ldg. The 6 × C sums
 // stay in registers over the rows (six chains of C / lanes multiply-adds), summed in row order.
@@ -54,20 +71,6 @@ void gramChunk(const Scalar* A, Eigen::Index ld, Eigen::Index rows, Eigen::Index
   Eigen::Map<RowC>(G + 5 * ldg + j) = g5;
 }
 
-// G(0..6, j .. n) in chunks of C, C/2, ... down to one SSE register, the rest by one more
-// SSE-register chunk that ends at n (as reflectorProduct below, for the same reason): n ≥ 16 bytes.
-template <int C, typename Scalar>
-void gramRow(const Scalar* A, Eigen::Index ld, Eigen::Index rows, Eigen::Index xc, Eigen::Index j,
-             Eigen::Index n, Scalar* G, Eigen::Index ldg) {
-  for (; n - j >= C; j += C) gramChunk<C>(A, ld, rows, xc, j, G, ldg);
-  if (j == n) return;
-  if constexpr (C * sizeof(Scalar) > 16) {
-    gramRow<C / 2>(A, ld, rows, xc, j, n, G, ldg);
-  } else {
-    gramChunk<C>(A, ld, rows, xc, n - C, G, ldg);
-  }
-}
-
 // The reduced rows A (row-major, `rows` rows, row stride ld ≥ n_p + 4, pose blocks of 6 columns,
 // r in column r_col) added straight into H and b, pose block by pose block: block row i of the
 // local lower triangle, G_i = Σ_k a_kiᵀ [a_k0 … a_ki] (6 × 6(i + 1), two vector registers of
@@ -91,7 +94,9 @@ void addPoseBlockPairs(const Scalar* A, Eigen::Index ld, Eigen::Index rows, Eige
     Eigen::Matrix<Scalar, 1, 8> b_i = Eigen::Matrix<Scalar, 1, 8>::Zero();
     for (Eigen::Index k = 0; k < rows; ++k) b_i += A[k * ld + r_col] * Row8(A + k * ld + 6 * i);
     b.template segment<6>(oi) += b_i.template head<6>().transpose().template cast<HScalar>();
-    gramRow<kChunk>(A, ld, rows, 6 * i, 0, 6 * (i + 1), G_buffer.data(), ldg);
+    forColumnChunks<kChunk, Scalar>(0, 6 * (i + 1), [&](auto c, Eigen::Index j0) {
+      gramChunk<decltype(c)::value>(A, ld, rows, 6 * i, j0, G_buffer.data(), ldg);
+    });
     const GramRow G_i(G_buffer.data(), 6, 6 * (i + 1), Eigen::OuterStride<>(ldg));
     for (int j = 0; j <= i; ++j) {
       const int oj = offsets[static_cast<size_t>(j)];
@@ -114,23 +119,6 @@ void reflectorProductChunk(const Scalar* A, Eigen::Index ld, Eigen::Index k, Eig
   Chunk acc = Eigen::Map<const Chunk>(A + k * ld + j);
   for (Eigen::Index i = k + 1; i < m; ++i) acc += v[i] * Eigen::Map<const Chunk>(A + i * ld + j);
   Eigen::Map<Chunk>(w + j) = acc;
-}
-
-// The columns [j, n) in chunks of C, then of C/2, C/4, ... down to one SSE register; the last
-// columns by one more SSE-register chunk that ends at n and overlaps columns already done (it
-// recomputes them identically), so n ≥ 16 bytes. (A chunk narrower than an SSE register, or a
-// loop over the last columns, is vectorized in half a register, where GCC does not fuse the
-// multiply-add: another rounding than the fused code of the other columns.)
-template <int C, typename Scalar>
-void reflectorProduct(const Scalar* A, Eigen::Index ld, Eigen::Index k, Eigen::Index m,
-                      const Scalar* v, Eigen::Index j, Eigen::Index n, Scalar* w) {
-  for (; n - j >= C; j += C) reflectorProductChunk<C>(A, ld, k, m, v, j, w);
-  if (j == n) return;
-  if constexpr (C * sizeof(Scalar) > 16) {
-    reflectorProduct<C / 2>(A, ld, k, m, v, j, n, w);
-  } else {
-    reflectorProductChunk<C>(A, ld, k, m, v, n - C, w);
-  }
 }
 
 }  // namespace
@@ -160,7 +148,9 @@ void householderLandmarkColumns(Scalar* A, Eigen::Index ld, Eigen::Index m, Eige
       const Scalar tau = (beta - c0) / beta;
       // Four vector registers of sums at a time: independent multiply-add chains.
       constexpr int kChunk = 4 * kVectorBytes / static_cast<int>(sizeof(Scalar));
-      reflectorProduct<kChunk>(A, ld, k, m, v, 0, n_total, w);
+      forColumnChunks<kChunk, Scalar>(0, n_total, [&](auto c, Eigen::Index j0) {
+        reflectorProductChunk<decltype(c)::value>(A, ld, k, m, v, j0, w);
+      });
       for (Eigen::Index j = 0; j < n_total; ++j) w[j] *= tau;
       Scalar* row_k_mut = A + k * ld;
       for (Eigen::Index j = 0; j < n_total; ++j) row_k_mut[j] -= w[j];
