@@ -206,13 +206,22 @@ void readPinholeIntrinsics(const FlatYaml& yaml, const std::string& prefix, Came
   cam.fy = k[1];
   cam.cx = k[2];
   cam.cy = k[3];
+  if (cam.fx <= 0 || cam.fy <= 0) {
+    throw InputError(yaml.path(), yaml.get(prefix + "intrinsics").line,
+                     "expected positive focal lengths");
+  }
+  // Checked before the cast to int: a double outside int's range makes the cast undefined.
+  constexpr double kMaxPixels = 1 << 16;
   const std::vector<double> size = yaml.numbers(prefix + "resolution", 2);
+  for (double n : size) {
+    if (!(n >= 1 && n <= kMaxPixels && n == std::floor(n))) {
+      throw InputError(yaml.path(), yaml.get(prefix + "resolution").line,
+                       fmt::format("expected a resolution of whole numbers in [1, {}], found {}",
+                                   kMaxPixels, n));
+    }
+  }
   cam.width = static_cast<int>(size[0]);
   cam.height = static_cast<int>(size[1]);
-  if (cam.fx <= 0 || cam.fy <= 0 || cam.width <= 0 || cam.height <= 0) {
-    throw InputError(yaml.path(), yaml.get(prefix + "intrinsics").line,
-                     "expected positive focal lengths and resolution");
-  }
 }
 
 }  // namespace

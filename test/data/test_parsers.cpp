@@ -243,6 +243,13 @@ TEST(EurocSensorYaml, BadInput) {
       writeFile(dir.file("rigid.yaml"), yaml.replace(yaml.find("0.999557249008"), 14, "0.5"));
   expectInputError([&] { readEurocSensorYaml(not_rigid); }, not_rigid, 9,
                    "expected a rigid transform in 'T_BS.data'");
+  for (const char* resolution : {"[752, 1e300]", "[752.5, 480]", "[0, 480]", "[752, 65537]"}) {
+    yaml = kSensorYaml;
+    const std::string bad_size = writeFile(
+        dir.file("size.yaml"), yaml.replace(yaml.find("[752, 480]"), 10, resolution));
+    expectInputError([&] { readEurocSensorYaml(bad_size); }, bad_size, 16,
+                     "expected a resolution of whole numbers in [1, 65536]");
+  }
 }
 
 TEST(KalibrCamchain, TCamImuIsInvertedToTBodyCamera) {
