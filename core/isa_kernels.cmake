@@ -56,9 +56,10 @@ foreach(isa sse2 avx2 avx512)
   # EIGEN_MAX_ALIGN_BYTES=16 keeps the objects' layout and the alignment Eigen assumes for their
   # data; EIGEN_MALLOC_ALREADY_ALIGNED=1 keeps the allocator plain malloc / free (with AVX Eigen
   # would switch to its own aligned allocator, whose blocks free() cannot release, and back);
-  # its malloc calls are renamed below to marglab_isa_aligned_malloc (core/linalg/isa.cpp,
-  # 64-byte-aligned, released by free), so that Eigen's internal buffers, which it loads with
-  # aligned AVX loads, are aligned as it assumes.
+  # its malloc and calloc calls are renamed below to marglab_isa_aligned_malloc / _calloc
+  # (core/linalg/isa.cpp, 64-byte-aligned, released by free), so that Eigen's internal buffers,
+  # which it loads with aligned AVX loads, are aligned as it assumes, and no result depends on
+  # where the heap puts a block (GCC turns malloc + setZero into calloc).
   target_compile_definitions(${target} PRIVATE EIGEN_MAX_ALIGN_BYTES=16 EIGEN_MALLOC_ALREADY_ALIGNED=1
                                                MARGLAB_ISA_NS=isa_${isa}
                                                MARGLAB_ISA_ENUM=${MARGLAB_ISA_ENUM_${isa}}
@@ -74,7 +75,8 @@ foreach(isa sse2 avx2 avx512)
     COMMAND ${CMAKE_LINKER} -r --force-group-allocation $<TARGET_OBJECTS:${target}>
             -o ${object}.partial
     COMMAND ${CMAKE_OBJCOPY} --keep-global-symbol=${entry}
-            --redefine-sym malloc=marglab_isa_aligned_malloc ${object}.partial ${object}
+            --redefine-sym malloc=marglab_isa_aligned_malloc
+            --redefine-sym calloc=marglab_isa_aligned_calloc ${object}.partial ${object}
     COMMAND ${Python3_EXECUTABLE} ${CMAKE_SOURCE_DIR}/tools/scripts/check_isa_object.py
             ${object} isa_${isa}
     DEPENDS ${target} $<TARGET_OBJECTS:${target}>

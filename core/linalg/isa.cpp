@@ -4,6 +4,8 @@
 
 #include <atomic>
 #include <cstdlib>
+#include <cstring>
+#include <limits>
 
 #include "core/common/error.h"
 
@@ -86,4 +88,11 @@ Isa resolveIsa(const std::string& name) {
 extern "C" void* marglab_isa_aligned_malloc(std::size_t size) {
   void* p = nullptr;
   return posix_memalign(&p, 64, size) == 0 ? p : nullptr;
+}
+
+extern "C" void* marglab_isa_aligned_calloc(std::size_t count, std::size_t size) {
+  if (size != 0 && count > std::numeric_limits<std::size_t>::max() / size) return nullptr;
+  void* p = marglab_isa_aligned_malloc(count * size);
+  if (p != nullptr) std::memset(p, 0, count * size);
+  return p;
 }

@@ -37,6 +37,11 @@ Isa resolveIsa(const std::string& name);
 
 }  // namespace marglab
 
-// malloc of the ISA copies (core/isa_kernels.cmake renames their calls to it): 64-byte-aligned
-// blocks that free() releases, as Eigen's AVX / AVX-512 code expects of its buffers.
+// malloc and calloc of the ISA copies (core/isa_kernels.cmake renames their calls to these):
+// 64-byte-aligned blocks that free() releases, as Eigen's AVX / AVX-512 code expects of its
+// buffers. calloc matters as much as malloc: GCC turns an inlined Eigen allocation followed by
+// setZero (a product's result) into one calloc call, and Eigen's vectorized loops that peel to the
+// first aligned coefficient (the selfadjoint matrix-vector product) would otherwise group their
+// sums by the heap's layout.
 extern "C" void* marglab_isa_aligned_malloc(std::size_t size);
+extern "C" void* marglab_isa_aligned_calloc(std::size_t count, std::size_t size);

@@ -10,8 +10,9 @@ It passes when
     another ISA's copy, nor another ISA's code for it), and
   - it refers to no symbol it does not define that is Eigen's or weak (an inline or template
     function it did not compile itself would bind to some other object's copy), and
-  - it calls no plain malloc (renamed to marglab_isa_aligned_malloc: Eigen's AVX code assumes its
-    buffers aligned to the vector width).
+  - it calls no plain allocator (malloc and calloc are renamed to marglab_isa_aligned_malloc /
+    _calloc: Eigen's AVX code assumes its buffers aligned to the vector width, and its loops that
+    peel to the first aligned coefficient would otherwise follow the heap's layout).
 On failure it prints the offending symbols, removes OBJECT (so that the build step reruns) and
 exits 1.
 """
@@ -44,8 +45,9 @@ def main():
     for kind, name in nm(path, "--undefined-only"):
         if name.startswith("Eigen::") or kind in ("w", "v"):
             problems.append(f"refers to a symbol defined elsewhere: {kind} {name}")
-        if name == "malloc":
-            problems.append("calls malloc (not renamed to marglab_isa_aligned_malloc)")
+        if name in ("malloc", "calloc", "realloc", "reallocarray", "aligned_alloc", "memalign",
+                    "valloc", "pvalloc"):
+            problems.append(f"calls {name} (not renamed to a marglab_isa_aligned_* allocator)")
     if problems:
         print(f"{path}: not isolated:\n  " + "\n  ".join(problems[:40]), file=sys.stderr)
         os.remove(path)
