@@ -105,6 +105,7 @@ struct SweepArgs {
   std::string out;
   std::string backend = "local";
   std::string status_dir;
+  std::vector<std::uint64_t> seeds;
   bool wait = false;
   experiment::SlurmOptions slurm;
 };
@@ -131,6 +132,25 @@ void refuseOverwritingInputs(const experiment::SweepPlan& plan, const std::strin
                                {{file}, {}});
 }
 
+// --seeds: one part of a sweep too long for one sitting (README, "A sweep folder"): only the runs
+// of these seeds, each a seed the sweep file plans.
+void keepSeeds(experiment::SweepPlan* plan, const std::vector<std::uint64_t>& seeds) {
+  if (seeds.empty()) return;
+  for (const std::uint64_t seed : seeds) {
+    if (std::none_of(plan->runs.begin(), plan->runs.end(),
+                     [&](const auto& run) { return run.seed == seed; })) {
+      throw InputError(plan->source_file, 0,
+                       fmt::format("--seeds: no run of this sweep has seed {}", seed));
+    }
+  }
+  plan->runs.erase(std::remove_if(plan->runs.begin(), plan->runs.end(),
+                                  [&](const auto& run) {
+                                    return std::find(seeds.begin(), seeds.end(), run.seed) ==
+                                           seeds.end();
+                                  }),
+                   plan->runs.end());
+}
+
 int runSweepCommand(SweepArgs args) {
   args.slurm.wait = args.wait;
   if (!args.status_dir.empty()) {
@@ -140,7 +160,8 @@ int runSweepCommand(SweepArgs args) {
     return experiment::slurmSweepStatus(args.status_dir, options);
   }
   if (args.file.empty()) throw UsageError("sweep: a sweep file is required (or --status DIR)");
-  const experiment::SweepPlan plan = experiment::loadSweepFile(args.file, cli::sweepParseOptions());
+  experiment::SweepPlan plan = experiment::loadSweepFile(args.file, cli::sweepParseOptions());
+  keepSeeds(&plan, args.seeds);
   const std::string out = args.out.empty() ? "results/" + plan.name : args.out;
   if (args.dry_run) {
     fmt::print("sweep {} ({}): {} runs, would write {}\n", plan.name, args.file, plan.runs.size(),
@@ -179,6 +200,11 @@ const bool kRegistered = cli::registerCommand(
        sub.add_flag("--force", args->force, "Discard an earlier sweep in the output folder");
        sub.add_option("-o,--out", args->out, "Output folder (default: results/<sweep name>)");
        sub.add_flag("--dry-run", args->dry_run, "Validate and list the runs without running them");
+       sub.add_option("--seeds", args->seeds,
+                      "Only the runs of these seeds (comma-separated), e.g. one part of a long "
+                      "sweep per folder (-o)")
+           ->delimiter(',')
+           ->allow_extra_args(false);
        sub.add_option("--backend", args->backend,
                       "local: child processes here; slurm: one Slurm job array (shared filesystem)")
            ->capture_default_str()

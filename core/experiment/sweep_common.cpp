@@ -102,6 +102,7 @@ bool readCompleteResults(const std::string& path, IndexRow* row, const char* git
     row->setNumber("t_marg_total_s", s.t_marg_total_s);
     row->setNumber("wall_time_s", s.wall_time_s);
     row->setNumber("realtime_factor", s.realtime_factor);
+    row->set("mode", reader.info().metadata.mode);
     const bool failed = status == "failed";
     row->set("failure_kind", failed ? "numerical" : "");
     row->set("failure_frame", failed ? std::to_string(reader.info().failure_frame) : "");
@@ -116,7 +117,7 @@ void clearOutcome(IndexRow* row) {
   for (const char* column :
        {"failure_kind", "failure_frame", "reason", "exit_code", "signal", "reused", "wall_s",
         "n_frames", "ate_rmse", "duration_s", "t_opt_total_s", "t_marg_total_s", "wall_time_s",
-        "realtime_factor", "pid", "slurm_job", "started_utc"}) {
+        "realtime_factor", "mode", "pid", "slurm_job", "started_utc"}) {
     row->set(column, "");
   }
 }

@@ -61,6 +61,7 @@ const std::vector<std::string>& indexColumns() {
                                                    "t_marg_total_s",
                                                    "wall_time_s",
                                                    "realtime_factor",
+                                                   "mode",
                                                    "results",
                                                    "log",
                                                    "config",

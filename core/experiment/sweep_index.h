@@ -14,7 +14,9 @@
 //   reused        1 when --resume kept a complete results file from an earlier invocation
 //   wall_s        wall time of the `marglab run` process (simulation and diagnostics included)
 //   n_frames, ate_rmse, duration_s, t_opt_total_s, t_marg_total_s, wall_time_s, realtime_factor
-//                 copied from the results file's /summary (convenience; tables read the HDF5)
+//                 copied from the results file's /summary (%.17g; `marglab tables` reads the
+//                 HDF5 when it is there, these columns when it is not)
+//   mode          the results file's estimator mode (vo | vio), copied with the summary
 //   results, log, config, command (the exact `marglab run` command line), pid,
 //   slurm_job     JOBID_TASK of the run's Slurm array task (backend slurm), started_utc
 

@@ -105,7 +105,9 @@ struct ResultSet {
   std::vector<std::string> warnings;
 };
 
-// Reads <dir>/index.csv of each folder and every results file it lists.
+// Reads <dir>/index.csv of each folder and every results file it lists. A run whose results file
+// is not in the folder (a committed sweep folder keeps its index, not runs/) is read from its index
+// row, whose summary columns the sweep copied from the file; a warning counts them per folder.
 ResultSet loadResults(const std::vector<std::string>& dirs);
 
 // ---- tables -------------------------------------------------------------------------------------

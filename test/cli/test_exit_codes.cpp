@@ -94,6 +94,14 @@ TEST_F(ExitCodes, Sweep) {
   const std::string vio = file("vio.toml",
                                "name = \"v\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
                                "variants = [\"ns-qr-sqrt-f64\"]\nargs = [\"--mode\", \"vio\"]\n");
+  const std::string seeds =
+      file("seeds.toml", "name = \"s\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
+                         "variants = [\"ns-qr-sqrt-f64\"]\nseeds = [1, 2, 3]\n");
+  expectExit("sweep --dry-run --seeds 2,9 " + seeds, 1,
+             "seeds.toml: --seeds: no run of this sweep has seed 9");
+  expectExit("sweep --dry-run --seeds x " + seeds, 2);
+  expectExit("sweep --dry-run --seeds 3,1 " + seeds, 0, "): 2 runs, would write");
+  expectExit("sweep --dry-run --seeds 3,1 " + seeds, 0, "g__kitti-10__ns-qr-sqrt-f64__s3");
   expectExit("sweep --dry-run " + vio, 1,
              "vio.toml:2: run g__kitti-10__ns-qr-sqrt-f64__s1: --mode vio on KITTI: KITTI "
              "odometry has no IMU");

@@ -1,7 +1,8 @@
 // Seed statistics of Tables 1 and 2 and the seed claim table (issue #19) from a small synthetic
 // sweep: every mean, std and failure count equals the one computed here from the ATEs the results
 // files hold, a cell is `x n/n` only when every seed failed, the statistics switch on by themselves
-// only for a table with several seeds per cell, and `--seeds off` keeps the single-value tables.
+// only for a table with several seeds per cell, and `--seeds off` keeps the single-value tables; a
+// folder without its results files gives the same tables from its index.
 
 #include <gtest/gtest.h>
 
@@ -14,6 +15,7 @@
 #include <map>
 
 #include "common/cli_runner.h"
+#include "core/experiment/sweep_common.h"
 #include "core/experiment/sweep_index.h"
 #include "core/experiment/tables.h"
 #include "core/io/results_file.h"
@@ -239,6 +241,50 @@ TEST_F(SeedTables, OffKeepsSingleValuesAndOnWorksWithOneSeed) {
   const Csv claim = readCsv(on / "seed_claim.csv", {"row"});
   EXPECT_EQ(claim.at(mh, "within"), "no");  // √-f32 failed on a seed
   EXPECT_EQ(claim.at(mh, "failed_f32"), "1");
+}
+
+// A committed sweep folder holds index.csv without runs/: the tables from the index rows (whose
+// summary the sweep copies from the results file) are the tables from the files, byte for byte.
+TEST_F(SeedTables, AFolderWithoutItsResultsFilesGivesTheSameTablesFromItsIndex) {
+  const std::string mh = "euroc/MH_03_medium", kitti = "kitti/10";
+  for (int s = 1; s <= 3; ++s) {
+    addRun(mh, "ns-qr-sqrt-f64", s, 1e-3 * s);
+    addRun(mh, "ns-qr-sqrt-f32", s, 1e-3 * s + 1e-5);
+    addRun(kitti, "sc-sc-sq-f32", s, 0.1, s == 2 ? RunStatus::kFailed : RunStatus::kOk);
+  }
+  for (IndexRow& row : rows_) {
+    ASSERT_TRUE(detail::readCompleteResults((dir_ / "sweep" / row.get("results")).string(), &row));
+  }
+  const fs::path from_files = writeTablesOf(SeedStats::kAuto);
+  fs::rename(from_files, dir_ / "from_files");
+  fs::remove_all(dir_ / "sweep" / "runs");
+  const ResultSet index_only = loadResults({(dir_ / "sweep").string()});
+  ASSERT_EQ(index_only.warnings.size(), 1u);
+  EXPECT_NE(index_only.warnings[0].find("9 run(s) read from index.csv"), std::string::npos)
+      << index_only.warnings[0];
+  const fs::path from_index = writeTablesOf(SeedStats::kAuto);
+  int compared = 0;
+  for (const auto& entry : fs::directory_iterator(dir_ / "from_files")) {
+    SCOPED_TRACE(entry.path().filename().string());
+    EXPECT_EQ(readText(from_index / entry.path().filename()), readText(entry.path()));
+    ++compared;
+  }
+  EXPECT_GE(compared, 9);  // table1, table2 and the claim, each in md, tex and csv
+  const Csv csv = readCsv(from_index / "tables.csv", {"table", "row", "variant"});
+  EXPECT_EQ(csv.at("table2|" + kitti + "|sc-sc-sq-f32", "ours_failed"), "1");
+}
+
+// Without the summary columns (an index the sweep never completed) and without the file, an ok
+// row is not a result.
+TEST_F(SeedTables, AnOkRowWithoutFileOrSummaryIsCountedAsNotRun) {
+  addRun("euroc/MH_03_medium", "ns-qr-sqrt-f64", 1, 1e-3);
+  writeIndex((dir_ / "sweep" / "index.csv").string(), rows_);
+  fs::remove_all(dir_ / "sweep" / "runs");
+  const ResultSet set = loadResults({(dir_ / "sweep").string()});
+  ASSERT_EQ(set.runs.size(), 1u);
+  EXPECT_EQ(set.runs[0].state, "missing");
+  ASSERT_EQ(set.warnings.size(), 1u);
+  EXPECT_NE(set.warnings[0].find("neither it nor its index row holds an ATE"), std::string::npos);
 }
 
 }  // namespace
