@@ -110,11 +110,13 @@ VecX<Scalar> Window<Scalar>::priorDelta(const MargPrior<Scalar>& p) const {
 }
 
 template <typename Scalar>
+size_t Window<Scalar>::RelativePoses::pos(int64_t frame) const {
+  return static_cast<size_t>(std::lower_bound(ids.begin(), ids.end(), frame) - ids.begin());
+}
+
+template <typename Scalar>
 size_t Window<Scalar>::RelativePoses::index(int64_t host, int64_t target, int cam) const {
-  const size_t n = ids.size();
-  const size_t h = std::lower_bound(ids.begin(), ids.end(), host) - ids.begin();
-  const size_t t = std::lower_bound(ids.begin(), ids.end(), target) - ids.begin();
-  return (h * n + t) * 2 + static_cast<size_t>(cam);
+  return at(pos(host), pos(target), cam);
 }
 
 template <typename Scalar>
@@ -128,10 +130,12 @@ typename Window<Scalar>::RelativePoses Window<Scalar>::relativePoses(bool with_j
     rel.D_rel_h.resize(size);
     rel.D_rel_t.resize(size);
   }
+  size_t host_pos = 0;
   for (const auto& [h, host] : frames) {
+    size_t target_pos = 0;
     for (const auto& [t, target] : frames) {
       for (int cam = 0; cam < 2; ++cam) {
-        const size_t k = rel.index(h, t, cam);
+        const size_t k = rel.at(host_pos, target_pos, cam);
         if (h == t) {
           rel.T_ct_h[k] = T_c_h_host_[cam];
           if (with_jacobians) rel.T_ct_h_jac[k] = T_c_h_host_[cam];
@@ -149,7 +153,9 @@ typename Window<Scalar>::RelativePoses Window<Scalar>::relativePoses(bool with_j
                             ? relativePose<Scalar>(host.T_w_i, T_i_c_[0], target.T_w_i, T_i_c_[cam])
                             : rel.T_ct_h_jac[k];
       }
+      ++target_pos;
     }
+    ++host_pos;
   }
   return rel;
 }
@@ -157,12 +163,15 @@ typename Window<Scalar>::RelativePoses Window<Scalar>::relativePoses(bool with_j
 template <typename Scalar>
 Scalar Window<Scalar>::landmarkCost(const Landmark& lm, const RelativePoses& rel) const {
   Scalar cost = 0;
+  const size_t host = lm.world() ? 0 : rel.pos(lm.host);
+  size_t target = 0;
   for (const auto& [frame_id, obs] : lm.obs) {
     const Vec3S p_i = lm.world() ? poseOf(frame_id).inverse() * lm.param : Vec3S::Zero();
+    target = rel.next(frame_id, target);
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
       const Vec3S q = lm.world() ? T_c_i_[cam] * p_i
-                                 : transformLandmark<Scalar>(
-                                       rel.T_ct_h[rel.index(lm.host, frame_id, cam)], lm.param);
+                                 : transformLandmark<Scalar>(rel.T_ct_h[rel.at(host, target, cam)],
+                                                             lm.param);
       cost += reprojectionCost<Scalar>(cam == 0 ? rig_.cam0 : rig_.cam1, q,
                                        cam == 0 ? obs.uv0 : obs.uv1, noise_);
     }

@@ -152,6 +152,19 @@ class Window {
     std::vector<SE3S> T_ct_h, T_ct_h_jac;
     std::vector<Mat<Scalar, 6, 6>> D_rel_h, D_rel_t;  // ⊞ Jacobians at the first estimates
     size_t index(int64_t host, int64_t target, int cam) const;
+    // Entries by positions in ids. A landmark's observations come in frame order, so the cost
+    // evaluation walks ids with a cursor (next) instead of a binary search per observation. (The
+    // linearization, compiled per ISA, keeps index(): a change there moves the AVX rounding of
+    // nfr runs through GCC's inlining.)
+    size_t pos(int64_t frame) const;
+    size_t at(size_t host_pos, size_t target_pos, int cam) const {
+      return (host_pos * ids.size() + target_pos) * 2 + static_cast<size_t>(cam);
+    }
+    // The position of `frame`, searched forward from `from` (a frame at or after ids[from]).
+    size_t next(int64_t frame, size_t from) const {
+      while (from < ids.size() && ids[from] < frame) ++from;
+      return from;
+    }
   };
 
   // VO (no imu): the body is cam0 (T_i_c0 = I, cam1 at T_c0_c1). VIO: the rig's extrinsics.
