@@ -991,10 +991,11 @@ PaperValues loadPaperValues(const std::string& path) {
 
 // ---- results ------------------------------------------------------------------------------------
 
+namespace {
+
 // A run whose results file is not in the folder, from its index row: a committed sweep folder
 // keeps index.csv but not runs/ (regenerated, .gitignore), and the sweep copied the row's summary
 // from the file when the run ended (%.17g: the same doubles). False when the row has no outcome.
-namespace {
 bool fromIndexRow(RunRecord* r) {
   const IndexRow& row = r->row;
   const std::string& status = row.get("status");
@@ -1012,6 +1013,7 @@ bool fromIndexRow(RunRecord* r) {
   r->failure_frame = std::isfinite(failure_frame) ? static_cast<long long>(failure_frame) : -1;
   return true;
 }
+
 }  // namespace
 
 ResultSet loadResults(const std::vector<std::string>& dirs) {
