@@ -198,6 +198,37 @@ TEST_F(AnalysisTest, ReportOpensInHeadlessChromium) {
   EXPECT_NE(check.output.find("gone"), std::string::npos) << check.output;
 }
 
+// Issue #19 section 3 (tools/scripts/nfr_length_table.py): a run is causal, so the first N frames
+// of a longer nfr run are the N-frame run bit for bit, and the table's prefix ATE reproduces the C++
+// ATE of both; a short run of another seed is told apart.
+TEST(AnalysisCli, NfrLengthTablePrefixIsTheShortRun) {
+  const std::string python = pythonWith("h5py, numpy, pandas");
+  if (python.empty()) GTEST_SKIP() << "no python3 with h5py, numpy and pandas";
+  const fs::path dir = fs::path(test::binaryDir()) / "test_analysis" / "nfr_length";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir / "nfr.toml") << "[marginalization]\nstrategy = \"nfr\"\n";
+  const auto run = [&](int frames, int seed) {
+    const std::string out = (dir / ("f" + std::to_string(frames) + "_s" + std::to_string(seed) +
+                                    ".h5")).string();
+    const auto r = runCli("run --dataset euroc/MH_03_medium --variant ns-qr-sqrt-f64 --seed " +
+                          std::to_string(seed) + " --frames " + std::to_string(frames) +
+                          " --no-diagnostics --config '" + (dir / "nfr.toml").string() +
+                          "' -o '" + out + "'");
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return out;
+  };
+  const std::string long_run = run(80, 2);
+  const std::string script = std::string(sourceDir()) + "/test/cli/nfr_length_agrees.py";
+  const auto agree = runShell(python + " '" + script + "' '" + long_run + "' '" + run(50, 2) + "'");
+  EXPECT_EQ(agree.exit_code, 0) << agree.output;
+  EXPECT_NE(agree.output.find("AGREE 50 of 80 frames, 1 sparsify events"), std::string::npos)
+      << agree.output;
+  const auto other = runShell(python + " '" + script + "' '" + long_run + "' '" + run(50, 3) + "'");
+  EXPECT_EQ(other.exit_code, 1) << other.output;
+  EXPECT_NE(other.output.find("p_est of SHORT differs"), std::string::npos) << other.output;
+}
+
 TEST(AnalysisCli, BadInputNamesTheFile) {
   const fs::path dir = fs::path(test::binaryDir()) / "test_analysis" / "not_a_sweep";
   fs::create_directories(dir);
