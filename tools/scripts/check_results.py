@@ -35,13 +35,18 @@ FRAME_2D = {"p_est": 3, "q_est": 4, "p_gt": 3}
 ISAS = ("sse2", "avx2", "avx512")  # the isa attribute (absent in files written before it existed)
 
 
-def umeyama_rmse(src, dst):
+def umeyama(src, dst):
+    """(rot, trans) minimizing Σ‖dst − (rot src + trans)‖², rot ∈ SO(3) (no scale)."""
     mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
     sigma = (dst - mu_d).T @ (src - mu_s) / len(src)
     u, _, vt = np.linalg.svd(sigma)
     s = np.diag([1.0, 1.0, np.sign(np.linalg.det(u) * np.linalg.det(vt)) or 1.0])
     rot = u @ s @ vt
-    trans = mu_d - rot @ mu_s
+    return rot, mu_d - rot @ mu_s
+
+
+def umeyama_rmse(src, dst):
+    rot, trans = umeyama(src, dst)
     err = np.linalg.norm(dst - (src @ rot.T + trans), axis=1)
     return float(np.sqrt(np.mean(err ** 2))), err
 

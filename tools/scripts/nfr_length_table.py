@@ -11,22 +11,30 @@ core/diagnostics/ate.h (check_results.umeyama_rmse), over the frames whose p_est
 finite. Per prefix length: the (sequence, seed) pairs where nfr's ATE is below discard's, and
 the geometric mean of ATE(nfr) / ATE(discard). Per 400-frame segment, each aligned on its own, the
 same comparison of local accuracy: does nfr lose locally late in a run, or only in accumulated
-drift? Needs numpy, h5py and pandas (marglab_results.py).
+drift? And the whole run's attitude error against the ground truth's orientation, split into tilt
+(observable through gravity) and yaw (unobservable): which one does nfr lose in? Needs numpy,
+scipy, h5py and pandas (marglab_results.py) and the shipped datasets/*/gt_tum.txt.gz.
 """
 import csv
+import gzip
 import math
 import os
 import statistics
 import sys
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import marglab_results as mr  # noqa: E402
-from check_results import umeyama_rmse  # noqa: E402
+from check_results import umeyama, umeyama_rmse  # noqa: E402
+
+DATASETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
+    os.path.abspath(__file__)))), "datasets")
 
 PREFIXES = [200, 400, 800, 1200, 1600]  # frames; "whole" is added per run
 SEGMENT = 400                           # frames per segment of the local comparison
+GT_MAX_DT_NS = 5_000_000                # nearest GT orientation within 5 ms (EuRoC GT: 200 Hz)
 
 
 def aligned_rmse(p_est, p_gt):
@@ -47,9 +55,39 @@ def segment_ates(run):
             for k in range(0, len(p_est) - SEGMENT + 1, SEGMENT)]
 
 
+def attitude_rms(p_est, q_est, p_gt, q_gt):
+    """(tilt, yaw) RMS [deg] of the attitude error after the run's own position alignment
+    (R, t) = umeyama(p_est, p_gt): E = (R R_est) R_gtᵀ, a world-frame rotation per frame; tilt is the
+    angle E moves gravity's axis e_z by (observable through the accelerometer), yaw E's rotation
+    about e_z (unobservable in VIO). q_* are xyzw rows; rows with a non-finite value are skipped."""
+    ok = np.all(np.isfinite(np.hstack([p_est, q_est, p_gt, q_gt])), axis=1)
+    R, _ = umeyama(p_est[ok], p_gt[ok])
+    E = ((Rotation.from_matrix(R) * Rotation.from_quat(q_est[ok])) *
+         Rotation.from_quat(q_gt[ok]).inv()).as_matrix()
+    tilt = np.degrees(np.arctan2(np.hypot(E[:, 0, 2], E[:, 1, 2]), E[:, 2, 2]))  # ∠(E e_z, e_z)
+    yaw = np.degrees(np.arctan2(E[:, 1, 0] - E[:, 0, 1], E[:, 0, 0] + E[:, 1, 1]))
+    return float(np.sqrt(np.mean(tilt ** 2))), float(np.sqrt(np.mean(yaw ** 2)))
+
+
+def gt_orientations(run):
+    """GT orientation (xyzw) at each frame of `run` from the shipped datasets/<dataset>/<sequence>/
+    gt_tum.txt.gz: the nearest sample within GT_MAX_DT_NS, else NaN."""
+    path = os.path.join(DATASETS, run.attrs["dataset"], run.attrs["sequence"], "gt_tum.txt.gz")
+    with gzip.open(path, "rt") as f:
+        gt = np.loadtxt(f, comments="#")
+    t_gt = np.round(gt[:, 0] * 1e9).astype(np.int64)
+    t = np.asarray(run.frames["t_ns"], dtype=np.int64)
+    k = np.clip(np.searchsorted(t_gt, t), 1, len(t_gt) - 1)
+    k = np.where(np.abs(t_gt[k - 1] - t) < np.abs(t_gt[k] - t), k - 1, k)
+    q = gt[k, 4:8].copy()
+    q[np.abs(t_gt[k] - t) > GT_MAX_DT_NS] = np.nan
+    return q
+
+
 def load(sweep):
-    """{(override, dataset, seed): {"n": frames, "prefix": {L: ate}, "segments": [ate]}} of the
-    runs that completed; a failed run is left out (with its pair)."""
+    """{(override, dataset, seed): {"n": frames, "prefix": {L: ate}, "segments": [ate],
+    "tilt": deg, "yaw": deg}} of the runs that completed; a failed run is left out (with its
+    pair)."""
     runs = {}
     for row in mr.read_index_rows(sweep):
         path = row["path"]
@@ -62,8 +100,11 @@ def load(sweep):
         if not math.isclose(prefix["whole"], float(run.summary["ate_rmse"]), rel_tol=1e-9):
             raise SystemExit("%s: whole-run ATE %.17g here, %.17g in /summary"
                              % (path, prefix["whole"], float(run.summary["ate_rmse"])))
+        q_est = np.column_stack([np.asarray(run.frames["q_est_" + a]) for a in "xyzw"])
+        tilt, yaw = attitude_rms(run.positions("p_est"), q_est, run.positions("p_gt"),
+                                 gt_orientations(run))
         runs[(row["override"], row["dataset"].split("/")[-1], int(row["seed"]))] = {
-            "n": n, "prefix": prefix, "segments": segment_ates(run)}
+            "n": n, "prefix": prefix, "segments": segment_ates(run), "tilt": tilt, "yaw": yaw}
     return runs
 
 
@@ -109,13 +150,26 @@ def segment_lines(ps):
         k += 1
 
 
+def attitude_lines(ps):
+    lines = ["| attitude error, whole runs (RMS) | discard, mean [deg] | nfr, mean [deg] | "
+             "nfr < discard | nfr / discard, geo. mean |", "|---|---:|---:|---:|---:|"]
+    for key, what in (("tilt", "tilt (gravity axis; observable)"),
+                      ("yaw", "yaw (about gravity; unobservable)")):
+        better, n, geo = compare([(d[key], f[key]) for _, _, d, f in ps])
+        lines.append(f"| {what} | {statistics.fmean(d[key] for _, _, d, _ in ps):.3f} | "
+                     f"{statistics.fmean(f[key] for _, _, _, f in ps):.3f} | {better} / {n} | "
+                     f"{geo:.3f} |")
+    return lines
+
+
 def pair_lines(ps):
     cols = PREFIXES + ["whole"]
-    lines = ["| sequence | seed | frames | " + " | ".join(map(str, cols)) + " |",
-             "|---|---:|---:|" + "---:|" * len(cols)]
+    lines = ["| sequence | seed | frames | " + " | ".join(map(str, cols)) + " | tilt | yaw |",
+             "|---|---:|---:|" + "---:|" * (len(cols) + 2)]
     for d, s, dr, fr in ps:
         cells = [f"{fr['prefix'][L] / dr['prefix'][L]:.2f}" if L in dr["prefix"] else "–"
                  for L in cols]
+        cells += [f"{fr[k] / dr[k]:.2f}" for k in ("tilt", "yaw")]
         lines.append(f"| {d} | {s} | {dr['n']} | " + " | ".join(cells) + " |")
     return lines
 
@@ -123,12 +177,14 @@ def pair_lines(ps):
 def write_csv(path, runs):
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["strategy", "dataset", "seed", "frames", "kind", "length_or_segment", "ate"])
+        w.writerow(["strategy", "dataset", "seed", "frames", "kind", "length_or_segment", "value"])
         for (o, d, s), r in sorted(runs.items()):
             for L, ate in r["prefix"].items():
-                w.writerow([o, d, s, r["n"], "prefix", L, repr(ate)])
+                w.writerow([o, d, s, r["n"], "prefix_ate_m", L, repr(ate)])
             for k, ate in enumerate(r["segments"]):
-                w.writerow([o, d, s, r["n"], "segment", k * SEGMENT, repr(ate)])
+                w.writerow([o, d, s, r["n"], "segment_ate_m", k * SEGMENT, repr(ate)])
+            for key in ("tilt", "yaw"):
+                w.writerow([o, d, s, r["n"], key + "_rms_deg", "whole", repr(r[key])])
 
 
 def main():
@@ -146,7 +202,11 @@ def main():
     lines += ["", f"Local accuracy: the ATE of each {SEGMENT}-frame segment, aligned on its own "
               "(pairs with that segment).", ""]
     lines += segment_lines(ps)
-    lines += ["", "ATE(nfr) / ATE(discard) per pair and run length (below 1: nfr better).", ""]
+    lines += ["", "Attitude error of the whole runs against the shipped ground truth's orientation, "
+              "after each run's own position alignment.", ""]
+    lines += attitude_lines(ps)
+    lines += ["", "nfr / discard per pair: ATE by run length, then the whole run's tilt and yaw "
+              "RMS (below 1: nfr better).", ""]
     lines += pair_lines(ps)
     out_dir = os.path.join(sweep, "tables")
     os.makedirs(out_dir, exist_ok=True)
