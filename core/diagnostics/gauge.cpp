@@ -23,6 +23,8 @@ const char* variableKindName(PriorVariableKind kind) {
       return "bias_gyro";
     case PriorVariableKind::kAccelBias:
       return "bias_accel";
+    case PriorVariableKind::kPoint:
+      return "point";
   }
   return "unknown";
 }
@@ -96,6 +98,14 @@ GaugeDirections gaugeDirections(const PriorLayout& layout, int n, const GaugeSta
       if (it == state.v_w.end()) throw std::invalid_argument("gaugeDirections: no velocity");
       const Eigen::Matrix3d minus_hat_v = -hat(it->second);
       for (int a = 0; a < 3; ++a) E.block<3, 1>(v.offset, kGaugeRoll + a) = minus_hat_v.col(a);
+    } else if (v.kind == PriorVariableKind::kPoint) {
+      const auto it = state.p_w.find(v.frame_id);
+      if (it == state.p_w.end()) throw std::invalid_argument("gaugeDirections: no point");
+      const Eigen::Matrix3d minus_hat_p = -hat(Eigen::Vector3d(it->second - c));
+      for (int a = 0; a < 3; ++a) {
+        E(v.offset + a, kGaugeX + a) = 1.0;
+        E.block<3, 1>(v.offset, kGaugeRoll + a) = minus_hat_p.col(a);
+      }
     }
   }
   for (int k = 0; k < kGaugeRandom; ++k) {
@@ -118,6 +128,19 @@ Vec7d priorCostChange(const MatXd& H_m, const VecXd& b_m, const GaugeDirections&
                                      : 0.5 * eps.dot(H_m * eps) + eps.dot(b_m);
   }
   return dE;
+}
+
+Vec7d directionInformation(const MatXd& Lambda, const GaugeDirections& directions) {
+  if (Lambda.rows() != directions.rows() || Lambda.cols() != directions.rows()) {
+    throw std::invalid_argument("directionInformation: dimension mismatch");
+  }
+  Vec7d info;
+  for (int k = 0; k < kNumGaugeDirections; ++k) {
+    const auto eps = directions.col(k);
+    info(k) = eps.squaredNorm() == 0.0 ? std::numeric_limits<double>::quiet_NaN()
+                                       : eps.dot(Lambda * eps);
+  }
+  return info;
 }
 
 }  // namespace marglab

@@ -513,18 +513,7 @@ Status SlidingWindowEstimator<Scalar>::marginalizeShadow(const MargPlan& plan,
 template <typename Scalar>
 MargEvent SlidingWindowEstimator<Scalar>::shadowEvent() const {
   MargEvent event;
-  for (const auto& block : shadow_prior_.blocks) {
-    const int64_t f = block.var.frame_id;
-    if (block.var.block == StateBlock::kPose) {
-      event.layout.push_back({PriorVariableKind::kPose, f, block.offset});
-      event.state.T_w_i[f] = block.T0.template cast<double>();
-    } else {
-      event.layout.push_back({PriorVariableKind::kVelocity, f, block.offset});
-      event.layout.push_back({PriorVariableKind::kGyroBias, f, block.offset + 3});
-      event.layout.push_back({PriorVariableKind::kAccelBias, f, block.offset + 6});
-      event.state.v_w[f] = block.sb0.template head<3>().template cast<double>();
-    }
-  }
+  shadow_prior_.gaugeLayout(&event.layout, &event.state);
   // Gauge directions at the linearization points: the prior's nullspace lies there (FEJ).
   const VecX<Scalar> delta = window_.priorDelta(shadow_prior_);
   if (shadow_prior_.storage == PriorStorage::kSqrt) {

@@ -113,6 +113,26 @@ Scalar MargPrior<Scalar>::costChange(const VecX<Scalar>& d, const VecX<Scalar>& 
   return (hessian.b + hessian.H * d).dot(step) + Scalar(0.5) * step.dot(hessian.H * step);
 }
 
+template <typename Scalar>
+void MargPrior<Scalar>::gaugeLayout(PriorLayout* layout, GaugeState* state) const {
+  for (const Block& block : blocks) {
+    const int64_t id = block.var.frame_id;
+    const int o = block.offset;
+    if (block.var.block == StateBlock::kPose) {
+      layout->push_back({PriorVariableKind::kPose, id, o});
+      state->T_w_i[id] = block.T0.template cast<double>();
+    } else if (block.var.block == StateBlock::kSpeedBias) {
+      layout->push_back({PriorVariableKind::kVelocity, id, o});
+      layout->push_back({PriorVariableKind::kGyroBias, id, o + 3});
+      layout->push_back({PriorVariableKind::kAccelBias, id, o + 6});
+      state->v_w[id] = block.sb0.template head<3>().template cast<double>();
+    } else {
+      layout->push_back({PriorVariableKind::kPoint, id, o});
+      state->p_w[id] = block.p0.template cast<double>();
+    }
+  }
+}
+
 #define MARGLAB_INST(S) template struct MargPrior<S>;
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "core/common/eigen_types.h"
+#include "core/diagnostics/gauge.h"
 #include "core/estimator/variant.h"
 #include "core/geometry/se3.h"
 #include "core/linalg/schur.h"
@@ -87,6 +88,9 @@ struct MargPrior {
   void sqrtRows(const VecX<Scalar>& delta, MatX<Scalar>* J, VecX<Scalar>* r) const;
   // Change of E_m along a step s from δ (exact: E_m is quadratic in δ).
   Scalar costChange(const VecX<Scalar>& delta, const VecX<Scalar>& step) const;
+  // The layout in the gauge diagnostics' terms (core/diagnostics/gauge.h), with the linearization
+  // points x⁰ as their state: the gauge directions of this prior lie there (first estimates).
+  void gaugeLayout(PriorLayout* layout, GaugeState* state) const;
 };
 
 }  // namespace marglab

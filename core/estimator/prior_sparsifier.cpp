@@ -171,6 +171,17 @@ void replacePrior(Window<Scalar>& w, const JointFactor<Scalar>* joint) {
   for (auto& [id, lm] : w.landmarks) lm.linearized = false;
 }
 
+// The gauge directions over the prior's columns, at its linearization points; the random one is
+// the same draw for every event of a given size.
+template <typename Scalar>
+GaugeDirections blanketDirections(const MargPrior<Scalar>& prior) {
+  PriorLayout layout;
+  GaugeState state;
+  prior.gaugeLayout(&layout, &state);
+  constexpr std::uint64_t kRandomDirectionSeed = 1;
+  return gaugeDirections(layout, prior.cols(), state, kRandomDirectionSeed);
+}
+
 }  // namespace
 
 template <typename Scalar>
@@ -185,6 +196,9 @@ MatX<Scalar> describeBlanket(const Window<Scalar>& w, SparsifyEvent* event) {
   }
   event->nnz_dense = (Lambda_t.array() != Scalar(0)).count();
   event->nnz_sparse = event->nnz_dense;
+  event->info_dense =
+      directionInformation(Lambda_t.template cast<double>(), blanketDirections(w.prior));
+  event->info_sparse = event->info_dense;
   return Lambda_t;
 }
 
@@ -222,6 +236,8 @@ void sparsifyPrior(Window<Scalar>& w, SparsifyTopology topology, SparsifyEvent* 
     }
   }
   event->t_recovery_s = secondsSince(t0);
+  const Vec7d info_sparse =
+      directionInformation(Lambda_s.template cast<double>(), blanketDirections(w.prior));
 
   const auto t1 = Clock::now();
   insertFactors(w, b, sp, joint);
@@ -229,6 +245,7 @@ void sparsifyPrior(Window<Scalar>& w, SparsifyTopology topology, SparsifyEvent* 
   event->t_insert_s = secondsSince(t1);
   event->recovered = true;
   event->kld = static_cast<double>(kld);
+  event->info_sparse = info_sparse;
   event->nnz_sparse = (Lambda_s.array() != Scalar(0)).count();
 }
 

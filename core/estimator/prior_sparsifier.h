@@ -20,12 +20,21 @@
 // their landmark's rows (landmarks are still eliminated per landmark). The prior is emptied (paper)
 // or keeps the joint factor over the states (joint-states); variables no longer in a linear prior
 // drop their first estimates.
+//
+// Information along the window's rigid motions. For the directions ε of core/diagnostics/gauge.h
+// over the blanket (x, y, z, roll, pitch, yaw about the poses' centroid, a random unit direction),
+// εᵀΛ_t ε of the dense prior and εᵀΛ_s ε of what replaces it (Λ_s = H_sᵀΛ_r H_s, plus the joint
+// factor for joint-states; Λ_s = Λ_t when the prior stays dense). KLD-optimal factors match the
+// marginal covariances of the factors' variables, not the information along a direction that moves
+// every variable at once: a unary topology counts the uncertainty all blanket states share once per
+// state, so Λ_s can exceed Λ_t along the rigid motions while falling below it elsewhere.
 
 #include <cstdint>
 #include <limits>
 #include <string>
 
 #include "core/common/eigen_types.h"
+#include "core/diagnostics/gauge.h"
 #include "core/estimator/config.h"
 #include "core/estimator/window.h"
 
@@ -38,6 +47,9 @@ struct SparsifyEvent {
   int n_blanket_landmarks = 0;
   std::int64_t nnz_dense = 0;
   std::int64_t nnz_sparse = 0;
+  // εᵀΛε of Λ_t and Λ_s along the gauge directions (kGaugeDirectionNames order), see above.
+  Vec7d info_dense = Vec7d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Vec7d info_sparse = Vec7d::Constant(std::numeric_limits<double>::quiet_NaN());
   double kld = std::numeric_limits<double>::quiet_NaN();  // NaN: kept dense
   bool recovered = false;
   double t_schur_s = 0.0;

@@ -5,7 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <ctime>
+#include <optional>
 #include <stdexcept>
+#include <string>
+#include <tuple>
 
 #include "core/common/error.h"
 #include "core/common/utc_time.h"
@@ -69,7 +72,8 @@ struct ResultsWriter::Impl {
   // /sparsify
   h5::Appendable<std::int64_t> s_frame_index, s_t_ns, s_nnz_dense, s_nnz_sparse;
   h5::Appendable<std::int32_t> s_blanket_cols, s_n_blanket_poses, s_n_blanket_landmarks;
-  h5::Appendable<double> s_kld, s_t_schur_s, s_t_recovery_s, s_t_insert_s;
+  h5::Appendable<double> s_info_dense, s_info_sparse, s_kld, s_t_schur_s, s_t_recovery_s,
+      s_t_insert_s;
   h5::Appendable<std::uint8_t> s_recovered;
   // kept for finish()
   std::vector<std::int64_t> frame_t_ns;
@@ -190,6 +194,15 @@ ResultsWriter ResultsWriter::create(const std::string& path, const RunMetadata& 
   d->s_nnz_sparse = h5::appendable<std::int64_t>(sparsify, "nnz_sparse");
   describe(d->s_nnz_sparse.dataset(), "1",
            "structural non-zeros of the sparsified prior (= nnz_dense when kept dense)");
+  for (auto [column, name, what] :
+       {std::tuple{&d->s_info_dense, "info_dense", "of the dense prior"},
+        std::tuple{&d->s_info_sparse, "info_sparse", "of the sparsified prior (= dense if kept)"}}) {
+    *column = h5::appendableRows<double>(sparsify, name, kNumGaugeDirections);
+    describe(column->dataset(), "1",
+             (std::string("information e'Le along the unit gauge directions ") + what).c_str());
+    column->dataset().setAttr("columns", std::vector<std::string>(kGaugeDirectionNames.begin(),
+                                                                  kGaugeDirectionNames.end()));
+  }
   d->s_kld = h5::appendable<double>(sparsify, "kld");
   describe(d->s_kld.dataset(), "nats", "KL divergence dense -> sparsified (eq. 10), NaN if dense");
   d->s_recovered = h5::appendable<std::uint8_t>(sparsify, "recovered");
@@ -252,6 +265,8 @@ void ResultsWriter::appendSparsify(const SparsifyRecord& r) {
   d.s_n_blanket_landmarks.append(r.n_blanket_landmarks);
   d.s_nnz_dense.append(r.nnz_dense);
   d.s_nnz_sparse.append(r.nnz_sparse);
+  d.s_info_dense.append(r.info_dense);
+  d.s_info_sparse.append(r.info_sparse);
   d.s_kld.append(r.kld);
   d.s_recovered.append(static_cast<std::uint8_t>(r.recovered ? 1 : 0));
   d.s_t_schur_s.append(r.t_schur_s);
@@ -558,9 +573,24 @@ std::vector<SparsifyRecord> ResultsReader::sparsifyRecords() const {
         t_insert.size()}) {
     if (size != n) throw InputError(path_, 0, "/sparsify: columns differ in length");
   }
+  // Optional (files before them have neither): (n, 7) each.
+  std::optional<h5::RowMatrix<double>> info_dense, info_sparse;
+  if (g.exists("info_dense") && g.exists("info_sparse")) {
+    info_dense = g.readMatrix<double>("info_dense");
+    info_sparse = g.readMatrix<double>("info_sparse");
+    for (const auto* m : {&*info_dense, &*info_sparse}) {
+      if (static_cast<std::size_t>(m->rows()) != n || m->cols() != kNumGaugeDirections) {
+        throw InputError(path_, 0, "/sparsify: info_dense / info_sparse are not (rows, 7)");
+      }
+    }
+  }
   out.resize(n);
   for (std::size_t k = 0; k < n; ++k) {
     SparsifyRecord& r = out[k];
+    if (info_dense) {
+      r.info_dense = info_dense->row(static_cast<Eigen::Index>(k)).transpose();
+      r.info_sparse = info_sparse->row(static_cast<Eigen::Index>(k)).transpose();
+    }
     r.frame_index = frame_index[k];
     r.t_ns = t_ns[k];
     r.blanket_cols = blanket_cols[k];

@@ -159,6 +159,10 @@ struct SparsifyRecord {
   int n_blanket_landmarks = 0;
   std::int64_t nnz_dense = 0;
   std::int64_t nnz_sparse = 0;
+  // εᵀΛε of the dense prior and of what replaced it along the gauge directions (columns
+  // kGaugeDirectionNames); NaN in files written before these columns existed.
+  Vec7d info_dense = Vec7d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Vec7d info_sparse = Vec7d::Constant(std::numeric_limits<double>::quiet_NaN());
   double kld = std::numeric_limits<double>::quiet_NaN();
   bool recovered = false;
   double t_schur_s = 0.0;

@@ -28,6 +28,8 @@ SparsifyRecord toSparsifyRecord(const SparsifyEvent& event, std::int64_t frame_i
   record.n_blanket_landmarks = event.n_blanket_landmarks;
   record.nnz_dense = event.nnz_dense;
   record.nnz_sparse = event.nnz_sparse;
+  record.info_dense = event.info_dense;
+  record.info_sparse = event.info_sparse;
   record.kld = event.kld;
   record.recovered = event.recovered;
   record.t_schur_s = event.t_schur_s;

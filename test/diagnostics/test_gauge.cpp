@@ -289,6 +289,83 @@ TEST(GaugeDirections, RotationMatchesCentralDifferenceOfRigidWorldRotation) {
   }
 }
 
+// World points (the landmarks of a dense keyframe prior) move with the world: δp = e_a in the
+// translations, and the rotation directions are the derivative of p(θ) = exp(θω)(p − c) + c,
+// checked by central differences together with the poses (truncation O(h²)).
+TEST(GaugeDirections, PointsMoveRigidlyWithTheWorld) {
+  const Prior p = marginalizeFirstFrameAndLandmarks(makeWindow(true, 24));
+  PriorLayout layout = p.layout;
+  GaugeState state = p.state;
+  int n = static_cast<int>(p.H_m.rows());
+  const std::vector<Eigen::Vector3d> points = {{1.0, -2.0, 3.0}, {-4.0, 0.5, 1.5}};
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const auto id = static_cast<std::int64_t>(900 + k);
+    layout.push_back({PriorVariableKind::kPoint, id, n});
+    state.p_w[id] = points[k];
+    n += 3;
+  }
+  const GaugeDirections E = gaugeDirections(layout, n, state, 1);
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& [id, T] : state.T_w_i) c += T.translation();
+  c /= static_cast<double>(state.T_w_i.size());
+  const double h = 1e-5;
+  for (int a = 0; a < 3; ++a) {
+    const Eigen::Vector3d omega = Eigen::Vector3d::Unit(a);
+    auto displaced = [&](double theta) {
+      const Eigen::Matrix3d R = expSO3<double>(theta * omega);
+      VecXd d = VecXd::Zero(n);
+      for (const PriorVariable& v : layout) {
+        if (v.kind == PriorVariableKind::kPose) {
+          const SE3d& T = state.T_w_i.at(v.frame_id);
+          const SE3d T_rot(Eigen::Matrix3d(R * T.rotationMatrix()), R * (T.translation() - c) + c);
+          d.segment<6>(v.offset) = boxMinus(T_rot, T);
+        } else if (v.kind == PriorVariableKind::kVelocity) {
+          d.segment<3>(v.offset) = R * state.v_w.at(v.frame_id) - state.v_w.at(v.frame_id);
+        } else if (v.kind == PriorVariableKind::kPoint) {
+          const Eigen::Vector3d& x = state.p_w.at(v.frame_id);
+          d.segment<3>(v.offset) = R * (x - c) + c - x;
+        }
+      }
+      return d;
+    };
+    const VecXd derivative = (displaced(h) - displaced(-h)) / (2 * h);
+    EXPECT_LT((derivative / derivative.norm() - E.col(kGaugeRoll + a)).cwiseAbs().maxCoeff(), 1e-8)
+        << "axis " << a;
+    VecXd translation = VecXd::Zero(n);
+    for (const PriorVariable& v : layout) {
+      if (v.kind == PriorVariableKind::kPose || v.kind == PriorVariableKind::kPoint) {
+        translation(v.offset + a) = 1.0;
+      }
+    }
+    EXPECT_LT((translation.normalized() - E.col(kGaugeX + a)).cwiseAbs().maxCoeff(), 4 * kEps);
+  }
+  state.p_w.erase(901);
+  EXPECT_THROW(gaugeDirections(layout, n, state, 1), std::invalid_argument);  // a point without p_w
+}
+
+// εᵀΛε against ‖Aᵀε‖² for Λ = AAᵀ (rank-deficient: A has fewer columns than rows), NaN for a
+// zero direction, and a size mismatch throws.
+TEST(GaugeInformation, IsTheQuadraticFormAlongEachDirection) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> normal;
+  const int n = 12;
+  MatXd A(n, 7);
+  for (int i = 0; i < A.size(); ++i) A.data()[i] = normal(rng);
+  GaugeDirections E(n, kNumGaugeDirections);
+  for (int i = 0; i < E.size(); ++i) E.data()[i] = normal(rng);
+  E.col(kGaugeY).setZero();
+  const Vec7d info = directionInformation(A * A.transpose(), E);
+  for (int k = 0; k < kNumGaugeDirections; ++k) {
+    if (k == kGaugeY) {
+      EXPECT_TRUE(std::isnan(info(k)));
+      continue;
+    }
+    const double expected = (A.transpose() * E.col(k)).squaredNorm();
+    EXPECT_NEAR(info(k), expected, 8 * n * kEps * A.squaredNorm() * E.col(k).squaredNorm());
+  }
+  EXPECT_THROW(directionInformation(MatXd::Identity(n - 1, n - 1), E), std::invalid_argument);
+}
+
 // ΔE_m along gauge directions vanishes up to the rounding of forming the prior:
 // |ΔE| ≤ n ε (‖H‖-scale + ‖b‖-scale), with the scales of the Schur complement above.
 void expectGauge(bool vio, std::uint64_t seed) {

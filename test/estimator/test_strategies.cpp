@@ -141,6 +141,10 @@ void expectRecoveredEvents(const Variant& variant, double max_position_error_m,
     EXPECT_TRUE(std::isfinite(event.kld));
     EXPECT_GE(event.kld, 0.0);
     EXPECT_LT(event.nnz_sparse, event.nnz_dense);
+    // Information along the gauge directions: of the dense prior finite, of the recovered factors
+    // (fitted to the regularized Λ_t + εI) positive.
+    EXPECT_TRUE(event.info_dense.allFinite());
+    EXPECT_TRUE((event.info_sparse.array() > 0.0).all()) << event.info_sparse.transpose();
     // The factors replace the prior (joint-states: all but the joint state factor).
     if (topology != SparsifyTopology::kJointStates) {
       EXPECT_TRUE(estimator.prior().empty());

@@ -127,6 +127,8 @@ SmallRun writeSmallRun(const std::string& path, RunStatus status = RunStatus::kO
     s.recovered = frame == 3;
     s.nnz_sparse = s.recovered ? 225 + 2 * 27 * frame + 9 * frame : s.nnz_dense;
     s.kld = s.recovered ? 0.125 * frame : kNaN;
+    for (int k = 0; k < kNumGaugeDirections; ++k) s.info_dense(k) = 1e3 * frame + k;
+    s.info_sparse = s.recovered ? Vec7d(2.5 * s.info_dense) : s.info_dense;
     s.t_schur_s = 1e-3 * frame;
     s.t_recovery_s = 2e-3 * frame;
     s.t_insert_s = s.recovered ? 1e-4 * frame : 0.0;
@@ -260,12 +262,16 @@ void expectMargAndSparsify(const ResultsReader& r, const SmallRun& run) {
     if (!std::isnan(e.kld)) {
       EXPECT_EQ(g.kld, e.kld);
     }
+    EXPECT_EQ(g.info_dense, e.info_dense);
+    EXPECT_EQ(g.info_sparse, e.info_sparse);
     EXPECT_EQ(g.recovered, e.recovered);
     EXPECT_EQ(g.t_schur_s, e.t_schur_s);
     EXPECT_EQ(g.t_recovery_s, e.t_recovery_s);
     EXPECT_EQ(g.t_insert_s, e.t_insert_s);
   }
   EXPECT_EQ(r.file().openDataset("sparsify/kld").attr<std::string>("units"), "nats");
+  EXPECT_EQ(r.file().openDataset("sparsify/info_sparse").attr<std::vector<std::string>>("columns"),
+            std::vector<std::string>(kGaugeDirectionNames.begin(), kGaugeDirectionNames.end()));
 
   EXPECT_EQ(r.storedPriors(), std::vector<std::int64_t>{1});
   EXPECT_FALSE(r.prior(0));

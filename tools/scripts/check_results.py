@@ -7,7 +7,8 @@ Checks that every attribute and dataset of the schema exists with consistent sha
 ragged /marg/eigenvalues agree with /marg (one ascending row of prior_cols values per event), that
 /sparsify agrees with the marg_strategy attribute (equal column lengths, rows only for dense / nfr,
 frame_index within /frames, nnz_sparse <= nnz_dense and KLD >= 0 where the prior was recovered,
-KLD NaN where it was kept dense), that /frontend agrees with the frontend attribute (images /
+KLD NaN where it was kept dense, the optional info_dense / info_sparse both (rows, 7) and equal
+where it was kept dense), that /frontend agrees with the frontend attribute (images /
 simulated / tracks; equal column lengths, t_ns strictly increasing and, unless it has zero rows,
 containing every /frames t_ns, n_features = n_tracked + n_new, 0 <= n_stereo <= n_features, t_frontend_s finite and >= 0 for
 images; both absent in files written before the front-end existed), that the isa attribute, when
@@ -29,6 +30,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from marglab_results import (FRAME_1D, FRONTEND_1D, FRONTEND_KINDS, MARG_1D,  # noqa: E402
                              MARG_STRATEGIES, ROOT_ATTRS, SCHEMA_VERSIONS, SPARSIFY_1D,
+                             SPARSIFY_INFO,
                              SUMMARY_ATTRS, decode)
 
 FRAME_2D = {"p_est": 3, "q_est": 4, "p_gt": 3}
@@ -92,7 +94,23 @@ def check_sparsify(f, n_frames):
         problems.append("/sparsify/kld negative where the prior was recovered")
     if not np.all(np.isnan(kld[~recovered])):
         problems.append("/sparsify/kld not NaN where the prior was kept dense")
-    return problems
+    return problems + check_sparsify_info(sp, rows, recovered)
+
+
+def check_sparsify_info(sp, rows, recovered):
+    """The optional (rows, 7) information columns: both or neither; a kept prior is its own."""
+    present = [name for name in SPARSIFY_INFO if name in sp]
+    if not present:
+        return []
+    if len(present) != len(SPARSIFY_INFO):
+        return [f"/sparsify has {present[0]} without the other information column"]
+    info = {name: sp[name][:] for name in SPARSIFY_INFO}
+    if any(v.shape != (rows, 7) for v in info.values()):
+        return [f"/sparsify information columns are not ({rows}, 7)"]
+    dense, sparse = info["info_dense"], info["info_sparse"]
+    if not np.array_equal(dense[~recovered], sparse[~recovered], equal_nan=True):
+        return ["/sparsify: info_sparse != info_dense where the prior was kept dense"]
+    return []
 
 
 def check_frontend(f, frame_t_ns):

@@ -12,7 +12,8 @@ schema lives in one place on the Python side.
                     #   p_gt_x/y/z, ate_error
     run.marg        # one row per marginalization event: frame_index, t_ns, t_s, ..., dEm_x ...
                     #   dEm_random; run.eigenvalues: one ascending array per event
-    run.sparsify    # one row per keyframe marginalization of a dense / nfr run (may be empty)
+    run.sparsify    # one row per keyframe marginalization of a dense / nfr run (may be empty);
+                    #   info_dense_x ... info_sparse_random when the file has them
     run.frontend    # per-frame front-end statistics when the file has /frontend, else None
     sweep = mr.read_sweep("results/quick")   # index.csv + each run's summary (HDF5 values)
 
@@ -42,6 +43,8 @@ MARG_1D = ["frame_index", "t_ns", "prior_cols", "prior_rows", "rank", "sigma_min
            "n_negative"]
 MARG_OPTIONAL_1D = ["eig_tolerance"]
 DEM_DIRECTIONS = ["x", "y", "z", "roll", "pitch", "yaw", "random"]
+# Optional (m, 7) columns of /sparsify, along DEM_DIRECTIONS: εᵀΛε of the dense and sparsified prior.
+SPARSIFY_INFO = ["info_dense", "info_sparse"]
 SPARSIFY_1D = ["frame_index", "t_ns", "blanket_cols", "n_blanket_poses", "n_blanket_landmarks",
                "nnz_dense", "nnz_sparse", "kld", "recovered", "t_schur_s", "t_recovery_s",
                "t_insert_s"]
@@ -185,8 +188,15 @@ class Run:
             sparsify = {name: np.zeros(0) for name in SPARSIFY_1D}
             if "sparsify" in f and "frame_index" in f["sparsify"]:
                 sp = f["sparsify"]
-                sparsify = _columns(sp, SPARSIFY_1D, sp["frame_index"].shape[0], "/sparsify")
+                k = sp["frame_index"].shape[0]
+                sparsify = _columns(sp, SPARSIFY_1D, k, "/sparsify")
                 sparsify["recovered"] = sparsify["recovered"].astype(bool)
+                for name in SPARSIFY_INFO:  # optional: info_dense_x ... info_sparse_random
+                    if name in sp:
+                        if sp[name].shape != (k, len(DEM_DIRECTIONS)):
+                            raise SchemaError("%s: /sparsify/%s is not (%d, 7)" % (path, name, k))
+                        for j, d in enumerate(DEM_DIRECTIONS):
+                            sparsify["%s_%s" % (name, d)] = sp[name][:, j]
 
             frontend = None
             if "frontend" in f and "t_ns" in f["frontend"]:

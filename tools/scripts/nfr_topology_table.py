@@ -7,7 +7,8 @@ Usage: nfr_topology_table.py SWEEP_DIR   (writes SWEEP_DIR/tables/topology.md an
 
 Per run: ATE RMSE (index.csv) and, from /sparsify, the mean KLD over the events whose factors
 replaced the prior, the share of such events, the mean nnz_sparse / nnz_dense and the blanket size
-(poses, landmarks). Against discard: per (sequence, seed) pair, whether the ATE is lower, and the
+(poses, landmarks), and the median ratio of the information along the gauge directions of what
+replaced the prior to the dense prior's (/sparsify info_sparse / info_dense). Against discard: per (sequence, seed) pair, whether the ATE is lower, and the
 geometric mean of ATE / ATE(discard) over all pairs. Needs numpy, h5py and pandas
 (marglab_results.py).
 """
@@ -47,8 +48,31 @@ def load(sweep):
                                                np.asarray(sp["nnz_dense"], dtype=float)))
                     run["poses"] = float(np.mean(sp["n_blanket_poses"]))
                     run["landmarks"] = float(np.mean(sp["n_blanket_landmarks"]))
+                    run.update(information_ratios(sp))
             runs[(row["override"], row["dataset"].split("/")[-1], int(row["seed"]))] = run
     return runs
+
+
+def information_ratios(sp):
+    """Median over the events of εᵀΛ_s ε / εᵀΛ_t ε per gauge direction (files with the /sparsify
+    information columns; {} otherwise)."""
+    if "info_dense_x" not in sp:
+        return {}
+    return {"info_" + d: float(np.median(np.asarray(sp["info_sparse_" + d], dtype=float) /
+                                         np.asarray(sp["info_dense_" + d], dtype=float)))
+            for d in mr.DEM_DIRECTIONS}
+
+
+def information_lines(runs, overrides):
+    """Median information ratio per strategy and direction (mean over the runs' medians)."""
+    lines = ["| strategy | " + " | ".join(mr.DEM_DIRECTIONS) + " |",
+             "|---|" + "---:|" * len(mr.DEM_DIRECTIONS)]
+    for o in overrides:
+        sel = [r for k, r in runs.items() if k[0] == o and "info_x" in r]
+        if sel:
+            lines.append(f"| {o} | " + " | ".join(
+                fmt(mean([r["info_" + d] for r in sel]), 2) for d in mr.DEM_DIRECTIONS) + " |")
+    return lines
 
 
 def mean(values):
@@ -129,15 +153,25 @@ def main():
               "ATE; x k/n: k of n runs failed; runs not yet done (status pending) are left out.",
               ""]
     lines += per_sequence_lines(runs, overrides)
-    out_dir = os.path.join(sweep, "tables")
+    info = information_lines(runs, overrides)
+    if len(info) > 2:
+        lines += ["", "Information along the window's rigid motions: εᵀΛ_s ε / εᵀΛ_t ε of what "
+                  "replaced the dense prior against the dense prior, along the unit gauge "
+                  "directions over the blanket (x, y, z, roll, pitch, yaw about the poses' centroid, "
+                  "landmarks moved with them; random: one random unit direction); median over a "
+                  "run's events, mean over its runs. 1: as the dense prior; above 1: more confident.",
+                  ""]
+        lines += info
     os.makedirs(out_dir, exist_ok=True)
     with open(os.path.join(out_dir, "topology.csv"), "w", newline="") as f:
         w = csv.writer(f)
+        info = ["info_" + d for d in mr.DEM_DIRECTIONS]
         w.writerow(["strategy", "dataset", "seed", "status", "ate_rmse", "kld_mean",
-                    "recovered_share", "nnz_ratio", "blanket_poses", "blanket_landmarks"])
+                    "recovered_share", "nnz_ratio", "blanket_poses", "blanket_landmarks"] +
+                   [c + "_ratio" for c in info])
         for (o, d, s), r in sorted(runs.items()):
             w.writerow([o, d, s, r["status"], r["ate"], r["kld"], r["recovered"], r["nnz"],
-                        r["poses"], r["landmarks"]])
+                        r["poses"], r["landmarks"]] + [r.get(c, float("nan")) for c in info])
     with open(os.path.join(out_dir, "topology.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     print(os.path.join(out_dir, "topology.md"))
