@@ -162,16 +162,17 @@ def main():
                   "run's events, mean over its runs. 1: as the dense prior; above 1: more confident.",
                   ""]
         lines += info
+    out_dir = os.path.join(sweep, "tables")
     os.makedirs(out_dir, exist_ok=True)
     with open(os.path.join(out_dir, "topology.csv"), "w", newline="") as f:
         w = csv.writer(f)
-        info = ["info_" + d for d in mr.DEM_DIRECTIONS]
+        columns = ["info_" + d for d in mr.DEM_DIRECTIONS]
         w.writerow(["strategy", "dataset", "seed", "status", "ate_rmse", "kld_mean",
                     "recovered_share", "nnz_ratio", "blanket_poses", "blanket_landmarks"] +
-                   [c + "_ratio" for c in info])
+                   [c + "_ratio" for c in columns])
         for (o, d, s), r in sorted(runs.items()):
             w.writerow([o, d, s, r["status"], r["ate"], r["kld"], r["recovered"], r["nnz"],
-                        r["poses"], r["landmarks"]] + [r.get(c, float("nan")) for c in info])
+                        r["poses"], r["landmarks"]] + [r.get(c, float("nan")) for c in columns])
     with open(os.path.join(out_dir, "topology.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     print(os.path.join(out_dir, "topology.md"))
