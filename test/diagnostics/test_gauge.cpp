@@ -245,6 +245,35 @@ TEST(GaugeDirections, AreUnitLengthAndTranslationsOrthogonalToRotations) {
       0.1);
 }
 
+// Centroid of the state's pose positions: gaugeDirections' default rotation centre.
+Eigen::Vector3d poseCentroid(const GaugeState& state) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& [id, T] : state.T_w_i) c += T.translation();
+  return c / static_cast<double>(state.T_w_i.size());
+}
+
+// x(θ) ⊟ x over the layout when the world is rotated by exp(θω) about c: poses
+// (exp(θω) R_i, exp(θω)(t_i − c) + c), velocities exp(θω) v_i, points exp(θω)(p − c) + c.
+VecXd rigidRotationDelta(const PriorLayout& layout, const GaugeState& state, int n,
+                         const Eigen::Vector3d& c, const Eigen::Vector3d& omega, double theta) {
+  const Eigen::Matrix3d R = expSO3<double>(theta * omega);
+  VecXd d = VecXd::Zero(n);
+  for (const PriorVariable& v : layout) {
+    if (v.kind == PriorVariableKind::kPose) {
+      const SE3d& T = state.T_w_i.at(v.frame_id);
+      const SE3d T_rot(Eigen::Matrix3d(R * T.rotationMatrix()), R * (T.translation() - c) + c);
+      d.segment<6>(v.offset) = boxMinus(T_rot, T);
+    } else if (v.kind == PriorVariableKind::kVelocity) {
+      const Eigen::Vector3d& vel = state.v_w.at(v.frame_id);
+      d.segment<3>(v.offset) = R * vel - vel;
+    } else if (v.kind == PriorVariableKind::kPoint) {
+      const Eigen::Vector3d& x = state.p_w.at(v.frame_id);
+      d.segment<3>(v.offset) = R * (x - c) + c - x;
+    }
+  }
+  return d;
+}
+
 // The rotation directions are the derivative of the exact rigid rotation of the world about c:
 // T_i(θ) = (exp(θω) R_i, exp(θω)(t_i − c) + c), v_i(θ) = exp(θω) v_i. Central difference of
 // [T_i(θ) ⊟ T_i; v_i(θ) − v_i] at θ = ±h, normalized, against the direction (truncation O(h²)).
@@ -252,26 +281,12 @@ TEST(GaugeDirections, RotationMatchesCentralDifferenceOfRigidWorldRotation) {
   const Prior p = marginalizeFirstFrameAndLandmarks(makeWindow(true, 23));
   const int n = static_cast<int>(p.H_m.rows());
   const GaugeDirections E = gaugeDirections(p.layout, n, p.state, 1);
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (const auto& [id, T] : p.state.T_w_i) c += T.translation();
-  c /= static_cast<double>(p.state.T_w_i.size());
+  const Eigen::Vector3d c = poseCentroid(p.state);
   const double h = 1e-5;
   for (int a = 0; a < 3; ++a) {
     const Eigen::Vector3d omega = Eigen::Vector3d::Unit(a);
     auto displaced = [&](double theta) {
-      const Eigen::Matrix3d R = expSO3<double>(theta * omega);
-      VecXd d = VecXd::Zero(n);
-      for (const PriorVariable& v : p.layout) {
-        if (v.kind == PriorVariableKind::kPose) {
-          const SE3d& T = p.state.T_w_i.at(v.frame_id);
-          const SE3d T_rot(Eigen::Matrix3d(R * T.rotationMatrix()), R * (T.translation() - c) + c);
-          d.segment<6>(v.offset) = boxMinus(T_rot, T);
-        } else if (v.kind == PriorVariableKind::kVelocity) {
-          const Eigen::Vector3d& vel = p.state.v_w.at(v.frame_id);
-          d.segment<3>(v.offset) = R * vel - vel;
-        }
-      }
-      return d;
+      return rigidRotationDelta(p.layout, p.state, n, c, omega, theta);
     };
     const VecXd derivative = (displaced(h) - displaced(-h)) / (2 * h);
     const VecXd direction = derivative / derivative.norm();
@@ -305,30 +320,13 @@ TEST(GaugeDirections, PointsMoveRigidlyWithTheWorld) {
     n += 3;
   }
   const GaugeDirections E = gaugeDirections(layout, n, state, 1);
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (const auto& [id, T] : state.T_w_i) c += T.translation();
-  c /= static_cast<double>(state.T_w_i.size());
+  const Eigen::Vector3d c = poseCentroid(state);
   const double h = 1e-5;
   for (int a = 0; a < 3; ++a) {
     const Eigen::Vector3d omega = Eigen::Vector3d::Unit(a);
-    auto displaced = [&](double theta) {
-      const Eigen::Matrix3d R = expSO3<double>(theta * omega);
-      VecXd d = VecXd::Zero(n);
-      for (const PriorVariable& v : layout) {
-        if (v.kind == PriorVariableKind::kPose) {
-          const SE3d& T = state.T_w_i.at(v.frame_id);
-          const SE3d T_rot(Eigen::Matrix3d(R * T.rotationMatrix()), R * (T.translation() - c) + c);
-          d.segment<6>(v.offset) = boxMinus(T_rot, T);
-        } else if (v.kind == PriorVariableKind::kVelocity) {
-          d.segment<3>(v.offset) = R * state.v_w.at(v.frame_id) - state.v_w.at(v.frame_id);
-        } else if (v.kind == PriorVariableKind::kPoint) {
-          const Eigen::Vector3d& x = state.p_w.at(v.frame_id);
-          d.segment<3>(v.offset) = R * (x - c) + c - x;
-        }
-      }
-      return d;
-    };
-    const VecXd derivative = (displaced(h) - displaced(-h)) / (2 * h);
+    const VecXd derivative = (rigidRotationDelta(layout, state, n, c, omega, h) -
+                              rigidRotationDelta(layout, state, n, c, omega, -h)) /
+                             (2 * h);
     EXPECT_LT((derivative / derivative.norm() - E.col(kGaugeRoll + a)).cwiseAbs().maxCoeff(), 1e-8)
         << "axis " << a;
     VecXd translation = VecXd::Zero(n);
