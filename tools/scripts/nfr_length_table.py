@@ -2,7 +2,8 @@
 """ATE against run length for discard and nfr on the same (sequence, seed) pairs
 (experiments/nfr_length.toml, issue #19 section 3).
 
-Usage: nfr_length_table.py SWEEP_DIR   (writes SWEEP_DIR/tables/length.md and length.csv)
+Usage: nfr_length_table.py SWEEP_DIR   (writes SWEEP_DIR/tables/length.{md,csv} and
+SWEEP_DIR/figures/length.{png,pdf})
 
 A run is causal: frames 1..N of a whole run are bit for bit the N-frame run (checked by
 test/cli/nfr_length_agrees.py). So the ATE of an N-frame run is the ATE of the first N frames of
@@ -13,7 +14,8 @@ the geometric mean of ATE(nfr) / ATE(discard). Per 400-frame segment, each align
 same comparison of local accuracy: does nfr lose locally late in a run, or only in accumulated
 drift? And the whole run's attitude error against the ground truth's orientation, split into tilt
 (observable through gravity) and yaw (unobservable): which one does nfr lose in? Needs numpy,
-scipy, h5py and pandas (marglab_results.py) and the shipped datasets/*/gt_tum.txt.gz.
+scipy, h5py, pandas (marglab_results.py) and matplotlib, and the shipped
+datasets/*/gt_tum.txt.gz.
 """
 import csv
 import gzip
@@ -34,6 +36,7 @@ DATASETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
 
 PREFIXES = [200, 400, 800, 1200, 1600]  # frames; "whole" is added per run
 SEGMENT = 400                           # frames per segment of the local comparison
+CURVE_STEP = 100                        # frames between the prefixes of the figure
 GT_MAX_DT_NS = 5_000_000                # nearest GT orientation within 5 ms (EuRoC GT: 200 Hz)
 
 
@@ -104,7 +107,8 @@ def load(sweep):
         tilt, yaw = attitude_rms(run.positions("p_est"), q_est, run.positions("p_gt"),
                                  gt_orientations(run))
         runs[(row["override"], row["dataset"].split("/")[-1], int(row["seed"]))] = {
-            "n": n, "prefix": prefix, "segments": segment_ates(run), "tilt": tilt, "yaw": yaw}
+            "n": n, "prefix": prefix, "segments": segment_ates(run), "tilt": tilt, "yaw": yaw,
+            "curve": {L: prefix_ate(run, L) for L in range(CURVE_STEP, n + 1, CURVE_STEP)}}
     return runs
 
 
@@ -174,6 +178,39 @@ def pair_lines(ps):
     return lines
 
 
+def write_figure(out_dir, ps):
+    """ATE(nfr) / ATE(discard) against run length: one line per pair, coloured by sequence, and
+    the geometric mean over the pairs that reach each length, up to the lengths at least half of
+    the pairs reach (figures/length.{png,pdf})."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7.0, 4.2))
+    colours = {d: plt.cm.tab10(k % 10) for k, d in enumerate(sorted({p[0] for p in ps}))}
+    by_length = {}
+    for d, s, dr, fr in ps:
+        lengths = sorted(set(dr["curve"]) & set(fr["curve"]))
+        ratios = [fr["curve"][L] / dr["curve"][L] for L in lengths]
+        ax.plot(lengths, ratios, color=colours[d], lw=0.7, alpha=0.6,
+                label=d if s == min(p[1] for p in ps if p[0] == d) else None)
+        for L, r in zip(lengths, ratios):
+            by_length.setdefault(L, []).append(math.log(r))
+    lengths = sorted(L for L, v in by_length.items() if 2 * len(v) >= len(ps))
+    ax.plot(lengths, [math.exp(statistics.fmean(by_length[L])) for L in lengths], color="black",
+            lw=2.2, label="geometric mean (lengths half the pairs reach)")
+    ax.axhline(1.0, color="grey", lw=0.8, ls="--")
+    ax.set_yscale("log")
+    ax.set_xlabel("run length [frames]")
+    ax.set_ylabel("ATE(nfr) / ATE(discard)")
+    ax.set_title("nfr against discard on the same runs, by run length")
+    ax.legend(fontsize=7, ncol=3, loc="upper left")
+    fig.tight_layout()
+    os.makedirs(out_dir, exist_ok=True)
+    for ext in ("png", "pdf"):
+        fig.savefig(os.path.join(out_dir, "length." + ext), dpi=150)
+    plt.close(fig)
+
+
 def write_csv(path, runs):
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
@@ -213,6 +250,7 @@ def main():
     write_csv(os.path.join(out_dir, "length.csv"), runs)
     with open(os.path.join(out_dir, "length.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
+    write_figure(os.path.join(sweep, "figures"), ps)
     print(os.path.join(out_dir, "length.md"))
     return 0
 
