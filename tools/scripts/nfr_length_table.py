@@ -88,9 +88,9 @@ def gt_orientations(run):
 
 
 def load(sweep):
-    """{(override, dataset, seed): {"n": frames, "prefix": {L: ate}, "segments": [ate],
-    "tilt": deg, "yaw": deg}} of the runs that completed; a failed run is left out (with its
-    pair)."""
+    """{(override, dataset, seed): {"n": frames, "curve": {L: ate} every CURVE_STEP frames,
+    "prefix": {L: ate} at PREFIXES and "whole", "segments": [ate], "tilt": deg, "yaw": deg}} of
+    the runs that completed; a failed run is left out (with its pair)."""
     runs = {}
     for row in mr.read_index_rows(sweep):
         path = row["path"]
@@ -98,7 +98,8 @@ def load(sweep):
             continue
         run = mr.read_run(path)
         n = len(run.frames["t_ns"])
-        prefix = {L: prefix_ate(run, L) for L in PREFIXES if L <= n}
+        curve = {L: prefix_ate(run, L) for L in range(CURVE_STEP, n + 1, CURVE_STEP)}
+        prefix = {L: curve[L] for L in PREFIXES if L <= n}  # PREFIXES are multiples of the step
         prefix["whole"] = prefix_ate(run, n)
         if not math.isclose(prefix["whole"], float(run.summary["ate_rmse"]), rel_tol=1e-9):
             raise SystemExit("%s: whole-run ATE %.17g here, %.17g in /summary"
@@ -107,8 +108,8 @@ def load(sweep):
         tilt, yaw = attitude_rms(run.positions("p_est"), q_est, run.positions("p_gt"),
                                  gt_orientations(run))
         runs[(row["override"], row["dataset"].split("/")[-1], int(row["seed"]))] = {
-            "n": n, "prefix": prefix, "segments": segment_ates(run), "tilt": tilt, "yaw": yaw,
-            "curve": {L: prefix_ate(run, L) for L in range(CURVE_STEP, n + 1, CURVE_STEP)}}
+            "n": n, "curve": curve, "prefix": prefix, "segments": segment_ates(run), "tilt": tilt,
+            "yaw": yaw}
     return runs
 
 
@@ -206,8 +207,9 @@ def write_figure(out_dir, ps):
     ax.legend(fontsize=7, ncol=3, loc="upper left")
     fig.tight_layout()
     os.makedirs(out_dir, exist_ok=True)
-    for ext in ("png", "pdf"):
-        fig.savefig(os.path.join(out_dir, "length." + ext), dpi=150)
+    for ext in ("png", "pdf"):  # no creation date: the same runs give the same file
+        fig.savefig(os.path.join(out_dir, "length." + ext), dpi=150,
+                    metadata={"CreationDate": None} if ext == "pdf" else None)
     plt.close(fig)
 
 
