@@ -23,6 +23,7 @@
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
+#include "core/estimator/config.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/sim_profile.h"
@@ -203,6 +204,7 @@ struct TrackOptions {
   std::size_t frames = 0;
   int passes = 1;
   std::string output;
+  std::string config;
 };
 
 void printTracking(const ImageSequence& images, const ImageTracking& tracking, double best_s,
@@ -244,15 +246,20 @@ CommandRun setupTrack(CLI::App& app) {
       ->check(positiveInt("the number of passes"));
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
+  app.add_option("--config", options->config,
+                 "TOML config whose [frontend] section sets the front-end (other sections are "
+                 "checked and ignored; prediction: the tracker's own, there is no estimator)");
   return [options] {
     checkDatasetArgument(options->dataset);
+    EstimatorConfig config;
+    if (!options->config.empty()) config.loadToml(options->config);
     cli::refuseOverwritingInputs({options->output},
                                  {{}, cli::datasetInputFolders(options->dataset)});
     const ImageSequence images = loadImageSequence(options->dataset);
     ImageTracking tracking;
     double best_s = 0, best_cpu_s = 0;
     for (int pass = 0; pass < options->passes; ++pass) {
-      ImageTracking run = trackImages(images, options->frames);
+      ImageTracking run = trackImages(images, config.frontend, options->frames);
       double total = 0, cpu = 0;
       for (const FrontendFrameStats& f : run.stats) {
         total += f.t_frontend_s;

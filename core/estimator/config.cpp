@@ -88,7 +88,8 @@ struct Binding {
   int* i = nullptr;
   bool* b = nullptr;
   std::uint64_t* u = nullptr;
-  Rule rule = Rule{};  // numeric keys (d, i, u)
+  std::vector<double>* list = nullptr;  // a list of numbers, each in `rule`
+  Rule rule = Rule{};  // numeric keys (d, i, u) and the elements of a list
   // A key with a fixed set of names (an enum field): parse (false for an unknown name), print.
   std::function<bool(const std::string&)> parse_choice = nullptr;
   std::function<std::string()> print_choice = nullptr;
@@ -113,6 +114,31 @@ Binding choice(const char* section, const char* key, E* field, Parse parse, cons
   binding.print_choice = [field] { return std::string(toString(*field)); };
   binding.choices = choices;
   return binding;
+}
+
+// The [frontend] keys (core/frontend/frontend_options.h). The ranges keep OpenCV's LK and
+// corner detector inside what they accept (a window of at least 5 px, a block of at least 2) and
+// the checks meaningful (an NCC bound in [−1, 1], a sine bound in (0, 1]).
+template <typename AddDouble, typename AddInt>
+void frontendBindings(FrontendOptions& f, AddDouble D, AddInt I, std::vector<Binding>* list) {
+  const char* s = "frontend";
+  I(s, "grid_cell_px", &f.grid_cell_px, orSentinel(between(8, 10000), -1, "dataset default"));
+  I(s, "pyramid_levels", &f.pyramid_levels, orSentinel(between(1, 8), -1, "dataset default"));
+  I(s, "max_iterations", &f.max_iterations, between(1, 100));
+  I(s, "window_px", &f.window_px, between(5, 101));
+  D(s, "fb_max_px", &f.fb_max_px, above(0));
+  D(s, "epipolar_max", &f.epipolar_max, Rule{0, 1, true});
+  D(s, "ncc_min", &f.ncc_min, between(-1, 1));
+  D(s, "ransac_px", &f.ransac_px, above(0));
+  D(s, "min_eigen", &f.min_eigen, atLeast(0));
+  I(s, "corner_block_px", &f.corner_block_px, between(2, 31));
+  I(s, "border_px", &f.border_px, between(0, 10000));
+  Binding guesses{s, "disparity_guesses_px"};
+  guesses.list = &f.disparity_guesses_px;
+  guesses.rule = between(0, 10000);
+  list->push_back(guesses);
+  list->push_back(choice(s, "prediction", &f.prediction, parseMotionPredictionSource,
+                         "\"estimator\", \"tracker\" or \"none\""));
 }
 
 // The keys and their ranges (docs/design.md §9). The ranges follow what the estimator does with
@@ -163,8 +189,11 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
                         "\"discard\", \"dense\" or \"nfr\""));
   list.push_back(choice("marginalization", "nfr_topology", &c.nfr_topology, parseSparsifyTopology,
                         "\"paper\", \"joint-states\" or \"relative-pose\""));
+  frontendBindings(c.frontend, D, I, &list);
   D("failure", "max_position_error_m", &c.max_position_error_m,
     orSentinel(above(0), -1, "dataset default"));
+  I("failure", "min_tracked_observations", &c.min_tracked_observations, between(0, 100000));
+  I("failure", "max_tracking_loss_frames", &c.max_tracking_loss_frames, between(1, kMaxWindow));
   list.push_back(choice("imu", "noise_profile", &c.imu_noise_profile, parseImuNoiseProfile,
                         "\"kalibr\" or \"basalt\""));
   list.push_back(
@@ -192,6 +221,26 @@ std::optional<std::int64_t> integerValue(const toml::node& node, bool* out_of_ra
     }
   }
   return std::nullopt;
+}
+
+// A TOML array of numbers, each checked against the binding's rule.
+template <typename Error>
+std::vector<double> numberList(const Binding& binding, const toml::node& node, Error error) {
+  const toml::array* array = node.as_array();
+  if (array == nullptr) {
+    throw error(node, fmt::format("expected a list of numbers for {} ([] for the default)",
+                                  binding.name()));
+  }
+  std::vector<double> values;
+  for (std::size_t k = 0; k < array->size(); ++k) {
+    const auto v = (*array)[k].value<double>();
+    if (!v || !accepts(binding.rule, *v)) {
+      throw error(node, fmt::format("{}[{}]: expected {}", binding.name(), k,
+                                    describe(binding.rule, false)));
+    }
+    values.push_back(*v);
+  }
+  return values;
 }
 
 void apply(EstimatorConfig& config, const toml::table& root, const std::string& name) {
@@ -235,6 +284,8 @@ void apply(EstimatorConfig& config, const toml::table& root, const std::string& 
         } else {
           *it->u = static_cast<std::uint64_t>(*v);
         }
+      } else if (it->list != nullptr) {
+        *it->list = numberList(*it, node, error);
       } else if (it->b != nullptr) {
         auto v = node.value<bool>();
         if (!v) throw error(node, fmt::format("expected true or false for {}.{}", section, key));
@@ -337,6 +388,10 @@ std::string EstimatorConfig::toToml() const {
       section.insert(b.key, *b.b);
     } else if (b.u != nullptr) {
       section.insert(b.key, static_cast<int64_t>(*b.u));
+    } else if (b.list != nullptr) {
+      toml::array array;
+      for (const double v : *b.list) array.push_back(v);
+      section.insert(b.key, std::move(array));
     } else {
       section.insert(b.key, b.print_choice());
     }
@@ -361,6 +416,15 @@ std::vector<ConfigProblem> EstimatorConfig::problems() const {
   std::vector<ConfigProblem> out;
   for (const Binding& b : bindings(copy)) {
     if (b.numeric() && !accepts(b.rule, b.value())) out.push_back({b.name(), b.problem(b.value())});
+    if (b.list != nullptr) {
+      for (const double v : *b.list) {
+        if (!accepts(b.rule, v)) {
+          out.push_back({b.name(), fmt::format("{} holds {}: expected numbers that are each {}",
+                                               b.name(), v, describe(b.rule, false))});
+          break;
+        }
+      }
+    }
   }
   // Relations between keys, when each key is valid on its own.
   auto valid = [&out](const char* key) {

@@ -17,7 +17,13 @@
 //                   scalar type), strategy ("discard"|"dense"|"nfr", keyframe marginalization of
 //                   VIO; see MargStrategy), nfr_topology ("paper"|"joint-states"|"relative-pose",
 //                   see SparsifyTopology)
-//   [failure]       max_position_error_m (−1: dataset default)
+//   [frontend]      the image front-end's settings (core/frontend/frontend_options.h): grid_cell_px,
+//                   pyramid_levels (−1: dataset default), max_iterations, window_px, fb_max_px,
+//                   epipolar_max, ncc_min, ransac_px, min_eigen, corner_block_px, border_px,
+//                   disparity_guesses_px (a list; []: dataset default), prediction
+//                   ("estimator"|"tracker"|"none")
+//   [failure]       max_position_error_m (−1: dataset default), min_tracked_observations,
+//                   max_tracking_loss_frames (the tracking-failure rule, core/pipeline/run.h)
 //   [imu]           noise_profile ("kalibr"|"basalt": the IMU densities of VIO runs, for the
 //                   synthetic IMU and the estimator's weights; see core/imu/noise_profile.h)
 //   [sim]           profile ("ideal"|"realistic": simulated tracks' noise model,
@@ -37,6 +43,7 @@
 #include <string>
 #include <vector>
 
+#include "core/frontend/frontend_options.h"
 #include "core/imu/noise_profile.h"
 #include "core/linalg/flat_qr.h"
 #include "core/sim/sim_profile.h"
@@ -142,8 +149,14 @@ struct EstimatorConfig {
   double qr_threshold = -1;
   MargStrategy marg_strategy = MargStrategy::kDiscard;
   SparsifyTopology nfr_topology = SparsifyTopology::kPaper;
+  // frontend
+  FrontendOptions frontend;
   // failure
   double max_position_error_m = -1;
+  // A run has lost the scene when fewer than min_tracked_observations of a frame's observations
+  // continue landmarks of the window for max_tracking_loss_frames frames in a row.
+  int min_tracked_observations = 10;
+  int max_tracking_loss_frames = 3;
   // imu
   ImuNoiseProfile imu_noise_profile = ImuNoiseProfile::kKalibr;
   // sim

@@ -61,6 +61,7 @@ FrameResult SlidingWindowEstimator<Scalar>::processFrame(const TrackFrame& track
   result.t_ns = track_frame.t_ns;
   const int64_t id = next_frame_index_++;
   const int connected = addFrame(id, track_frame);
+  result.n_connected = connected;
   if (id == 0) {
     Frame& first = window_.frames.at(id);
     first.is_keyframe = true;
@@ -99,6 +100,45 @@ FrameResult SlidingWindowEstimator<Scalar>::processFrame(const TrackFrame& track
   last_pose_ = result.T_w_i;
   has_previous_pose_ = id > 0;
   return result;
+}
+
+template <typename Scalar>
+std::optional<SE3<double>> SlidingWindowEstimator<Scalar>::predictPose(int64_t t_ns) const {
+  if (window_.frames.empty()) return std::nullopt;
+  if (!isVio()) {
+    // As addFrame: T_k = (T_{k−1} T_{k−2}⁻¹) T_{k−1}.
+    return has_previous_pose_ ? (last_pose_ * previous_pose_.inverse()) * last_pose_ : last_pose_;
+  }
+  const int64_t newest = window_.frames.rbegin()->first;
+  const ImuState<double> s_i = window_.stateOf(newest, false).template cast<double>();
+  const ImuSetup& imu = *window_.imu();
+  const ImuPreintegration<double> pre = preintegrate<double>(
+      imu.imu, s_i.t_ns, t_ns, s_i.b_g, s_i.b_a,
+      ImuSampleNoise<double>::fromDensities(imu.noise, imu.sample_period_s));
+  return predictState<double>(s_i, pre, imu.g_w).T_w_i;
+}
+
+template <typename Scalar>
+std::optional<SE3<double>> SlidingWindowEstimator<Scalar>::newestPose() const {
+  if (window_.frames.empty()) return std::nullopt;
+  return window_.frames.rbegin()->second.T_w_i.template cast<double>();
+}
+
+template <typename Scalar>
+std::vector<std::pair<int64_t, Eigen::Vector3d>> SlidingWindowEstimator<Scalar>::landmarkPoints()
+    const {
+  std::vector<std::pair<int64_t, Eigen::Vector3d>> points;
+  const SE3<double> T_i_c0 = window_.T_i_c(0).template cast<double>();
+  for (const auto& [id, lm] : window_.landmarks) {
+    const Eigen::Vector3d param = lm.param.template cast<double>();
+    if (lm.world()) {
+      points.emplace_back(id, param);
+    } else if (param.z() > 0) {
+      const SE3<double> T_w_h = window_.frames.at(lm.host).T_w_i.template cast<double>() * T_i_c0;
+      points.emplace_back(id, T_w_h * landmarkToPoint<double>(param));
+    }
+  }
+  return points;
 }
 
 template <typename Scalar>

@@ -86,6 +86,7 @@ struct FrameResult {
   bool is_keyframe = false;
   int n_landmarks = 0;
   int n_observations = 0;
+  int n_connected = 0;  // the frame's observations of landmarks already in the window
   int lm_iterations = 0;
   double cost_initial = 0;
   double cost_final = 0;
@@ -114,6 +115,17 @@ class SlidingWindowEstimator {
 
   // Throws InputError when a VIO frame lies outside the IMU stream.
   FrameResult processFrame(const TrackFrame& frame);
+
+  // Motion prediction for a front-end (core/frontend/motion_prediction.h; the run pipeline turns
+  // it into the front-end's FramePrediction): the pose T_w_i a frame at t_ns starts from in
+  // processFrame — VO constant velocity, VIO the newest state propagated through the IMU up to
+  // t_ns (its biases kept) — and nullopt before the first frame. Throws InputError when a VIO t_ns
+  // lies outside the IMU stream.
+  std::optional<SE3<double>> predictPose(int64_t t_ns) const;
+  // The newest frame's pose T_w_i (nullopt before the first frame).
+  std::optional<SE3<double>> newestPose() const;
+  // The window's landmark estimates p_w, by track id.
+  std::vector<std::pair<int64_t, Eigen::Vector3d>> landmarkPoints() const;
 
   bool isVio() const { return window_.isVio(); }
   const Window<Scalar>& window() const { return window_; }

@@ -104,7 +104,7 @@ bool readCompleteResults(const std::string& path, IndexRow* row, const char* git
     row->setNumber("realtime_factor", s.realtime_factor);
     row->set("mode", reader.info().metadata.mode);
     const bool failed = status == "failed";
-    row->set("failure_kind", failed ? "numerical" : "");
+    row->set("failure_kind", failed ? reader.info().failure_kind : "");
     row->set("failure_frame", failed ? std::to_string(reader.info().failure_frame) : "");
     row->set("reason", failed ? reader.info().failure_reason : "");
     return true;

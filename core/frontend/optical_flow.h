@@ -1,31 +1,52 @@
 #pragma once
 // A stereo optical-flow front-end in the spirit of Basalt's (Usenko et al., "Visual-Inertial
-// Mapping with Non-Linear Factor Recovery", RA-L 2020, its EuRoC settings), on OpenCV's pyramidal
-// Lucas–Kanade (Bouguet's implementation).
+// Mapping with Non-Linear Factor Recovery", RA-L 2020), on OpenCV's pyramidal Lucas–Kanade
+// (Bouguet's implementation). Settings: frontend_options.h (config section [frontend]).
 //
-// Per stereo frame k (raw, distorted images I0_k, I1_k; keypoints live in raw pixels):
-//   1. Temporal tracking: every keypoint x of I0_{k−1} is tracked to I0_k by LK on a
-//      `pyramid_levels`-level pyramid, ≤ max_iterations Gauss–Newton steps per level, giving x'.
-//      Forward–backward check: x' is tracked back to I0_{k−1}, giving x''; the track continues
-//      only if ‖x'' − x‖ ≤ fb_max_px (0.2 px: a point that LK cannot map consistently both ways
-//      sits on an occlusion boundary, on a repetitive texture or has moved out of view).
-//   2. Detection: the image is divided into grid_cell_px cells; in a cell that holds no tracked
+// Per stereo frame k (raw, distorted images I0_k, I1_k; keypoints live in raw pixels). Each image
+// gets one pyramid, built once and shared by the temporal tracking, the backward checks and the
+// stereo match (the previous left pyramid is kept for the next frame).
+//   1. Prediction. LK converges only within a few pixels of its start at the coarsest level, and
+//      on 10 Hz driving data features move tens of pixels per frame, so each keypoint's LK starts
+//      where the motion estimate puts it: with T_new_prev (motion_prediction.h) and the point's
+//      position p_prev in the previous cam0 (the estimator's landmark, else the front-end's own
+//      stereo triangulation of the previous frame), x_start = d(π(T_new_prev p_prev)); a point
+//      without depth is predicted at infinity (rotation only, R_new_prev b_prev). A point predicted
+//      outside the image has left the view: its track ends. Without an estimate (first frames,
+//      prediction "none") LK starts at the previous position. With prediction "tracker" the motion
+//      is the front-end's own: the previous frame's RANSAC motion (step 3), constant velocity.
+//   2. Temporal tracking: LK on `pyramid_levels` levels, ≤ max_iterations steps per level, then
+//      the forward–backward check: x' is tracked back into I0_{k−1} from x' − (x_start − x); the
+//      track continues only if it returns within fb_max_px of x (a point LK cannot map
+//      consistently both ways sits on an occlusion boundary or a repetitive texture), and the
+//      patch check: the zero-mean normalized cross-correlation of the window_px patches around x
+//      in I0_{k−1} and x' in I0_k is ≥ ncc_min (a consistent alignment onto a different texture —
+//      an occluder that moved in — passes the round trip but not this).
+//   3. Geometric check (per frame): the tracks with a stereo depth in the previous frame give 3-D
+//      points p_prev and their new undistorted pixels; P3P in RANSAC (cv::solvePnPRansac, fixed
+//      seed: deterministic) finds the motion T_new_prev that most of them agree with to ransac_px
+//      pinhole pixels. Tracks it calls outliers end; tracks without depth must satisfy the
+//      epipolar constraint of that motion, |b_newᵀ [t̂]× R b_prev| ≤ epipolar_max, when the motion
+//      has a baseline (‖t‖ ≥ 0.02 m). The motion is the frame's `motion` statistic and the
+//      tracker's prediction for the next frame.
+//   4. Detection: the image is divided into grid_cell_px cells; in a cell that holds no tracked
 //      point, the pixel with the largest Shi–Tomasi response λ_min(M) (M = 2×2 structure tensor
 //      over a block) starts a new track if λ_min ≥ min_eigen (a flat cell gets nothing).
-//   3. Stereo: every keypoint of I0_k is tracked into I1_k with the same forward–backward check,
-//      LK starting from its track's disparity of the previous frame, else (or if that fails) from
-//      the pixels of a few disparity hypotheses along the epipolar line (0, 12, 30, 55 px: LK
-//      only converges from a few pixels away at the coarsest level, and near points have large
-//      disparities) until one passes; then the epipolar check: with unit bearings b0, b1 of the
-//      undistorted keypoints and E = [t̂]× R (R, t = T_c0_c1, t̂ = t/‖t‖),  |b0ᵀ E b1| ≤
-//      epipolar_max (the sine of the angle between b0 and the epipolar plane of b1; Basalt 0.005).
-//   4. Undistortion: keypoints are mapped into the estimator's pinhole image (camera_model.h); a
+//   5. Stereo: every keypoint of I0_k is tracked into I1_k with the same forward–backward and
+//      patch checks, LK starting from its predicted 3-D point projected into cam1 (when it has
+//      one), else its track's disparity of the previous frame, else the pixels of the disparity
+//      guesses along the epipolar line until one passes; then the epipolar check with unit
+//      bearings b0, b1 of the undistorted keypoints and E = [t̂]× R (R, t = T_c0_c1):
+//      |b0ᵀ E b1| ≤ epipolar_max. A match gives the point's depth by triangulation (the
+//      least-squares depths along both rays), kept for the next frame's prediction.
+//   6. Undistortion: keypoints are mapped into the estimator's pinhole image (camera_model.h); a
 //      left keypoint that cannot be undistorted ends its track, a right one loses its match.
 // The output is a TrackFrame (tracks.h) like the simulator's: track ids count from 0 in order of
 // detection; landmark_id = −1, is_outlier = false (unknown for real images).
 //
-// Determinism: OpenCV runs single-threaded (cv::setNumThreads(1) in the constructor), and every
-// step is a pure function of the images, so the same images give the same tracks bit for bit.
+// Determinism: OpenCV runs single-threaded (cv::setNumThreads(1) in the constructor), RANSAC has a
+// fixed seed, and every step is a pure function of the images and the prediction, so the same
+// images and predictions give the same tracks bit for bit.
 
 #include <cstdint>
 #include <memory>
@@ -36,25 +57,15 @@
 
 #include "core/data/types.h"
 #include "core/frontend/camera_model.h"
+#include "core/frontend/frontend_options.h"
+#include "core/frontend/motion_prediction.h"
 #include "core/sim/tracks.h"
 
 namespace marglab {
 
-struct FrontendOptions {
-  int grid_cell_px = 50;
-  int pyramid_levels = 3;  // finest level included (OpenCV maxLevel = levels − 1)
-  int max_iterations = 5;  // per pyramid level
-  int window_px = 21;      // LK patch side
-  double fb_max_px = 0.2;  // forward–backward check
-  double epipolar_max = 0.005;
-  double min_eigen = 1e-3;  // Shi–Tomasi λ_min (OpenCV units: gradients / 255, block-averaged)
-  int corner_block_px = 3;
-  int border_px = 8;  // keypoints closer to the image edge are dropped
-  // Stereo: starts of the left→right LK after the previous frame's disparity (see matchStereo).
-  std::vector<double> stereo_disparity_guesses_px = {0, 12, 30, 55, 85, 120};
-};
-// The EuRoC / TUM-VI defaults above; KITTI: the dataset's 30 px grid (DatasetDefaults).
-FrontendOptions defaultFrontendOptions(const Sequence& sequence);
+// The options of a sequence: `configured` with its dataset-default sentinels resolved.
+FrontendOptions defaultFrontendOptions(const Sequence& sequence,
+                                       const FrontendOptions& configured = FrontendOptions{});
 
 // Per frame statistics (the results file's /frontend group).
 struct FrontendFrameStats {
@@ -63,6 +74,11 @@ struct FrontendFrameStats {
   int n_tracked = 0;          // of those, continued from the previous frame
   int n_new = 0;              // detected in this frame
   int n_stereo = 0;           // with a right match
+  int n_continued_depth = 0;  // continued tracks that had a stereo depth in the previous frame
+  int n_motion_inliers = -1;  // the geometric check's inliers (−1: no motion this frame)
+  int n_motion_points = 0;    // tracks with depth it was run on
+  bool has_motion = false;    // T_new_prev below is the geometric check's motion
+  SE3<double> T_new_prev;     // cam0 motion from the previous frame (step 3)
   double t_frontend_s = 0;    // wall time of tracking + detection + stereo + undistortion
   double cpu_frontend_s = 0;  // the same in CPU time of the process (one thread: the speed)
 };
@@ -73,7 +89,7 @@ struct FlowCandidate {
   int64_t track_id = -1;
   double u_prev = 0, v_prev = 0, u = 0, v = 0;
   bool lk_ok = false;  // LK converged and stayed in the image
-  bool kept = false;   // also passed the forward–backward check and the undistortion
+  bool kept = false;   // also passed the forward–backward, patch and geometric checks
 };
 
 class StereoFrontend {
@@ -84,10 +100,12 @@ class StereoFrontend {
   StereoFrontend(StereoFrontend&&) noexcept;
   StereoFrontend& operator=(StereoFrontend&&) noexcept;
 
-  // One stereo frame of 8-bit grey images of the calibration's size.
+  // One stereo frame of 8-bit grey images of the calibration's size. `prediction` (prediction
+  // "estimator") overrides the tracker's own; with options.prediction "none" it is ignored.
   TrackFrame process(int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
                      FrontendFrameStats* stats = nullptr,
-                     std::vector<FlowCandidate>* candidates = nullptr);
+                     std::vector<FlowCandidate>* candidates = nullptr,
+                     const FramePrediction* prediction = nullptr);
 
   // Raw (distorted) left keypoints of the last frame, in the order of its observations.
   const std::vector<Eigen::Vector2d>& lastRawLeft() const;

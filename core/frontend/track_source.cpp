@@ -60,18 +60,6 @@ void cutToEstimatorFrames(const Sequence& sequence, int max_frames, TrackStream*
   }
 }
 
-// How many images the front-end must track so that the cut above is complete.
-std::size_t imagesNeeded(const Sequence& sequence, const StereoImageList& images, int max_frames) {
-  if (max_frames <= 0) return images.size();
-  std::size_t first = 0;
-  if (sequence.hasTrajectory()) {
-    const auto& t = images.t_ns;
-    first = static_cast<std::size_t>(
-        std::lower_bound(t.begin(), t.end(), sequence.gt.t_ns.front()) - t.begin());
-  }
-  return std::min(images.size(), first + static_cast<std::size_t>(max_frames));
-}
-
 void addTrajectory(TrackSource* source) {
   const Sequence& seq = source->sequence;
   source->has_ground_truth = seq.hasTrajectory();
@@ -109,29 +97,97 @@ void simulate(const TrackSourceOptions& options, TrackSource* source) {
 
 }  // namespace
 
-ImageTracking trackImages(const ImageSequence& images, std::size_t max_images) {
+ImageTracker::ImageTracker(const ImageSequence& images, const FrontendOptions& options)
+    : list_(images.images ? *images.images : StereoImageList{}),
+      width0_(images.sequence.calib.cam0.width),
+      height0_(images.sequence.calib.cam0.height),
+      width1_(images.sequence.calib.cam1.width),
+      height1_(images.sequence.calib.cam1.height),
+      options_(defaultFrontendOptions(images.sequence, options)),
+      frontend_(images.sequence.calib, options_, images.sequence.calib_source) {
   if (!images.images) {
     throw UsageError(fmt::format("{} has no images (expected mav0/cam0/data/ or image_0/)",
                                  images.sequence.directory));
   }
-  const Sequence& seq = images.sequence;
-  const StereoImageList& list = *images.images;
-  const std::size_t n = max_images > 0 ? std::min(max_images, list.size()) : list.size();
-  StereoFrontend frontend(seq.calib, defaultFrontendOptions(seq), seq.calib_source);
+}
+
+TrackFrame ImageTracker::trackNext(const FramePrediction* prediction) {
+  const std::size_t i = next_++;
+  const auto start = std::chrono::steady_clock::now();
+  const cv::Mat left = readGreyImage(list_.left[i], width0_, height0_);
+  const cv::Mat right = readGreyImage(list_.right[i], width1_, height1_);
+  t_decode_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  FrontendFrameStats stats;
+  TrackFrame frame = frontend_.process(list_.t_ns[i], left, right, &stats, nullptr, prediction);
+  stats_.push_back(stats);
+  return frame;
+}
+
+ImageTracking trackImages(const ImageSequence& images, const FrontendOptions& options,
+                          std::size_t max_images) {
+  ImageTracker tracker(images, options);
+  const std::size_t n = max_images > 0 ? std::min(max_images, tracker.size()) : tracker.size();
   ImageTracking out;
-  out.stream.sequence = seq.name;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto start = std::chrono::steady_clock::now();
-    const cv::Mat left = readGreyImage(list.left[i], seq.calib.cam0.width, seq.calib.cam0.height);
-    const cv::Mat right = readGreyImage(list.right[i], seq.calib.cam1.width, seq.calib.cam1.height);
-    out.t_decode_s +=
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    FrontendFrameStats stats;
-    out.stream.frames.push_back(frontend.process(list.t_ns[i], left, right, &stats));
-    out.stats.push_back(stats);
-  }
+  out.stream.sequence = images.sequence.name;
+  while (tracker.next() < n) out.stream.frames.push_back(tracker.trackNext());
+  out.stats = tracker.stats();
+  out.t_decode_s = tracker.decodeSeconds();
   return out;
 }
+
+int64_t TrackSource::frameTimeNs(std::size_t k) const {
+  return images ? images->timeNs(first_image + k) : stream.frames.at(k).t_ns;
+}
+
+TrackFrame TrackSource::frame(std::size_t k, const FramePrediction* prediction) {
+  if (!images) return stream.frames.at(k);
+  if (images->next() != first_image + k) {
+    throw std::logic_error("TrackSource::frame: image frames are tracked in order");
+  }
+  return images->trackNext(prediction);
+}
+
+const std::vector<FrontendFrameStats>& TrackSource::frontendStats() const {
+  return images ? images->stats() : stats;
+}
+
+namespace {
+
+// The images path of obtainTracks: the images before the estimator's first frame are tracked now
+// (the tracks are mature when the estimator starts); its frames are tracked as it asks for them.
+void startImages(const TrackSourceOptions& options, const ImageSequence& folder,
+                 TrackSource* source) {
+  source->images = std::make_unique<ImageTracker>(folder, options.frontend_options);
+  const Sequence& seq = source->sequence;
+  const std::vector<int64_t>& t = folder.images->t_ns;
+  std::size_t first = 0, last = t.size();
+  if (seq.hasTrajectory()) {
+    first = static_cast<std::size_t>(
+        std::lower_bound(t.begin(), t.end(), seq.gt.t_ns.front()) - t.begin());
+    last = static_cast<std::size_t>(
+        std::upper_bound(t.begin(), t.end(), seq.gt.t_ns.back()) - t.begin());
+  }
+  if (options.max_frames > 0) {
+    last = std::min(last, first + static_cast<std::size_t>(options.max_frames));
+  }
+  // Tracked before the check below, so that a bad image among them is named first.
+  while (source->images->next() < std::min(first, t.size())) source->images->trackNext();
+  if (first >= last) {
+    throw InputError(seq.directory, 0,
+                     "no camera frame lies inside the trajectory (nothing for the estimator)");
+  }
+  source->first_image = first;
+  source->n_frames = last - first;
+  source->stream.sequence = seq.name;
+  source->frontend = "images";
+  source->provenance.emplace_back(
+      "measurements", "stereo optical-flow front-end on the images, undistorted pinhole");
+  source->provenance.emplace_back("images", folder.images->source);
+  source->provenance.emplace_back("frontend_prediction",
+                                  toString(source->images->options().prediction));
+}
+
+}  // namespace
 
 TrackSource obtainTracks(const TrackSourceOptions& options) {
   TrackSource source;
@@ -145,27 +201,19 @@ TrackSource obtainTracks(const TrackSourceOptions& options) {
     source.stream = readTrackFile(options.tracks_file);
     cutToEstimatorFrames(source.sequence, options.max_frames, &source.stream);
     source.stats = streamFrontendStats(source.stream);
+    source.n_frames = source.stream.frames.size();
     source.frontend = "tracks";
     source.provenance.emplace_back("measurements", "track file " + options.tracks_file);
     return source;
   }
   const bool use_images = options.frontend == FrontendKind::kImages ||
                           (options.frontend == FrontendKind::kAuto && images.images.has_value());
-  if (!use_images) {
+  if (use_images) {
+    startImages(options, images, &source);
+  } else {
     simulate(options, &source);
-    return source;
+    source.n_frames = source.stream.frames.size();
   }
-  // KITTI's calib.txt has no image size: the images define it.
-  ImageTracking tracking = trackImages(
-      images, imagesNeeded(source.sequence, images.images ? *images.images : StereoImageList{},
-                           options.max_frames));
-  source.stream = std::move(tracking.stream);
-  source.stats = std::move(tracking.stats);
-  cutToEstimatorFrames(source.sequence, options.max_frames, &source.stream);
-  source.frontend = "images";
-  source.provenance.emplace_back(
-      "measurements", "stereo optical-flow front-end on the images, undistorted pinhole");
-  source.provenance.emplace_back("images", images.images->source);
   return source;
 }
 

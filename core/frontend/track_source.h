@@ -17,6 +17,12 @@
 // any ground truth (and no shipped sequence to fall back on, image_folder.h) every frame is used
 // and the trajectory is a still pose at the origin (VO only: the run starts at the identity and
 // reports no ATE).
+//
+// Images are tracked frame by frame (ImageTracker), so that the run can hand the front-end the
+// estimator's prediction of each frame (optical_flow.h, "Prediction"): obtainTracks tracks the
+// images before the estimator's first frame at once (with the tracker's own prediction), and the
+// estimator's frames are tracked when the run asks for them (TrackSource::frame). A track file
+// written by `datasets track` holds the tracks of prediction "tracker" (no estimator there).
 
 #include <cstdint>
 #include <memory>
@@ -45,29 +51,66 @@ struct TrackSourceOptions {
   int max_frames = 0;       // estimator frames; 0: all
   std::uint64_t seed = 1;   // simulation seed
   SimProfile sim_profile = SimProfile::kIdeal;  // the simulation's measurement model
+  FrontendOptions frontend_options;  // [frontend]; dataset-default sentinels resolved here
+};
+
+// The image front-end one stereo frame at a time, in order.
+class ImageTracker {
+ public:
+  // Throws UsageError when the folder has no images.
+  ImageTracker(const ImageSequence& images, const FrontendOptions& options);
+  std::size_t size() const { return list_.size(); }
+  std::size_t next() const { return next_; }  // the image trackNext() decodes
+  int64_t timeNs(std::size_t i) const { return list_.t_ns[i]; }
+  const FrontendOptions& options() const { return options_; }
+  // Decodes and tracks image next() (InputError naming a missing or undecodable image).
+  TrackFrame trackNext(const FramePrediction* prediction = nullptr);
+  const std::vector<FrontendFrameStats>& stats() const { return stats_; }
+  double decodeSeconds() const { return t_decode_s_; }
+
+ private:
+  StereoImageList list_;
+  int width0_, height0_, width1_, height1_;
+  FrontendOptions options_;
+  StereoFrontend frontend_;
+  std::vector<FrontendFrameStats> stats_;
+  std::size_t next_ = 0;
+  double t_decode_s_ = 0;
 };
 
 struct TrackSource {
   Sequence sequence;  // with the shipped fallback's ground truth / IMU where used
   std::unique_ptr<TrajectoryFunction> trajectory;
   bool has_ground_truth = false;
-  TrackStream stream;                     // the estimator's frames
-  std::string frontend;                   // "images" | "simulated" | "tracks"
+  TrackStream stream;    // the estimator's frames (images: those tracked so far)
+  std::string frontend;  // "images" | "simulated" | "tracks"
   std::vector<FrontendFrameStats> stats;  // /frontend rows: every frame the source produced
   std::vector<std::pair<std::string, std::string>> provenance;  // results-file root attributes
+  std::unique_ptr<ImageTracker> images;  // frontend "images": the estimator's frames to come
+  std::size_t first_image = 0;           // the image of the estimator's frame 0
+  std::size_t n_frames = 0;              // the estimator's frames
+
+  int64_t frameTimeNs(std::size_t k) const;
+  // The estimator's frame k, k = 0, 1, … in order: from the stream, or (images) tracked now,
+  // starting from `prediction` where given.
+  TrackFrame frame(std::size_t k, const FramePrediction* prediction = nullptr);
+  // /frontend rows of every frame produced so far.
+  const std::vector<FrontendFrameStats>& frontendStats() const;
 };
 
 // Throws InputError (bad or missing files, images of the wrong size, a sequence without ground
 // truth for the simulation) and UsageError (--frontend images on a folder without images).
 TrackSource obtainTracks(const TrackSourceOptions& options);
 
-// The front-end on the first max_images stereo frames of a folder (0: all).
+// The front-end on the first max_images stereo frames of a folder (0: all), with the tracker's own
+// prediction (options.prediction "estimator" falls back to it: there is no estimator here).
 struct ImageTracking {
   TrackStream stream;
   std::vector<FrontendFrameStats> stats;
   double t_decode_s = 0;  // PNG decoding, not part of t_frontend_s
 };
-ImageTracking trackImages(const ImageSequence& images, std::size_t max_images = 0);
+ImageTracking trackImages(const ImageSequence& images, const FrontendOptions& options,
+                          std::size_t max_images = 0);
 
 // /frontend rows recomputed from a stream (no timing: t_frontend_s = NaN).
 std::vector<FrontendFrameStats> streamFrontendStats(const TrackStream& stream);

@@ -340,7 +340,8 @@ void ResultsWriter::appendPriorMatrices(std::int64_t k, const PriorLayout& layou
 }
 
 SummaryValues ResultsWriter::finish(const RunSummary& summary, RunStatus status,
-                                    std::int64_t failure_frame, const std::string& failure_reason) {
+                                    std::int64_t failure_frame, const std::string& failure_reason,
+                                    const std::string& failure_kind) {
   Impl& d = *impl_;
   d.requireOpen();
   // Every file has the group (zero rows when the writer's user had no front-end statistics).
@@ -381,6 +382,7 @@ SummaryValues ResultsWriter::finish(const RunSummary& summary, RunStatus status,
   d.file.setAttr("status", runStatusName(status));
   d.file.setAttr("failure_frame", status == RunStatus::kOk ? std::int64_t{-1} : failure_frame);
   d.file.setAttr("failure_reason", status == RunStatus::kOk ? std::string() : failure_reason);
+  d.file.setAttr("failure_kind", status == RunStatus::kOk ? std::string() : failure_kind);
   d.open = false;
   d.file.commit();
   return s;
@@ -436,7 +438,7 @@ ResultsReader::ResultsReader(const std::string& path) : path_(path) {
       "schema_version", "marglab_version",   "git_sha",      "created_utc", "dataset",
       "sequence",       "variant",           "precision",    "mode",        "seed",
       "config_toml",    "qr_threshold_mode", "qr_threshold", "status",      "failure_frame",
-      "failure_reason", "marg_strategy",     "frontend",     "isa"};
+      "failure_reason", "marg_strategy",     "frontend",     "isa",         "failure_kind"};
   for (const std::string& name : file_.attrNames()) {
     if (std::find(std::begin(kKnown), std::end(kKnown), name) != std::end(kKnown)) continue;
     try {
@@ -448,6 +450,9 @@ ResultsReader::ResultsReader(const std::string& path) : path_(path) {
   info_.status = file_.attr<std::string>("status");
   info_.failure_frame = file_.attr<std::int64_t>("failure_frame");
   info_.failure_reason = file_.attr<std::string>("failure_reason");
+  info_.failure_kind = file_.hasAttr("failure_kind") ? file_.attr<std::string>("failure_kind")
+                       : info_.status == "failed"    ? "numerical"
+                                                     : "";
 }
 
 FrameColumns ResultsReader::frames() const {

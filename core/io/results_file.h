@@ -20,6 +20,9 @@
 //   status          str     "ok" | "failed"
 //   failure_frame   int64   row of /frames where the run failed, −1 when ok
 //   failure_reason  str     "" when ok
+//   failure_kind    str     "numerical" | "tracking" ("" when ok; absent in older files: a failed
+//                           run's kind is "numerical"). tracking: the run lost the scene
+//                           (core/pipeline/run.h), without reference to ground truth
 //   marg_strategy   str     "discard" | "dense" | "nfr" (absent in older files: "discard")
 //   frontend        str     "images" | "simulated" | "tracks": where the feature tracks came from
 //                           (core/frontend/track_source.h; absent in older files: "simulated")
@@ -236,7 +239,8 @@ class ResultsWriter {
   // Computes ATE and the /summary attributes, writes /frames/ate_error and the status, then
   // commits (atomic rename). The writer is closed afterwards (appends throw).
   SummaryValues finish(const RunSummary& summary, RunStatus status = RunStatus::kOk,
-                       std::int64_t failure_frame = -1, const std::string& failure_reason = "");
+                       std::int64_t failure_frame = -1, const std::string& failure_reason = "",
+                       const std::string& failure_kind = "numerical");
 
   std::size_t frameCount() const;
   std::size_t margCount() const;
@@ -257,6 +261,7 @@ struct RunInfo {
   std::string status;  // "ok" | "failed"
   std::int64_t failure_frame = -1;
   std::string failure_reason;
+  std::string failure_kind;  // "" when ok
 };
 
 struct FrameColumns {

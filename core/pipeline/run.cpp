@@ -17,6 +17,7 @@
 #include "core/estimator/window_io.h"
 #include "core/imu/noise_profile.h"
 #include "core/pipeline/records.h"
+#include "core/pipeline/tracking_monitor.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/imu_synth.h"
 #include "core/sim/trajectory_spline.h"
@@ -64,6 +65,7 @@ TrackSourceOptions trackSourceOptions(const RunOptions& options) {
   source.max_frames = options.max_frames;
   source.seed = options.seed;
   source.sim_profile = options.config.sim_profile;
+  source.frontend_options = options.config.frontend;
   return source;
 }
 
@@ -199,48 +201,96 @@ std::string frameFailure(const FrameResult& result, const FrameRecord& record,
   return "";
 }
 
+// The front-end's prediction of the frame at t_ns from the estimator (motion_prediction.h): the
+// predicted motion of cam0 since the newest frame, and the window's landmarks in that frame's
+// cam0. T_i_c0: body → cam0 (VO: the identity, the state is cam0).
 template <typename Scalar>
-RunOutcome runWith(const RunOptions& options, const TrackSource& source,
-                   const EstimatorConfig& config) {
+std::optional<FramePrediction> estimatorPrediction(const SlidingWindowEstimator<Scalar>& estimator,
+                                                   std::int64_t t_ns, const SE3<double>& T_i_c0) {
+  const std::optional<SE3<double>> newest = estimator.newestPose();
+  const std::optional<SE3<double>> predicted = estimator.predictPose(t_ns);
+  if (!newest || !predicted) return std::nullopt;
+  const SE3<double> T_c0prev_w = (*newest * T_i_c0).inverse();
+  FramePrediction prediction;
+  prediction.T_new_prev = (*predicted * T_i_c0).inverse() * T_c0prev_w.inverse();
+  for (const auto& [id, p_w] : estimator.landmarkPoints()) {
+    prediction.p_prev.emplace(id, T_c0prev_w * p_w);
+  }
+  return prediction;
+}
+
+// What one run writes besides the frame loop's records: TUM trajectory columns and counters.
+struct RunTrace {
+  std::vector<std::int64_t> t_ns;
+  std::vector<Eigen::Vector3d> positions;
+  std::vector<Eigen::Quaterniond> quaternions;
+  std::int64_t marg_index = 0;
+  double features = 0;
+  int processed = 0;
+};
+
+// The records of one processed frame: /frames, /marg, /sparsify, the trajectory.
+void recordFrame(int k, const TrackFrame& frame, const FrameResult& result, FrameRecord record,
+                 const RunOptions& options, const EstimatorConfig& config, ResultsWriter& writer,
+                 RunTrace* trace, RunOutcome* outcome) {
+  writer.appendFrame(record);
+  trace->t_ns.push_back(frame.t_ns);
+  trace->positions.push_back(record.p_est);
+  trace->quaternions.push_back(record.q_est);
+  if (result.marg_event && result.status.ok() && !result.marg_event->layout.empty()) {
+    writeMargEvent(*result.marg_event, k, frame.t_ns, trace->marg_index++, options, config,
+                   writer);
+  }
+  if (result.sparsify_event && result.status.ok()) {
+    const SparsifyEvent& event = *result.sparsify_event;
+    writer.appendSparsify(toSparsifyRecord(event, k, frame.t_ns));
+    ++outcome->n_keyframe_events;
+    if (!event.fallback_reason.empty()) {
+      fmt::print(stderr, "frame {}: nfr kept the dense prior: {}\n", k, event.fallback_reason);
+    }
+  }
+}
+
+template <typename Scalar>
+RunOutcome runWith(const RunOptions& options, TrackSource& source, const EstimatorConfig& config) {
   const Sequence& sequence = source.sequence;
-  const TrackStream& stream = source.stream;
   const TrajectoryFunction& trajectory = *source.trajectory;
   RunOutcome outcome;
   outcome.frontend = source.frontend;
-  outcome.frontend_summary = frontendSummary(source.frontend, source.stats);
   const bool vio = options.mode == RunMode::kVio;
   outcome.vio = vio;
   const SE3<double> T_b_c0 = cameraExtrinsic(sequence.calib.cam0);
   // VIO estimates the body (IMU) frame, VO the left camera: the ATE compares like with like.
   const Trajectory gt_est = vio ? sequence.gt : cameraGroundTruth(sequence.gt, T_b_c0);
-  const TrajectorySample first = trajectory.evaluate(stream.frames.front().t_ns);
+  const std::int64_t t0_ns = source.frameTimeNs(0);
+  const TrajectorySample first = trajectory.evaluate(t0_ns);
   const SE3<double> T_w_c0_first = SE3<double>(first.R_w_b, first.p_w_b) * T_b_c0;
   std::map<std::string, std::string> imu_provenance;
   std::optional<ImuSetup> imu;
-  if (vio) {
-    imu = vioImuSetup(options, sequence, trajectory, stream.frames.front().t_ns, &imu_provenance);
-  }
+  if (vio) imu = vioImuSetup(options, sequence, trajectory, t0_ns, &imu_provenance);
 
   ResultsWriter writer = ResultsWriter::create(
       options.output, runMetadata<Scalar>(options, source, config, vio, imu_provenance));
-  writer.writeFrontend(frontendRecords(source.stats));
-
   SlidingWindowEstimator<Scalar> estimator(config, options.variant, rigFromCalib(sequence.calib),
                                            T_w_c0_first, std::move(imu));
-  std::vector<std::int64_t> t_ns;
-  std::vector<Eigen::Vector3d> positions;
-  std::vector<Eigen::Quaterniond> quaternions;
-  const int total = static_cast<int>(stream.frames.size());
-  std::int64_t marg_index = 0;
-  double features = 0;
-  int processed = 0;
+  const bool predict = source.images && config.frontend.prediction == MotionPredictionSource::kEstimator;
+  const SE3<double> T_i_c0 = vio ? T_b_c0 : SE3<double>();
+  TrackingMonitor monitor(config);
+  // Simulated tracks cannot lose the scene: where they thin out (the simulated world ends a few
+  // metres past the trajectory's end) it is the simulation's edge, not a tracking failure.
+  const bool watch_tracking = source.frontend != "simulated";
+  RunTrace trace;
+  const int total = static_cast<int>(source.n_frames);
+  std::string failure_kind;
   for (int k = 0; k < total; ++k) {
-    ++processed;
-    TrackFrame frame = stream.frames[k];
+    ++trace.processed;
+    std::optional<FramePrediction> prediction;
+    if (predict) prediction = estimatorPrediction(estimator, source.frameTimeNs(k), T_i_c0);
+    TrackFrame frame = source.frame(k, prediction ? &*prediction : nullptr);
     if (k == options.inject_nan_frame && !frame.observations.empty()) {
       frame.observations.front().uv0.x() = std::numeric_limits<double>::quiet_NaN();
     }
-    features += static_cast<double>(frame.observations.size());
+    trace.features += static_cast<double>(frame.observations.size());
     const bool dump = std::find(options.dump_windows.begin(), options.dump_windows.end(), k) !=
                       options.dump_windows.end();
     if (dump) estimator.captureNextWindow();
@@ -248,40 +298,32 @@ RunOutcome runWith(const RunOptions& options, const TrackSource& source,
     if (std::optional<WindowSnapshot> window = estimator.takeCapturedWindow()) {
       writeCapturedWindow(std::move(*window), options, k);
     }
-
     FrameRecord record = toFrameRecord(result);
     if (auto p_gt = interpolatePosition(gt_est, frame.t_ns)) record.p_gt = *p_gt;
-    writer.appendFrame(record);
-    t_ns.push_back(frame.t_ns);
-    positions.push_back(record.p_est);
-    quaternions.push_back(record.q_est);
-
-    if (result.marg_event && result.status.ok() && !result.marg_event->layout.empty()) {
-      writeMargEvent(*result.marg_event, k, frame.t_ns, marg_index++, options, config, writer);
-    }
-    if (result.sparsify_event && result.status.ok()) {
-      const SparsifyEvent& event = *result.sparsify_event;
-      writer.appendSparsify(toSparsifyRecord(event, k, frame.t_ns));
-      ++outcome.n_keyframe_events;
-      if (!event.fallback_reason.empty()) {
-        fmt::print(stderr, "frame {}: nfr kept the dense prior: {}\n", k, event.fallback_reason);
-      }
-    }
+    recordFrame(k, frame, result, record, options, config, writer, &trace, &outcome);
     if (options.progress) options.progress(k + 1, total);
 
-    const std::string failure = frameFailure(result, record, config);
+    std::string failure = frameFailure(result, record, config);
+    failure_kind = "numerical";
+    if (failure.empty() && result.status.ok() && watch_tracking) {
+      failure = monitor.update(k, result);
+      failure_kind = "tracking";
+    }
     if (!failure.empty()) {
       outcome.status = RunStatus::kFailed;
       outcome.failure_frame = k;
       outcome.failure_reason = failure;
+      outcome.failure_kind = failure_kind;
       break;
     }
   }
-  outcome.mean_features_per_frame = processed > 0 ? features / processed : 0;
-  outcome.summary =
-      writer.finish(RunSummary{}, outcome.status, outcome.failure_frame, outcome.failure_reason);
+  writer.writeFrontend(frontendRecords(source.frontendStats()));
+  outcome.frontend_summary = frontendSummary(source.frontend, source.frontendStats());
+  outcome.mean_features_per_frame = trace.processed > 0 ? trace.features / trace.processed : 0;
+  outcome.summary = writer.finish(RunSummary{}, outcome.status, outcome.failure_frame,
+                                  outcome.failure_reason, outcome.failure_kind);
   outcome.tum_path = tumPathFor(options.output);
-  writeTumTrajectory(outcome.tum_path, t_ns, positions, quaternions);
+  writeTumTrajectory(outcome.tum_path, trace.t_ns, trace.positions, trace.quaternions);
   return outcome;
 }
 
@@ -307,9 +349,10 @@ std::string tumPathFor(const std::string& results_path) {
 }
 
 RunOutcome runSequence(const RunOptions& options) {
-  const TrackSource source = obtainTracks(trackSourceOptions(options));
+  TrackSource source = obtainTracks(trackSourceOptions(options));
   const Sequence& sequence = source.sequence;
   EstimatorConfig config = options.config;
+  config.frontend = resolveFrontendOptions(config.frontend, sequence.kind);
   if (config.min_frames_after_kf < 0)
     config.min_frames_after_kf = sequence.defaults.min_frames_after_kf;
   if (config.max_position_error_m < 0) {

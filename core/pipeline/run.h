@@ -10,7 +10,13 @@
 // pose (the same for every variant), and the ATE compares camera positions with the ground truth
 // expressed for cam0 (T_w_b T_b_c0). A run fails — status "failed" in the file, never a crash or
 // a missing file — when the estimator reports a numerical failure (non-finite cost or state,
-// repeated solve failure) or when the position error exceeds the dataset's bound.
+// repeated solve failure) or the position error exceeds the dataset's bound (failure_kind
+// "numerical"), or when it has lost the scene (failure_kind "tracking", tracking_monitor.h: no
+// ground truth involved).
+//
+// Images (frontend "images"): each frame is tracked just before the estimator processes it, and
+// with [frontend] prediction = "estimator" the front-end starts from the estimator's prediction
+// of that frame (its predicted pose, its landmarks; core/frontend/motion_prediction.h).
 
 #include <cstdint>
 #include <functional>
@@ -64,6 +70,7 @@ struct RunOutcome {
   bool vio = false;  // the mode that ran
   std::int64_t failure_frame = -1;
   std::string failure_reason;
+  std::string failure_kind;  // "numerical" | "tracking" (tracking_monitor.h); "" when ok
   SummaryValues summary;
   std::string tum_path;
   double mean_features_per_frame = 0;

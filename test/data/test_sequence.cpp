@@ -130,7 +130,8 @@ TEST(ShippedData, KittiPosesTimesCalib) {
 
 TEST(ShippedData, ListAndUnknownName) {
   const std::vector<std::string> names = listSequences();
-  EXPECT_EQ(names.size(), 31u);  // 30 with ground truth or timestamps + euroc/V1_01_easy_images
+  // 30 with ground truth or timestamps + the image folders euroc/V1_01_easy_images, kitti/06_images
+  EXPECT_EQ(names.size(), 32u);
   EXPECT_EQ(names.front(), "euroc/MH_01_easy");
   EXPECT_EQ(names.back(), "kitti/10");
   expectInputError([] { loadSequence("euroc/MH_06_impossible"); }, "euroc/MH_06_impossible", 0,

@@ -120,6 +120,61 @@ INSTANTIATE_TEST_SUITE_P(
                  "diagnostics.seed = -1: expected an integer >= 0"}),
     [](const auto& info) { return std::string(info.param.name); });
 
+// The [frontend] keys (core/frontend/frontend_options.h) in the same range table.
+INSTANTIATE_TEST_SUITE_P(
+    Frontend, BadConfigValue,
+    ::testing::Values(
+        BadValue{"GridZero", "[frontend]\ngrid_cell_px = 0\n",
+                 "frontend.grid_cell_px = 0: expected -1 (dataset default) or an integer in [8, "
+                 "10000]"},
+        BadValue{"LevelsNine", "[frontend]\npyramid_levels = 9\n",
+                 "frontend.pyramid_levels = 9: expected -1 (dataset default) or an integer in [1, "
+                 "8]"},
+        BadValue{"WindowThree", "[frontend]\nwindow_px = 3\n",
+                 "frontend.window_px = 3: expected an integer in [5, 101]"},
+        BadValue{"FbNan", "[frontend]\nfb_max_px = nan\n",
+                 "frontend.fb_max_px = nan: expected a finite number > 0"},
+        BadValue{"NccAboveOne", "[frontend]\nncc_min = 1.5\n",
+                 "frontend.ncc_min = 1.5: expected a finite number in [-1, 1]"},
+        BadValue{"EpipolarZero", "[frontend]\nepipolar_max = 0\n",
+                 "frontend.epipolar_max = 0: expected a finite number in (0, 1]"},
+        BadValue{"RansacZero", "[frontend]\nransac_px = 0\n",
+                 "frontend.ransac_px = 0: expected a finite number > 0"},
+        BadValue{"GuessNegative", "[frontend]\ndisparity_guesses_px = [0, -5]\n",
+                 "frontend.disparity_guesses_px[1]: expected a finite number in [0, 10000]"},
+        BadValue{"GuessesNotAList", "[frontend]\ndisparity_guesses_px = 12\n",
+                 "expected a list of numbers for frontend.disparity_guesses_px"},
+        BadValue{"PredictionUnknown", "[frontend]\nprediction = \"imu\"\n",
+                 "expected \"estimator\", \"tracker\" or \"none\" for frontend.prediction"},
+        BadValue{"TrackingFramesZero", "[failure]\nmax_tracking_loss_frames = 0\n",
+                 "failure.max_tracking_loss_frames = 0: expected an integer in [1, 1000000]"},
+        BadValue{"TrackedObservationsNegative", "[failure]\nmin_tracked_observations = -1\n",
+                 "failure.min_tracked_observations = -1: expected an integer in [0, 100000]"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(ConfigValidation, FrontendKeysRoundTripAndResolvePerDataset) {
+  EstimatorConfig config;
+  config.loadTomlString(
+      "[frontend]\nwindow_px = 21\ndisparity_guesses_px = [0, 20.5]\nprediction = \"tracker\"\n",
+      "cfg.toml");
+  EstimatorConfig round_trip;
+  round_trip.loadTomlString(config.toToml(), "again.toml");
+  EXPECT_EQ(round_trip.frontend.window_px, 21);
+  EXPECT_EQ(round_trip.frontend.disparity_guesses_px, (std::vector<double>{0, 20.5}));
+  EXPECT_EQ(round_trip.frontend.prediction, MotionPredictionSource::kTracker);
+  const FrontendOptions kitti = resolveFrontendOptions(FrontendOptions{}, DatasetKind::kKitti);
+  const FrontendOptions euroc = resolveFrontendOptions(FrontendOptions{}, DatasetKind::kEuroc);
+  EXPECT_EQ(kitti.grid_cell_px, 30);
+  EXPECT_EQ(kitti.pyramid_levels, 4);
+  EXPECT_EQ(euroc.grid_cell_px, 50);
+  EXPECT_EQ(euroc.pyramid_levels, 3);
+  EXPECT_FALSE(kitti.disparity_guesses_px.empty());
+  // A configured value is kept, not replaced by the dataset's.
+  FrontendOptions configured;
+  configured.pyramid_levels = 2;
+  EXPECT_EQ(resolveFrontendOptions(configured, DatasetKind::kKitti).pyramid_levels, 2);
+}
+
 TEST(ConfigValidation, ValuesAtTheEdgesOfTheirRangesAreAccepted) {
   EstimatorConfig config;
   config.loadTomlString(

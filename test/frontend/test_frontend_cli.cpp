@@ -97,7 +97,11 @@ TEST_F(FrontendCli, TrackFileReproducesTheImagesRun) {
   ASSERT_EQ(track.exit_code, 0) << track.output;
   const std::string common = std::string(" --dataset ") + kImages +
                              " --imu real --variant ns-qr-sqrt-f64 --frames 16 --no-diagnostics";
-  ASSERT_EQ(runCli("run" + common + " -o '" + a + "'").exit_code, 0);
+  // A track file holds the tracker's own prediction (no estimator while tracking): the images run
+  // it reproduces is the one with the same prediction.
+  const std::string config = path("tracker.toml");
+  std::ofstream(config) << "[frontend]\nprediction = \"tracker\"\n";
+  ASSERT_EQ(runCli("run" + common + " --config '" + config + "' -o '" + a + "'").exit_code, 0);
   const auto run = runCli("run --tracks '" + tracks + "'" + common + " -o '" + b + "'");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   const FrameColumns fa = ResultsReader(a).frames(), fb = ResultsReader(b).frames();
@@ -180,6 +184,35 @@ TEST_F(FrontendCli, ImagesRequestedWhereThereAreNone) {
       path("x.h5") + "'");
   EXPECT_EQ(result.exit_code, 2) << result.output;
   EXPECT_FALSE(fs::exists(path("x.h5")));
+}
+
+}  // namespace
+}  // namespace marglab
+
+namespace marglab {
+namespace {
+
+// Issue #32, defect 7: a VIO run whose images go black (0 features per frame) used to say "ok"
+// with the IMU alone carrying the estimate; it must fail as "tracking".
+TEST_F(FrontendCli, VioOnBlackImagesFailsAsTracking) {
+  const fs::path folder = userFolder("dark_flight", 60);
+  for (const char* cam : {"cam0", "cam1"}) {
+    for (const auto& entry : fs::directory_iterator(folder / "mav0" / cam / "data")) {
+      const std::string name = entry.path().filename().string();
+      // The recording's 36th image on (the estimator starts at the 21st, where the GT begins).
+      if (name >= "1403715275012142848.png") {
+        cv::imwrite(entry.path().string(), cv::Mat::zeros(480, 752, CV_8UC1));
+      }
+    }
+  }
+  const std::string out = path("dark.h5");
+  const auto result = runCli("run --dataset '" + folder.string() +
+                             "' --imu real --variant ns-qr-sqrt-f64 -o '" + out + "'");
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find("FAILED (tracking)"), std::string::npos) << result.output;
+  const ResultsReader reader(out);
+  EXPECT_EQ(reader.info().metadata.mode, "vio");
+  EXPECT_EQ(reader.info().failure_kind, "tracking");
 }
 
 }  // namespace
