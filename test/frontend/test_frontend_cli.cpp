@@ -97,8 +97,8 @@ TEST_F(FrontendCli, TrackFileReproducesTheImagesRun) {
   ASSERT_EQ(track.exit_code, 0) << track.output;
   const std::string common = std::string(" --dataset ") + kImages +
                              " --imu real --variant ns-qr-sqrt-f64 --frames 16 --no-diagnostics";
-  // A track file holds the tracker's own prediction (no estimator while tracking): the images run
-  // it reproduces is the one with the same prediction.
+  // A track file holds the tracker's own prediction (no estimator while tracking), the default of
+  // a run too; said explicitly here, since it is what makes the two runs identical.
   const std::string config = path("tracker.toml");
   std::ofstream(config) << "[frontend]\nprediction = \"tracker\"\n";
   ASSERT_EQ(runCli("run" + common + " --config '" + config + "' -o '" + a + "'").exit_code, 0);
