@@ -62,13 +62,12 @@ void drawSprite(const Sprite& s, const Eigen::Vector2d& c, cv::Mat* image) {
   const int u0 = static_cast<int>(std::floor(c.x())) - (kSpriteHalfPx - 1),
             v0 = static_cast<int>(std::floor(c.y())) - (kSpriteHalfPx - 1);
   for (int v = std::max(v0, 0); v <= std::min(v0 + 2 * kSpriteHalfPx - 1, image->rows - 1); ++v) {
-    for (int u = std::max(u0, 0); u <= std::min(u0 + 2 * kSpriteHalfPx - 1, image->cols - 1);
-         ++u) {
+    for (int u = std::max(u0, 0); u <= std::min(u0 + 2 * kSpriteHalfPx - 1, image->cols - 1); ++u) {
       double value = 0;
       for (int i = 0; i < 4; ++i) {
         const double du = u - c.x() - s.du[i], dv = v - c.y() - s.dv[i];
-        value += s.amplitude[i] *
-                 std::exp(-(du * du + dv * dv) / (2 * kSpriteSigmaPx * kSpriteSigmaPx));
+        value +=
+            s.amplitude[i] * std::exp(-(du * du + dv * dv) / (2 * kSpriteSigmaPx * kSpriteSigmaPx));
       }
       image->at<double>(v, u) += value;
     }
@@ -79,14 +78,17 @@ void drawSprite(const Sprite& s, const Eigen::Vector2d& c, cv::Mat* image) {
 
 RenderOptions defaultRenderOptions(DatasetKind kind) {
   RenderOptions o;
-  if (kind == DatasetKind::kKitti) o.max_depth = 250.0;
+  if (kind == DatasetKind::kKitti) {
+    o.max_depth = 250.0;
+    o.thinning_depth = 20.0;
+  }
   return o;
 }
 
 WorldOptions renderWorldOptions(DatasetKind kind) {
   WorldOptions o = defaultWorldOptions(kind);
   if (o.kind == WorldKind::kIndoor) {
-    o.surface_density = 6.0;
+    o.surface_density = kind == DatasetKind::kTumvi ? 3.0 : 6.0;
     o.clutter_point_density = 0.2;
   }
   return o;
@@ -136,6 +138,15 @@ Eigen::Vector2d WorldRenderer::spriteCentre(int camera, const Eigen::Vector3d& p
   return cam.distortPixel(pinhole);
 }
 
+bool WorldRenderer::thinnedOut(std::size_t l, double z) const {
+  if (!(options_.thinning_depth > 0) || z <= options_.thinning_depth ||
+      world_.normals_w[l].isZero()) {
+    return false;
+  }
+  const double keep = std::pow(options_.thinning_depth / z, 3);
+  return static_cast<double>(SimRandom::subSeed(0x7417, l) >> 11) * 0x1.0p-53 >= keep;
+}
+
 bool WorldRenderer::chunkMayBeVisible(const WorldChunk& chunk, const Eigen::Matrix3d& R_c_w,
                                       const Eigen::Vector3d& p_w_c, const View& view) const {
   const Eigen::Vector3d c = R_c_w * (chunk.centre - p_w_c);
@@ -163,7 +174,7 @@ cv::Mat WorldRenderer::renderCamera(
     for (std::size_t l = chunk.begin; l < chunk.end; ++l) {
       const Eigen::Vector3d p_c = R_w_c.transpose() * (world_.points_w[l] - p_w_c);
       if (p_c.z() < options_.min_depth || p_c.z() > options_.max_depth ||
-          !world_.facing(l, p_w_c)) {
+          !world_.facing(l, p_w_c) || thinnedOut(l, p_c.z())) {
         continue;
       }
       const Eigen::Vector2d c = spriteCentre(camera, p_c);

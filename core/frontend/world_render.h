@@ -11,27 +11,40 @@
 // evaluated at the pixels of a 20×20 px square around c, on a smooth background
 // 128 + 20 sin(0.004 u + 0.003 v) (a low-frequency ramp, no corners); the sum is rounded and
 // saturated to 8 bits. Sprites add where they overlap, in the order of World::points_w.
+//
 // Why the truth is exact. The sprite is a smooth function evaluated at the pixel centres, so its
 // position is exact to sub-pixel level, and it looks the same in every frame and in both cameras:
 // a keypoint detected at an offset δ from c stays at c + δ in every image where the sprite is
 // drawn. That is the truth a test compares with (the offset cancels, only tracking error remains).
 // The sprite does not shrink with distance nor bend with the distortion: only its centre follows
 // the camera model, which is what a front-end's keypoint follows.
+//
 // Swapping. From frame vanishFrame(l) on (geometric with vanish_probability per frame), the point
 // is drawn with another texture (an occluding object now covers it); the keypoint on the old
 // texture has no true position any more, so a track that jumps to a wrong pixel there is an
 // outlier (what the front-end's checks must catch). The sprite centre, the point's true pixel,
 // does not change.
+//
 // Visibility. A point is drawn in a camera when its depth z is in [min_depth, max_depth], it faces
-// the camera (World::facing), no world wall hides it (wall_buffer.h; street worlds) and its sprite
-// overlaps the image (centre within 10 px of it). Rays at 90° or more from the optical axis (the
-// corners of a fisheye image) show the background only.
+// the camera (World::facing), no world wall hides it (wall_buffer.h; street worlds), it is not
+// thinned out (below) and its sprite overlaps the image (centre within 10 px of it). Rays at 90°
+// or more from the optical axis (the corners of a fisheye image) show the background only.
+//
+// Thinning. Sprites keep their size at any distance, while a surface seen at depth z packs its
+// points ∝ z³ more densely into the image (∝ z² by perspective, ∝ z once more for a facade seen
+// at a grazing angle down a street): beyond a few tens of metres they would pile up into one
+// blur. A surface point (non-zero normal) beyond thinning_depth z_t is therefore drawn only when
+// h_l < (z_t / z)³, h_l ∈ [0, 1) a hash of l — a fixed subset, so the image density of far
+// surfaces stays about that at z_t; as the camera approaches a point it may appear, never
+// vanish. Free points (zero normal: clutter, KITTI's far hills) are not thinned.
+//
 // Speed. Only the world's chunks that can hold a visible point are visited: those whose bounding
 // sphere meets the depth slab and the cone of half-angle α around the optical axis, α = the
 // largest angle of a ray whose raw pixel lies in the drawn area (its border undistorted; no cone
 // where undistortion fails there, e.g. a fisheye whose corners look sideways) plus 0.02 rad. This
 // assumes the distortion moves rays outwards monotonically inside the image, as the shipped
-// calibrations do (test_world_render checks that culling drops no drawn point).
+// calibrations do (RenderedTruth in test/frontend checks that culling drops no drawn point).
+//
 // Deterministic: every random quantity is a hash of the landmark index.
 
 #include <Eigen/Core>
@@ -49,15 +62,18 @@
 namespace marglab {
 
 struct RenderOptions {
-  double min_depth = 0.3;              // [m]
-  double max_depth = 15.0;             // [m]
-  double vanish_probability = 0.02;    // texture swaps per landmark and frame
+  double min_depth = 0.3;            // [m]
+  double max_depth = 15.0;           // [m]
+  double vanish_probability = 0.02;  // texture swaps per landmark and frame
+  double thinning_depth = 0;         // [m] z_t of the header's thinning; 0: none
 };
-// Indoor: the defaults; KITTI: depth up to 250 m (the simulator's, feature_tracker.h).
+// Indoor: the defaults; KITTI: depth up to 250 m (the simulator's, feature_tracker.h), surface
+// points thinned beyond 20 m.
 RenderOptions defaultRenderOptions(DatasetKind kind);
 
-// The world to render: the simulator's (world.h) with sparser indoor surfaces (6 points/m², 0.2
-// free points/m³), so that ~150–300 sprites are in view and few overlap.
+// The world to render: the simulator's (world.h) with sparser indoor surfaces (EuRoC 6 points/m²,
+// TUM-VI 3 — its fisheye sees about twice the solid angle —, 0.2 free points/m³), so that
+// ~150–300 sprites are in view and few overlap.
 WorldOptions renderWorldOptions(DatasetKind kind);
 
 struct Sprite {
@@ -98,6 +114,7 @@ class WorldRenderer {
   };
   cv::Mat renderCamera(const TrajectorySample& body, int camera, int frame_index,
                        std::unordered_map<std::size_t, Eigen::Vector2d>* centres) const;
+  bool thinnedOut(std::size_t l, double z) const;
   bool chunkMayBeVisible(const WorldChunk& chunk, const Eigen::Matrix3d& R_c_w,
                          const Eigen::Vector3d& p_w_c, const View& view) const;
 

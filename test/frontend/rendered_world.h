@@ -48,7 +48,8 @@ struct TrackTruth {
 };
 
 struct Measured {
-  std::vector<double> track_error, stereo_error;
+  std::vector<double> track_error, stereo_error;  // [px] in the pinhole image
+  std::vector<double> raw_error;  // [px] left tracking error in the raw image (where LK works)
   std::vector<double> continued;  // per frame k ≥ 1: n_tracked(k) / n_features(k − 1)
   int wrong_forward = 0, wrong_removed = 0, surviving_outliers = 0, associated = 0;
 };
@@ -97,6 +98,7 @@ inline void score(const CameraModel<double>& cam0, const CameraModel<double>& ca
     if (t->second.landmark == kNoLandmark || t->second.corrupted) continue;
     const auto c0 = image.centre0.find(t->second.landmark);
     if (c0 == image.centre0.end()) continue;  // left the view: scored by the forward check
+    m->raw_error.push_back((raw_left[i] - (c0->second + t->second.offset)).norm());
     Eigen::Vector2d expected;
     ASSERT_TRUE(cam0.undistortPixel(c0->second + t->second.offset, &expected));
     m->track_error.push_back((obs.uv0 - expected).norm());
@@ -120,8 +122,7 @@ struct RenderedScene {
 
 // Renders the scene, runs the front-end on it and scores it; prints one line under `label`.
 inline Measured trackRendered(const std::string& label, const RenderedScene& scene,
-                              std::vector<RenderedFrame>* images,
-                              std::vector<TrackFrame>* frames) {
+                              std::vector<RenderedFrame>* images, std::vector<TrackFrame>* frames) {
   const StereoCalib& calib = scene.sequence->calib;
   const WorldRenderer renderer(*scene.world, calib, scene.render);
   for (std::size_t k = 0; k < scene.t_ns.size(); ++k) {
@@ -142,17 +143,18 @@ inline Measured trackRendered(const std::string& label, const RenderedScene& sce
       m.continued.push_back(static_cast<double>(stats.n_tracked) / previous_features);
     }
     previous_features = stats.n_features;
-    score(cam0, cam1, (*images)[k > 0 ? k - 1 : 0], image, frames->back(),
-          frontend.lastRawLeft(), flow, &truth, &m);
+    score(cam0, cam1, (*images)[k > 0 ? k - 1 : 0], image, frames->back(), frontend.lastRawLeft(),
+          flow, &truth, &m);
   }
   std::printf(
-      "%s: %zu tracked observations, error median %.4f px, p95 %.4f px; stereo median %.4f px "
-      "(%zu); continued median %.1f %%; wrong forward steps %d, removed %.1f %%; %d associated, "
-      "%d outliers survived\n",
+      "%s: %zu tracked observations, error median %.4f px, p95 %.4f px (raw image: median %.4f "
+      "px, p95 %.4f px); stereo median %.4f px (%zu); continued median %.1f %%; wrong forward "
+      "steps %d, removed %.1f %%; %d associated, %d outliers survived\n",
       label.c_str(), m.track_error.size(), percentile(m.track_error, 0.5),
-      percentile(m.track_error, 0.95), percentile(m.stereo_error, 0.5), m.stereo_error.size(),
-      100.0 * percentile(m.continued, 0.5), m.wrong_forward,
-      100.0 * m.wrong_removed / std::max(m.wrong_forward, 1), m.associated, m.surviving_outliers);
+      percentile(m.track_error, 0.95), percentile(m.raw_error, 0.5), percentile(m.raw_error, 0.95),
+      percentile(m.stereo_error, 0.5), m.stereo_error.size(), 100.0 * percentile(m.continued, 0.5),
+      m.wrong_forward, 100.0 * m.wrong_removed / std::max(m.wrong_forward, 1), m.associated,
+      m.surviving_outliers);
   return m;
 }
 
