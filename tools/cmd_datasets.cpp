@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "core/common/error.h"
+#include "core/common/interrupt.h"
 #include "core/data/sequence.h"
 #include "core/frontend/rendered_folder.h"
 #include "core/frontend/track_source.h"
@@ -309,7 +310,13 @@ CommandRun setupRender(CLI::App& app) {
   return [options] {
     const RenderPlan plan =
         planRendering(options->dataset, options->frames, options->start_s, options->seed);
-    const RenderSummary s = writeRenderedFolder(plan, options->output, renderCommandLine(*options));
+    RenderSummary s;
+    try {
+      s = writeRenderedFolder(plan, options->output, renderCommandLine(*options));
+    } catch (const Interrupted& e) {
+      fmt::print(stderr, "marglab: {}: stopped, no folder written\n", e.what());
+      return e.exitCode();
+    }
     fmt::print("rendered {} stereo frames of {} ({}x{}, camera model {}) in {:.1f} s -> {}\n",
                s.frames, plan.sequence.name, s.width, s.height, s.camera_model, s.seconds,
                options->output);

@@ -2,12 +2,15 @@
 // EuRoC V1_03_difficult (radial-tangential), TUM-VI room1 (Kannala–Brandt), KITTI 00 (rectified
 // pinhole). The folder loads with the shipped calibration, the frame times and the spline as
 // ground truth, its images are the renderer's; `datasets check` and `run` accept it without
-// borrowing the shipped data (no fallback_sequence). Bad arguments exit 1 and leave no folder.
+// borrowing the shipped data (no fallback_sequence). Bad arguments exit 1 and leave no folder,
+// SIGINT exits 130 and leaves none either; a seed gives the same folder byte for byte.
 // The truth of world_render.h: sprite centres equal OpenCV's projection through the same model,
 // and the view-cone culling drops no drawn point.
 
 #include <fmt/core.h>
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -171,6 +174,26 @@ TEST_F(RenderedFolder, BadArgumentsExitOneAndWriteNothing) {
   EXPECT_EQ(again.exit_code, 1) << again.output;
   EXPECT_NE(again.output.find("not empty"), std::string::npos) << again.output;
   EXPECT_FALSE(fs::exists(out / "sequences" / "04" / "image_0" / "000002.png"));
+  expectNoTemporary();
+}
+
+// SIGINT while the images are written: exit 130, neither the folder nor its temporary remains.
+TEST_F(RenderedFolder, InterruptLeavesNothing) {
+  const fs::path out = dir_ / "out";
+  const pid_t pid = test::startCli(
+      {"datasets", "render", "--dataset", "kitti/00", "--frames", "400", "-o", out.string()},
+      (dir_ / "log.txt").string());
+  const fs::path image =
+      out.string() + ".tmp-" + std::to_string(pid) + "/sequences/00/image_0/000002.png";
+  for (int i = 0; i < 1200 && !fs::exists(image); ++i) ::usleep(50'000);
+  ASSERT_TRUE(fs::exists(image)) << test::readText(dir_ / "log.txt");
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130) << test::readText(dir_ / "log.txt");
+  EXPECT_FALSE(fs::exists(out));
+  fs::remove(dir_ / "log.txt");
   expectNoTemporary();
 }
 
