@@ -302,10 +302,32 @@ void writeAslGroundTruth(const RenderPlan& plan, const std::vector<int64_t>& gt_
   writeText(mav / (euroc ? "state_groundtruth_estimate0" : "mocap0") / "data.csv", csv);
 }
 
-// EuRoC cam{0,1}/sensor.yaml or the TUM-VI camchain: copies of the loaded calibration files.
-void copyAslCalibration(const Sequence& seq, const fs::path& root) {
+// A camera in EuRoC's sensor.yaml form (T_BS = T_b_c), for the TUM-VI folder's cameras.
+std::string sensorYaml(const CameraCalib& cam, const char* name) {
+  const Eigen::Matrix3d& R = cam.R_b_c;
+  const Eigen::Vector3d& t = cam.t_b_c;
+  std::string coefficients;
+  for (const double k : cam.distortion) {
+    coefficients += (coefficients.empty() ? "" : ", ") + fmt::format("{}", k);
+  }
+  return fmt::format(
+      "# {} of a folder rendered by marglab (datasets render): the calibration of dso/camchain.yaml"
+      "\nsensor_type: camera\nT_BS:\n  cols: 4\n  rows: 4\n  data: [{}, {}, {}, 0, 0, 0, 1]\n"
+      "resolution: [{}, {}]\ncamera_model: pinhole\nintrinsics: [{}]\n"
+      "distortion_model: {}\ndistortion_coefficients: [{}]\n",
+      name, numbers({R(0, 0), R(0, 1), R(0, 2), t.x()}, ", "),
+      numbers({R(1, 0), R(1, 1), R(1, 2), t.y()}, ", "),
+      numbers({R(2, 0), R(2, 1), R(2, 2), t.z()}, ", "), cam.width, cam.height,
+      numbers({cam.fx, cam.fy, cam.cx, cam.cy}, ", "), cam.distortion_model, coefficients);
+}
+
+// EuRoC: copies of cam{0,1}/sensor.yaml. TUM-VI: a copy of the Kalibr camchain, which the loader
+// reads, where TUM-VI's export keeps it, and the same cameras as cam{0,1}/sensor.yaml.
+void writeAslCalibration(const Sequence& seq, const fs::path& root) {
   if (seq.kind == DatasetKind::kTumvi) {
     copyFile(seq.calib_source, root / "dso" / "camchain.yaml");
+    writeText(root / "mav0/cam0/sensor.yaml", sensorYaml(seq.calib.cam0, "cam0"));
+    writeText(root / "mav0/cam1/sensor.yaml", sensorYaml(seq.calib.cam1, "cam1"));
     return;
   }
   for (const char* cam : {"0", "1"}) {
@@ -323,7 +345,7 @@ void writeAslFolder(const RenderPlan& plan, const fs::path& root) {
     fs::create_directories(mav / cam / "data");
     writeText(mav / cam / "data.csv", list);
   }
-  copyAslCalibration(plan.sequence, root);
+  writeAslCalibration(plan.sequence, root);
   const std::vector<int64_t> gt_t = groundTruthTimes(plan);
   const SyntheticImu imu = writeImu(plan, gt_t, mav / "imu0");
   writeAslGroundTruth(plan, gt_t, imu, mav);

@@ -18,7 +18,8 @@
 // before the first frame to 1 s after the last (clipped to the trajectory).
 //   EuRoC / TUM-VI (ASL)  mav0/cam{0,1}/data.csv ("#timestamp [ns],filename") + data/<t_ns>.png;
 //       calibration: copies of the files the sequence was loaded from — EuRoC
-//       mav0/cam{0,1}/sensor.yaml, TUM-VI dso/camchain.yaml (where TUM-VI's export keeps it);
+//       mav0/cam{0,1}/sensor.yaml, TUM-VI dso/camchain.yaml (where TUM-VI's export keeps it, and
+//       what the loader reads), with its cameras also as mav0/cam{0,1}/sensor.yaml;
 //       mav0/imu0/data.csv: the IMU synthesized along the same spline (imu_synth.h) at the real
 //       recording's median rate (200 Hz without one), with the sequence's noise densities and
 //       bias random walk (seed-derived), starting at zero bias; mav0/imu0/sensor.yaml: those
