@@ -308,6 +308,7 @@ CommandRun setupRender(CLI::App& app) {
                  "folder to create (must not exist or be empty), in the dataset's layout")
       ->required();
   return [options] {
+    const auto start = std::chrono::steady_clock::now();
     const RenderPlan plan =
         planRendering(options->dataset, options->frames, options->start_s, options->seed);
     RenderSummary s;
@@ -318,7 +319,8 @@ CommandRun setupRender(CLI::App& app) {
       return e.exitCode();
     }
     fmt::print("rendered {} stereo frames of {} ({}x{}, camera model {}) in {:.1f} s -> {}\n",
-               s.frames, plan.sequence.name, s.width, s.height, s.camera_model, s.seconds,
+               s.frames, plan.sequence.name, s.width, s.height, s.camera_model,
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                options->output);
     return 0;
   };

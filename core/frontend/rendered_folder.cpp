@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -206,6 +205,12 @@ fs::path checkedOutputFolder(const std::string& folder) {
   return path;
 }
 
+// "radtan", "equidistant", "pinhole (rectified)".
+std::string cameraModelName(const CameraCalib& cam) {
+  return cam.distortion_model == "none" || cam.distortion_model.empty() ? "pinhole (rectified)"
+                                                                        : cam.distortion_model;
+}
+
 std::string numbers(std::initializer_list<double> values, const char* separator) {
   std::string text;
   for (const double v : values) text += (text.empty() ? "" : separator) + fmt::format("{}", v);
@@ -397,22 +402,22 @@ std::string readme(const RenderPlan& plan, const std::string& command_line) {
       "point is drawn "
       "with another texture (an outlier for the front-end). The sprite centre is the point's "
       "true pixel (core/frontend/world_render.h).\n"
-      "The ground truth is that spline at the sequence's ground-truth times{}.\n",
+      "{}.\n",
       MARGLAB_VERSION_STRING, MARGLAB_GIT_SHA, command_line, seq.name, seq.gt_source,
       plan.t_ns.size(), plan.t_ns.front(), plan.start_s, cam.width, cam.height,
-      cam.distortion_model, plan.seed,
+      cameraModelName(cam), plan.seed,
       fs::path(seq.calib_source).lexically_relative(datasetsRoot()).string(),
       seq.kind == DatasetKind::kKitti
-          ? ""
-          : "; the IMU (mav0/imu0) is synthesized along the same spline with the sequence's "
-            "noise densities (core/sim/imu_synth.h)");
+          ? "The ground truth (poses/) is that spline at the frames' times"
+          : "The ground truth is that spline at the sequence's ground-truth times; the IMU "
+            "(mav0/imu0) is synthesized along the same spline with the sequence's noise "
+            "densities (core/sim/imu_synth.h)");
 }
 
 }  // namespace
 
 RenderSummary writeRenderedFolder(const RenderPlan& plan, const std::string& folder,
                                   const std::string& command_line) {
-  const auto start = std::chrono::steady_clock::now();
   InterruptPolling polling;  // an interrupt unwinds, and the temporary folder is removed
   const fs::path target = checkedOutputFolder(folder);
   if (!target.parent_path().empty()) fs::create_directories(target.parent_path());
@@ -430,8 +435,7 @@ RenderSummary writeRenderedFolder(const RenderPlan& plan, const std::string& fol
   summary.frames = plan.t_ns.size();
   summary.width = plan.sequence.calib.cam0.width;
   summary.height = plan.sequence.calib.cam0.height;
-  summary.camera_model = plan.sequence.calib.cam0.distortion_model;
-  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.camera_model = cameraModelName(plan.sequence.calib.cam0);
   return summary;
 }
 

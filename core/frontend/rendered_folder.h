@@ -72,8 +72,7 @@ RenderPlan planRendering(const std::string& dataset, long long frames, double st
 struct RenderSummary {
   std::size_t frames = 0;
   int width = 0, height = 0;
-  std::string camera_model;  // "radtan", "equidistant", "none"
-  double seconds = 0;        // wall time of rendering and writing
+  std::string camera_model;  // "radtan", "equidistant", "pinhole (rectified)"
 };
 
 // Throws InputError naming the folder or file (existing non-empty folder, write failure) and
