@@ -198,9 +198,10 @@ fs::path checkedOutputFolder(const std::string& folder) {
   if (path.filename().empty()) path = path.parent_path();
   std::error_code ec;
   if (fs::exists(path, ec) && (!fs::is_directory(path, ec) || !fs::is_empty(path, ec))) {
-    throw InputError(path.string(), 0,
-                     "-o: expected a new or empty folder for the rendered dataset; this one exists "
-                     "and is not empty (nothing was written)");
+    throw InputError(
+        path.string(), 0,
+        "-o: expected a new or empty folder for the rendered dataset; this path exists "
+        "and is not an empty folder (nothing was written)");
   }
   return path;
 }

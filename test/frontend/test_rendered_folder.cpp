@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <opencv2/calib3d.hpp>
 #include <string>
 
@@ -176,6 +177,14 @@ TEST_F(RenderedFolder, BadArgumentsExitOneAndWriteNothing) {
   expectRefused("--dataset euroc/no_such_sequence --frames 2", "euroc/V1_03_difficult");
   expectRefused("--dataset tumvi/corridor2 --frames 2", "no trajectory");
   expectRefused("--dataset " + quote(dir_) + " --frames 2", "shipped sequence");
+  {  // a file in the way
+    std::ofstream(out) << "x";
+    const auto result = runCli("datasets render --dataset kitti/04 --frames 2 -o " + quote(out));
+    EXPECT_EQ(result.exit_code, 1) << result.output;
+    EXPECT_NE(result.output.find("not an empty folder"), std::string::npos) << result.output;
+    EXPECT_EQ(test::readText(out), "x");
+    fs::remove(out);
+  }
 
   // An existing non-empty folder is refused and left as it was; an empty one is filled.
   fs::create_directories(out);
@@ -185,7 +194,7 @@ TEST_F(RenderedFolder, BadArgumentsExitOneAndWriteNothing) {
   EXPECT_EQ(decodeImageFile((out / "sequences/04/image_0/000000.png").string()).cols, 1226);
   const auto again = runCli("datasets render --dataset kitti/04 --frames 3 -o " + quote(out));
   EXPECT_EQ(again.exit_code, 1) << again.output;
-  EXPECT_NE(again.output.find("not empty"), std::string::npos) << again.output;
+  EXPECT_NE(again.output.find("not an empty folder"), std::string::npos) << again.output;
   EXPECT_FALSE(fs::exists(out / "sequences" / "04" / "image_0" / "000002.png"));
   expectNoTemporary();
 }
