@@ -33,10 +33,11 @@ Sequence shippedSequenceWithTrajectory(const std::string& dataset) {
   if (std::find(names.begin(), names.end(), dataset) == names.end()) {
     std::string available;
     for (const std::string& name : names) available += (available.empty() ? "" : ", ") + name;
-    throw InputError(dataset, 0,
-                     fmt::format("--dataset: expected a shipped sequence name with a trajectory "
-                                 "(`marglab datasets list`): {}",
-                                 available));
+    throw InputError(
+        dataset, 0,
+        fmt::format("--dataset: expected the name of a shipped sequence with a trajectory; "
+                    "the shipped ones (`marglab datasets list`): {}",
+                    available));
   }
   Sequence seq = loadSequence(dataset);
   if (!seq.hasTrajectory()) {
