@@ -10,6 +10,11 @@
 //   marglab datasets track --dataset PATH [--frames N] [--passes P] -o FILE
 //                                           the image front-end on the folder's stereo images ->
 //                                           track file, statistics and front-end speed
+//   marglab datasets render --dataset SEQ [--frames N] [--start S] [--seed S] -o FOLDER
+//                                           stereo images rendered from the simulated world
+//                                           along SEQ's trajectory through its real camera
+//                                           model -> a dataset folder in SEQ's original layout
+//                                           (core/frontend/rendered_folder.h)
 //
 // Each sub-verb is one entry of kSubVerbs below: a name, a description and a setup function that
 // adds the sub-verb's options and returns its run function (as for top-level verbs).
@@ -22,8 +27,10 @@
 #include <vector>
 
 #include "core/common/error.h"
+#include "core/common/interrupt.h"
 #include "core/data/sequence.h"
 #include "core/estimator/config.h"
+#include "core/frontend/rendered_folder.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/sim_profile.h"
@@ -277,6 +284,55 @@ CommandRun setupTrack(CLI::App& app) {
   };
 }
 
+struct RenderArgs {
+  std::string dataset;
+  long long frames = 200;
+  double start_s = 0;
+  uint64_t seed = 0;
+  std::string output;
+};
+
+std::string renderCommandLine(const RenderArgs& a) {
+  return fmt::format("marglab datasets render --dataset {} --frames {} --start {} --seed {} -o {}",
+                     a.dataset, a.frames, a.start_s, a.seed, a.output);
+}
+
+CommandRun setupRender(CLI::App& app) {
+  auto options = std::make_shared<RenderArgs>();
+  app.add_option("--dataset", options->dataset,
+                 "shipped sequence with a trajectory (`marglab datasets list`), e.g. "
+                 "euroc/V1_03_difficult, tumvi/room1, kitti/00")
+      ->required();
+  app.add_option("--frames", options->frames,
+                 "stereo frames to render, at the sequence's camera times inside its ground truth")
+      ->capture_default_str();
+  app.add_option("--start", options->start_s,
+                 "seconds after the first ground-truth pose at which the frames begin")
+      ->capture_default_str();
+  app.add_option("--seed", options->seed, "random seed (world, textures, IMU noise)")
+      ->check(seedRange());
+  app.add_option("-o,--output", options->output,
+                 "folder to create (must not exist or be empty), in the dataset's layout")
+      ->required();
+  return [options] {
+    const auto start = std::chrono::steady_clock::now();
+    const RenderPlan plan =
+        planRendering(options->dataset, options->frames, options->start_s, options->seed);
+    RenderSummary s;
+    try {
+      s = writeRenderedFolder(plan, options->output, renderCommandLine(*options));
+    } catch (const Interrupted& e) {
+      fmt::print(stderr, "marglab: {}: stopped, no folder written\n", e.what());
+      return e.exitCode();
+    }
+    fmt::print("rendered {} stereo frames of {} ({}x{}, camera model {}) in {:.1f} s -> {}\n",
+               s.frames, plan.sequence.name, s.width, s.height, s.camera_model,
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+               options->output);
+    return 0;
+  };
+}
+
 struct SubVerb {
   const char* name;
   const char* description;
@@ -289,10 +345,14 @@ const SubVerb kSubVerbs[] = {
     {"simulate", "simulated stereo feature tracks along a sequence's trajectory -> track file",
      setupSimulate},
     {"track", "the image front-end on a folder's stereo images -> track file + speed", setupTrack},
+    {"render",
+     "stereo images rendered along a sequence's trajectory through its real camera model -> a "
+     "dataset folder in its original layout",
+     setupRender},
 };
 
 const bool kRegistered =
-    registerCommand({"datasets", "the real datasets: list, check, simulate, track", 60,
+    registerCommand({"datasets", "the real datasets: list, check, simulate, track, render", 60,
                      [](CLI::App& app) -> CommandRun {
                        app.require_subcommand(1);
                        auto runs =

@@ -190,7 +190,11 @@ void loadAslLayout(Sequence& seq, const fs::path& dir, const fs::path& mav,
         chains.empty() ? shipped_calib / "openvins_kalibr_imucam_chain.yaml" : chains.front();
     seq.calib = readKalibrCamchain(chain.string());
     seq.calib_source = chain.string();
-    seq.imu_noise = readKalibrImuNoise((shipped_calib / "openvins_kalibr_imu_chain.yaml").string());
+    const std::string imu_yaml = (mav / "imu0/sensor.yaml").string();
+    seq.imu_noise =
+        readKalibrImuNoise(findPlainOrGz(imu_yaml).empty()
+                               ? (shipped_calib / "openvins_kalibr_imu_chain.yaml").string()
+                               : imu_yaml);
   }
 }
 
@@ -215,7 +219,7 @@ void loadKittiLayout(Sequence& seq, const fs::path& dir) {
   }
 }
 
-enum class Layout { kKitti, kShipped, kAsl, kAslMav };
+enum class Layout { kKitti, kKittiRoot, kShipped, kAsl, kAslMav };
 
 // The folder's layout; throws InputError when it cannot be read or has none of them.
 Layout detectLayout(const fs::path& dir) {
@@ -227,17 +231,42 @@ Layout detectLayout(const fs::path& dir) {
   if (has("cam0_timestamps_ns.txt")) return Layout::kShipped;
   if (isDir(dir / "mav0")) return Layout::kAslMav;
   if (isDir(dir / "cam0") && has("cam0/data.csv")) return Layout::kAsl;
+  if (isDir(dir / "sequences")) return Layout::kKittiRoot;
   throw InputError(dir.string(), 0,
                    "expected a sequence folder: EuRoC/TUM-VI with mav0/, KITTI with times.txt + "
-                   "calib.txt, or the shipped layout with cam0_timestamps_ns.txt");
+                   "calib.txt (or a KITTI download with sequences/), or the shipped layout with "
+                   "cam0_timestamps_ns.txt");
 }
 
-Sequence loadFolder(const fs::path& dir, const std::string& name, const LoadOptions& options) {
+// A KITTI download <root>/sequences/NN with a single sequence: that sequence's folder.
+fs::path kittiSequenceInRoot(const fs::path& root) {
+  std::vector<fs::path> found;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(root / "sequences", ec)) {
+    if (!findPlainOrGz((entry.path() / "times.txt").string()).empty())
+      found.push_back(entry.path());
+  }
+  if (found.size() != 1) {
+    std::vector<std::string> names;
+    for (const fs::path& p : found) names.push_back(p.filename().string());
+    std::sort(names.begin(), names.end());
+    throw InputError((root / "sequences").string(), 0,
+                     fmt::format("expected exactly one sequence folder with times.txt, found {} "
+                                 "({}): pass the sequence folder sequences/NN",
+                                 found.size(), joinNames(names)));
+  }
+  return found.front();
+}
+
+Sequence loadFolder(const fs::path& folder, const std::string& name, const LoadOptions& options) {
+  const fs::path dir =
+      detectLayout(folder) == Layout::kKittiRoot ? kittiSequenceInRoot(folder) : folder;
   Sequence seq;
   seq.name = name;
   seq.directory = dir.string();
   switch (detectLayout(dir)) {
     case Layout::kKitti:
+    case Layout::kKittiRoot:
       loadKittiLayout(seq, dir);
       break;
     case Layout::kShipped:
@@ -312,6 +341,7 @@ DatasetKind sequenceKind(const std::string& name_or_path) {
   const fs::path dir = sequenceFolder(name_or_path).dir;
   switch (detectLayout(dir)) {
     case Layout::kKitti:
+    case Layout::kKittiRoot:
       return DatasetKind::kKitti;
     case Layout::kShipped:
       return shippedKind(dir);

@@ -15,9 +15,11 @@
 //                    from cam0/sensor.yaml + cam1/sensor.yaml, IMU noise from imu0/sensor.yaml when
 //                    it has the densities; TUM-VI calibration from a Kalibr camchain found in
 //                    <dir>, <dir>/dso or mav0 (camchain.yaml, *imucam*.yaml), else the shipped
-//                    TUM-VI one.
+//                    TUM-VI one; its IMU noise from imu0/sensor.yaml when present, else the
+//                    shipped TUM-VI one.
 //   KITTI            <dir>/times.txt + calib.txt, poses from <dir>/poses.txt or the official
-//                    <dir>/../../poses/<NN>.txt.
+//                    <dir>/../../poses/<NN>.txt; or the download's root <dir> with
+//                    <dir>/sequences/NN when it holds exactly one sequence.
 // Every file may also be gzip-compressed (name + ".gz").
 //
 // Preference when several GT files exist: the ASL csv (exact ns timestamps, and GT velocity and

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "core/common/error.h"
+#include "core/sim/wall_buffer.h"
 
 namespace marglab {
 namespace {
@@ -58,70 +59,6 @@ struct FrameCamera {
   }
 };
 
-// Occlusion by the world's vertical walls, as seen by one camera: a per-column depth buffer.
-// Walls are taken as vertical in the camera's x–z plane (KITTI cameras are level). Column c looks
-// along the ray (t_c, 1) z with t_c = (c − cx)/fx; a wall with ends A, B (camera x, z) meets it at
-//   z = cross(A, D) / cross((t_c, 1), D),  D = B − A,  cross(u, v) = u_x v_z − u_z v_x.
-// Each column keeps the nearest wall; a point (x, z) in column round(u) is hidden when it lies
-// behind that wall's line at the point's own ray t = x/z (evaluated exactly, so that points on
-// the wall itself are not hidden by the column discretization).
-class WallBuffer {
- public:
-  WallBuffer(const World& world, const FrameCamera& camera) {
-    if (world.walls.empty()) return;
-    const CameraCalib& calib = *camera.calib;
-    nearest_.assign(static_cast<std::size_t>(calib.width), -1);
-    std::vector<double> depth(nearest_.size(), std::numeric_limits<double>::infinity());
-    constexpr double kNear = 0.1;
-    for (const WallSegment& wall : world.walls) {
-      const Eigen::Vector3d a = camera.R_c_w * (wall.a_w - camera.p_w_c);
-      const Eigen::Vector3d b = camera.R_c_w * (wall.b_w - camera.p_w_c);
-      Eigen::Vector2d A(a.x(), a.z()), B(b.x(), b.z());
-      if (A.y() < kNear && B.y() < kNear) continue;
-      if (std::min(A.norm(), B.norm()) > camera.max_depth + (B - A).norm()) continue;
-      // Clip to z ≥ kNear.
-      if (A.y() < kNear) A += (kNear - A.y()) / (B.y() - A.y()) * (B - A);
-      if (B.y() < kNear) B += (kNear - B.y()) / (A.y() - B.y()) * (A - B);
-      const double uA = calib.fx * A.x() / A.y() + calib.cx;
-      const double uB = calib.fx * B.x() / B.y() + calib.cx;
-      const int c0 = std::max(0, static_cast<int>(std::floor(std::min(uA, uB))));
-      const int c1 = std::min(calib.width - 1, static_cast<int>(std::ceil(std::max(uA, uB))));
-      if (c0 > c1) continue;
-      const Eigen::Vector2d D = B - A;
-      const auto index = static_cast<int>(lines_.size());
-      lines_.push_back({A, D});
-      for (int c = c0; c <= c1; ++c) {
-        const double z = lineDepth(lines_.back(), (c - calib.cx) / calib.fx);
-        if (z > 0 && z < depth[c]) {
-          depth[c] = z;
-          nearest_[c] = index;
-        }
-      }
-    }
-  }
-
-  bool hidden(const Eigen::Vector3d& p_c, const Eigen::Vector2d& uv) const {
-    if (nearest_.empty()) return false;
-    const auto c = static_cast<std::size_t>(std::clamp(static_cast<long>(std::lround(uv.x())), 0L,
-                                                       static_cast<long>(nearest_.size()) - 1));
-    if (nearest_[c] < 0) return false;
-    const double z_wall = lineDepth(lines_[nearest_[c]], p_c.x() / p_c.z());
-    return z_wall > 0 && p_c.z() > z_wall * (1 + 1e-9) + 1e-3;
-  }
-
- private:
-  struct Line {
-    Eigen::Vector2d A, D;
-  };
-  static double lineDepth(const Line& line, double t) {
-    const double denom = t * line.D.y() - line.D.x();
-    if (denom == 0) return std::numeric_limits<double>::infinity();
-    return (line.A.x() * line.D.y() - line.A.y() * line.D.x()) / denom;
-  }
-  std::vector<int> nearest_;  // per image column: index into lines_, −1 none
-  std::vector<Line> lines_;
-};
-
 struct ActiveTrack {
   int64_t track_id;
   int64_t landmark_id;
@@ -144,7 +81,7 @@ class Simulator {
   TrackFrame step(int64_t t_ns, const TrajectorySample& body, std::size_t frame_index) {
     const FrameCamera cam0(body, calib_.cam0, o_);
     const FrameCamera cam1(body, calib_.cam1, o_);
-    const WallBuffer walls(world_, cam0);
+    const WallBuffer walls(world_, cam0.R_c_w, cam0.p_w_c, calib_.cam0, cam0.max_depth);
     auto visible0 = [&](int64_t landmark, Eigen::Vector2d* uv0) {
       Eigen::Vector3d p_c;
       return world_.facing(landmark, cam0.p_w_c) &&

@@ -215,6 +215,20 @@ TEST(UserFolder, TumviAslLayoutFallsBackToShippedCalibration) {
   EXPECT_NE(seq.calib_source.find("tumvi/calib"), std::string::npos);
 }
 
+// A TUM-VI folder's own imu0/sensor.yaml (as `marglab datasets render` writes) sets the noise.
+TEST(UserFolder, TumviImuNoiseFromItsImuSensorYaml) {
+  TempDir dir;
+  writeAslFolder(dir.path() / "mav0", true, 5000000);
+  writeFile((dir.path() / "mav0/imu0/sensor.yaml").string(),
+            "sensor_type: imu\ngyroscope_noise_density: 0.001\ngyroscope_random_walk: 0.002\n"
+            "accelerometer_noise_density: 0.003\naccelerometer_random_walk: 0.004\n");
+  const Sequence seq = loadSequence(dir.path().string());
+  EXPECT_EQ(seq.imu_noise.gyro_noise_density, 0.001);
+  EXPECT_EQ(seq.imu_noise.gyro_random_walk, 0.002);
+  EXPECT_EQ(seq.imu_noise.accel_noise_density, 0.003);
+  EXPECT_EQ(seq.imu_noise.accel_random_walk, 0.004);
+}
+
 TEST(UserFolder, CheckRejectsWrongImuRateAndDisjointGt) {
   TempDir dir;
   writeAslFolder(dir.path() / "mav0", false, 10000000);
@@ -239,6 +253,17 @@ TEST(UserFolder, KittiOfficialLayoutAndShippedLayoutCopy) {
   const Sequence kitti = loadSequence(seq_dir.string());
   EXPECT_EQ(kitti.name, "kitti/04");
   EXPECT_EQ(kitti.gt.size(), 271u);
+  // The download's root with one sequence stands for it; with two it is ambiguous.
+  const Sequence root = loadSequence((dir.path() / "dataset").string());
+  EXPECT_EQ(root.directory, seq_dir.string());
+  EXPECT_EQ(root.gt.size(), 271u);
+  EXPECT_EQ(sequenceKind((dir.path() / "dataset").string()), DatasetKind::kKitti);
+  fs::create_directories(dir.path() / "dataset/sequences/05");
+  fs::copy_file(kShipped / "kitti/05/times.txt.gz",
+                dir.path() / "dataset/sequences/05/times.txt.gz");
+  expectInputError([&] { loadSequence((dir.path() / "dataset").string()); },
+                   (dir.path() / "dataset/sequences").string(), 0,
+                   "expected exactly one sequence folder with times.txt, found 2 (04, 05)");
 
   fs::create_directories(dir.path() / "euroc");
   fs::copy(kShipped / "euroc/calib", dir.path() / "euroc/calib");

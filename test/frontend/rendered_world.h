@@ -1,134 +1,161 @@
 #pragma once
-// Renders the simulated world (core/sim/world.h) into stereo images with known truth, for the
-// front-end accuracy test.
+// Scoring the front-end (core/frontend/optical_flow.h) on frames rendered from the simulated world
+// (core/frontend/world_render.h), where the true raw pixel of every sprite is known.
 //
-// Each visible world point l is drawn as a screen-space sprite centred at its true raw pixel
-// c = d(π(p_c)) (π the pinhole projection of the calibration, d its distortion, camera_model.h):
-//   I(x) += Σ_i a_i exp(−‖x − c − o_i‖² / (2σ²)),  4 blobs, σ = 1.8 px, o_i ∈ [−3, 3]² px,
-//   a_i = ±[40, 90] grey levels, all drawn from a hash of l,
-// on a smooth background (128 + a low-frequency ramp, no corners). The sprite is a smooth
-// function evaluated at the pixel centres, so its position is exact to sub-pixel level, and it
-// looks the same in every frame and in both cameras: a keypoint detected at an offset δ from c
-// stays at c + δ in every image where the sprite is drawn. That is the truth the test compares
-// with (the offset cancels, only tracking error remains).
-// Swapping: from frame vanishFrame(l) on, the point is drawn with another texture (an occluding
-// object now covers it); the keypoint on the old texture has no true position any more, so a
-// track that jumps to a wrong pixel there is an outlier (what the forward–backward check must
-// catch). The sprite centre, the point's true pixel, does not change. A point is visible when its
-// depth is in [0.3, 15] m, it faces the camera (World::facing) and its sprite overlaps the image.
+// Truth of a track. A new track is associated with the sprite whose centre c lies within 5 px of
+// its raw keypoint x, if no other sprite lies within 20 px (a keypoint on two overlapping sprites
+// follows either: ambiguous, not scored); its offset δ = x − c is kept. In a later frame its true
+// raw pixel is c' + δ (the sprite looks the same everywhere, world_render.h), undistorted into the
+// estimator's pinhole image like the keypoint; the tracking error is the distance between the two
+// pinhole pixels. A track whose point left the view is not scored there.
+// Wrong forward steps. A forward LK step (before the checks) is wrong when it moved the keypoint by
+// more than kOutlierPx away from the true motion of its sprite (or the point left the view); a
+// wrong step the checks let through corrupts the track, whose later pixels are not scored (they
+// count as the surviving outlier instead).
+// Continued share. Per frame k ≥ 1, n_tracked(k) / n_features(k − 1) (issue #29's measure), its
+// median over the frames.
 
-#include <Eigen/Core>
+#include <gtest/gtest.h>
 
-#include <cmath>
-#include <cstdint>
-#include <opencv2/core.hpp>
+#include <algorithm>
+#include <cstdio>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
 #include "core/data/types.h"
-#include "core/frontend/camera_model.h"
-#include "core/sim/feature_tracker.h"
+#include "core/frontend/optical_flow.h"
+#include "core/frontend/world_render.h"
+#include "core/sim/trajectory_spline.h"
 #include "core/sim/world.h"
 
 namespace marglab::test {
 
-struct Sprite {
-  double amplitude[4];
-  double du[4], dv[4];
-};
+constexpr double kOutlierPx = 1.0;  // a forward track further from the truth is wrong
 
-inline Sprite spriteOf(std::size_t landmark) {
-  SimRandom random(SimRandom::subSeed(0x5eed, landmark));
-  Sprite s;
-  for (int i = 0; i < 4; ++i) {
-    s.amplitude[i] = (random.bernoulli(0.5) ? 1.0 : -1.0) * random.uniform(40.0, 90.0);
-    s.du[i] = random.uniform(-3.0, 3.0);
-    s.dv[i] = random.uniform(-3.0, 3.0);
-  }
-  return s;
+inline double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1))];
 }
 
-struct RenderedFrame {
-  cv::Mat left, right;
-  // True raw sprite centres of the points drawn in this frame, per camera.
-  std::unordered_map<std::size_t, Eigen::Vector2d> centre0, centre1;
+constexpr std::size_t kNoLandmark = static_cast<std::size_t>(-1);
+
+struct TrackTruth {
+  std::size_t landmark = kNoLandmark;  // none: the detection was not on a single sprite
+  Eigen::Vector2d offset = Eigen::Vector2d::Zero();  // detected raw pixel − sprite centre
+  bool corrupted = false;  // an outlier the checks let through: its later pixels are not scored
 };
 
-class WorldRenderer {
- public:
-  WorldRenderer(const World& world, const StereoCalib& calib, double vanish_probability)
-      : world_(world), calib_(calib), vanish_probability_(vanish_probability) {
-    cam_[0] = cameraModelFromCalib<double>(calib.cam0, "test");
-    cam_[1] = cameraModelFromCalib<double>(calib.cam1, "test");
-  }
-
-  // The frame at which landmark l stops being drawn (a fixed function of l).
-  int vanishFrame(std::size_t l) const {
-    SimRandom random(SimRandom::subSeed(0xfade, l));
-    int frame = 1;
-    while (!random.bernoulli(vanish_probability_) && frame < 1000000) ++frame;
-    return frame;
-  }
-
-  RenderedFrame render(const TrajectorySample& body, int frame_index) const {
-    RenderedFrame out;
-    out.left = renderCamera(body, calib_.cam0, cam_[0], frame_index, &out.centre0);
-    out.right = renderCamera(body, calib_.cam1, cam_[1], frame_index, &out.centre1);
-    return out;
-  }
-
- private:
-  cv::Mat renderCamera(const TrajectorySample& body, const CameraCalib& calib,
-                       const CameraModel<double>& cam, int frame_index,
-                       std::unordered_map<std::size_t, Eigen::Vector2d>* centres) const {
-    Eigen::Matrix3d R_w_c;
-    Eigen::Vector3d p_w_c;
-    cameraPose(body, calib, &R_w_c, &p_w_c);
-    cv::Mat image(calib.height, calib.width, CV_64FC1);
-    for (int v = 0; v < calib.height; ++v) {
-      for (int u = 0; u < calib.width; ++u) {
-        image.at<double>(v, u) = 128.0 + 20.0 * std::sin(0.004 * u + 0.003 * v);
-      }
-    }
-    // Far to near, so that nearer sprites are drawn last (they add; overlaps are rare).
-    for (std::size_t l = 0; l < world_.points_w.size(); ++l) {
-      const Eigen::Vector3d p_c = R_w_c.transpose() * (world_.points_w[l] - p_w_c);
-      if (p_c.z() < 0.3 || p_c.z() > 15.0 || !world_.facing(l, p_w_c)) continue;
-      const Eigen::Vector2d pinhole(cam.fx * p_c.x() / p_c.z() + cam.cx,
-                                    cam.fy * p_c.y() / p_c.z() + cam.cy);
-      const Eigen::Vector2d c = cam.distortPixel(pinhole);
-      // Sprites partly outside the image are drawn too: points leave the view gradually.
-      if (c.x() < -10 || c.y() < -10 || c.x() > calib.width + 9 || c.y() > calib.height + 9)
-        continue;
-      const bool swapped = frame_index >= vanishFrame(l);
-      (*centres)[l] = c;
-      drawSprite(spriteOf(swapped ? l + (std::size_t{1} << 40) : l), c, &image);
-    }
-    cv::Mat grey;
-    image.convertTo(grey, CV_8UC1);  // rounds and saturates
-    return grey;
-  }
-
-  static void drawSprite(const Sprite& s, const Eigen::Vector2d& c, cv::Mat* image) {
-    constexpr double kSigma = 1.8;
-    const int u0 = static_cast<int>(std::floor(c.x())) - 9,
-              v0 = static_cast<int>(std::floor(c.y())) - 9;
-    for (int v = std::max(v0, 0); v <= std::min(v0 + 19, image->rows - 1); ++v) {
-      for (int u = std::max(u0, 0); u <= std::min(u0 + 19, image->cols - 1); ++u) {
-        double value = 0;
-        for (int i = 0; i < 4; ++i) {
-          const double du = u - c.x() - s.du[i], dv = v - c.y() - s.dv[i];
-          value += s.amplitude[i] * std::exp(-(du * du + dv * dv) / (2 * kSigma * kSigma));
-        }
-        image->at<double>(v, u) += value;
-      }
-    }
-  }
-
-  const World& world_;
-  StereoCalib calib_;
-  CameraModel<double> cam_[2];
-  double vanish_probability_;
+struct Measured {
+  std::vector<double> track_error, stereo_error;  // [px] in the pinhole image
+  std::vector<double> raw_error;  // [px] left tracking error in the raw image (where LK works)
+  std::vector<double> continued;  // per frame k ≥ 1: n_tracked(k) / n_features(k − 1)
+  int wrong_forward = 0, wrong_removed = 0, surviving_outliers = 0, associated = 0;
 };
+
+// One frame's forward candidates and observations against the truth.
+inline void score(const CameraModel<double>& cam0, const CameraModel<double>& cam1,
+                  const RenderedFrame& previous, const RenderedFrame& image,
+                  const TrackFrame& frame, const std::vector<Eigen::Vector2d>& raw_left,
+                  const std::vector<FlowCandidate>& flow,
+                  std::unordered_map<int64_t, TrackTruth>* truth, Measured* m) {
+  for (const FlowCandidate& c : flow) {
+    const auto t = truth->find(c.track_id);
+    if (!c.lk_ok || t == truth->end() || t->second.landmark == kNoLandmark || t->second.corrupted) {
+      continue;
+    }
+    const auto centre = image.centre0.find(t->second.landmark);
+    const auto before = previous.centre0.find(t->second.landmark);
+    const bool wrong =
+        centre == image.centre0.end() || before == previous.centre0.end() ||
+        (Eigen::Vector2d(c.u - c.u_prev, c.v - c.v_prev) - (centre->second - before->second))
+                .norm() > kOutlierPx;
+    if (!wrong) continue;
+    ++m->wrong_forward;
+    if (c.kept) {
+      t->second.corrupted = true;
+      ++m->surviving_outliers;
+    } else {
+      ++m->wrong_removed;
+    }
+  }
+  for (std::size_t i = 0; i < frame.observations.size(); ++i) {
+    const StereoObservation& obs = frame.observations[i];
+    auto t = truth->find(obs.track_id);
+    if (t == truth->end()) {
+      TrackTruth& entry = (*truth)[obs.track_id];
+      int near = 0;
+      for (const auto& [l, c] : image.centre0) {
+        const double d = (raw_left[i] - c).norm();
+        if (d < 20.0) ++near;
+        if (d < 5.0) entry = {l, raw_left[i] - c};
+      }
+      if (near != 1) entry = {};
+      m->associated += entry.landmark != kNoLandmark;
+      continue;
+    }
+    if (t->second.landmark == kNoLandmark || t->second.corrupted) continue;
+    const auto c0 = image.centre0.find(t->second.landmark);
+    if (c0 == image.centre0.end()) continue;  // left the view: scored by the forward check
+    m->raw_error.push_back((raw_left[i] - (c0->second + t->second.offset)).norm());
+    Eigen::Vector2d expected;
+    ASSERT_TRUE(cam0.undistortPixel(c0->second + t->second.offset, &expected));
+    m->track_error.push_back((obs.uv0 - expected).norm());
+    const auto c1 = image.centre1.find(t->second.landmark);
+    if (obs.has_right && c1 != image.centre1.end() &&
+        cam1.undistortPixel(c1->second + t->second.offset, &expected)) {
+      m->stereo_error.push_back((obs.uv1 - expected).norm());
+    }
+  }
+}
+
+// What the front-end is run on: the sequence (calibration, front-end options), the trajectory,
+// the world and the frame times.
+struct RenderedScene {
+  const Sequence* sequence;
+  const TrajectorySpline* spline;
+  const World* world;
+  RenderOptions render;
+  std::vector<int64_t> t_ns;
+};
+
+// Renders the scene, runs the front-end on it and scores it; prints one line under `label`.
+inline Measured trackRendered(const std::string& label, const RenderedScene& scene,
+                              std::vector<RenderedFrame>* images, std::vector<TrackFrame>* frames) {
+  const StereoCalib& calib = scene.sequence->calib;
+  const WorldRenderer renderer(*scene.world, calib, scene.render);
+  for (std::size_t k = 0; k < scene.t_ns.size(); ++k) {
+    images->push_back(renderer.render(scene.spline->evaluate(scene.t_ns[k]), static_cast<int>(k)));
+  }
+  StereoFrontend frontend(calib, defaultFrontendOptions(*scene.sequence), "test");
+  const auto cam0 = cameraModelFromCalib<double>(calib.cam0, "test");
+  const auto cam1 = cameraModelFromCalib<double>(calib.cam1, "test");
+  std::unordered_map<int64_t, TrackTruth> truth;
+  Measured m;
+  int previous_features = 0;
+  for (std::size_t k = 0; k < scene.t_ns.size(); ++k) {
+    std::vector<FlowCandidate> flow;
+    FrontendFrameStats stats;
+    const RenderedFrame& image = (*images)[k];
+    frames->push_back(frontend.process(scene.t_ns[k], image.left, image.right, &stats, &flow));
+    if (k > 0 && previous_features > 0) {
+      m.continued.push_back(static_cast<double>(stats.n_tracked) / previous_features);
+    }
+    previous_features = stats.n_features;
+    score(cam0, cam1, (*images)[k > 0 ? k - 1 : 0], image, frames->back(), frontend.lastRawLeft(),
+          flow, &truth, &m);
+  }
+  std::printf(
+      "%s: %zu tracked observations, error median %.4f px, p95 %.4f px (raw image: median %.4f "
+      "px, p95 %.4f px); stereo median %.4f px (%zu); continued median %.1f %%; wrong forward "
+      "steps %d, removed %.1f %%; %d associated, %d outliers survived\n",
+      label.c_str(), m.track_error.size(), percentile(m.track_error, 0.5),
+      percentile(m.track_error, 0.95), percentile(m.raw_error, 0.5), percentile(m.raw_error, 0.95),
+      percentile(m.stereo_error, 0.5), m.stereo_error.size(), 100.0 * percentile(m.continued, 0.5),
+      m.wrong_forward, 100.0 * m.wrong_removed / std::max(m.wrong_forward, 1), m.associated,
+      m.surviving_outliers);
+  return m;
+}
 
 }  // namespace marglab::test

@@ -1,0 +1,76 @@
+// The front-end on rendered frames of each camera-model family at its real frame rate, as
+// `marglab datasets render` renders them (rendered_folder.h: planRendering): EuRoC V1_03_difficult
+// in flight (radial-tangential, 20 Hz), TUM-VI room1 (Kannala–Brandt fisheye, 20 Hz), KITTI 00
+// (rectified pinhole, 10 Hz driving). Scored against the true pixels (rendered_world.h) with
+// issue #29's targets: tracking error median ≤ 0.1 px and 95th percentile ≤ 0.5 px, and ≥ 80 %
+// of the features continued from frame to frame (median over the frames).
+
+#include <gtest/gtest.h>
+
+#include "core/frontend/rendered_folder.h"
+#include "frontend/rendered_world.h"
+
+namespace marglab {
+namespace {
+
+constexpr int kFrames = 40;
+
+// Issue #29's targets, each on its own: the ones today's front-end (no motion prediction) misses
+// are asserted in DISABLED_ tests, to be enabled with the new front-end.
+void expectMedian(const test::Measured& m) {
+  ASSERT_GT(m.raw_error.size(), 500u);
+  EXPECT_LE(test::percentile(m.raw_error, 0.5), 0.1);
+}
+void expectP95(const test::Measured& m) { EXPECT_LE(test::percentile(m.raw_error, 0.95), 0.5); }
+void expectContinued(const test::Measured& m) {
+  EXPECT_GE(test::percentile(m.continued, 0.5), 0.8);
+}
+
+// The tracking error is scored in the raw image, where the tracker works and the truth is a
+// pixel; the pinhole-image error (printed too) magnifies it towards a fisheye's rim.
+test::Measured trackFamily(const char* dataset, double start_s) {
+  const RenderPlan plan = planRendering(dataset, kFrames, start_s, 0);
+  std::vector<RenderedFrame> images;
+  std::vector<TrackFrame> frames;
+  return test::trackRendered(
+      dataset, {&plan.sequence, plan.spline.get(), &plan.world, plan.render, plan.t_ns}, &images,
+      &frames);
+}
+
+const test::Measured& euroc() {
+  static const test::Measured m = trackFamily("euroc/V1_03_difficult", 8.0);
+  return m;
+}
+const test::Measured& tumvi() {
+  static const test::Measured m = trackFamily("tumvi/room1", 10.0);
+  return m;
+}
+const test::Measured& kitti() {
+  static const test::Measured m = trackFamily("kitti/00", 0.0);
+  return m;
+}
+
+TEST(RenderedFamilies, EurocV103InFlightMeetsTargets) {
+  expectMedian(euroc());
+  expectP95(euroc());
+  expectContinued(euroc());
+}
+
+TEST(RenderedFamilies, TumviRoom1FisheyeMedianAndContinued) {
+  expectMedian(tumvi());
+  expectContinued(tumvi());
+}
+// MISSED today: 95th percentile 0.60 px in the raw image (0.66 px in the pinhole image), 40
+// frames from 10 s.
+TEST(RenderedFamilies, DISABLED_TumviRoom1FisheyeP95) { expectP95(tumvi()); }
+
+TEST(RenderedFamilies, Kitti00DrivingAccuracy) {
+  expectMedian(kitti());
+  expectP95(kitti());
+}
+// MISSED today: 59 % continued at 10 Hz (LK without a motion prediction loses the near points
+// that move tens of pixels per frame).
+TEST(RenderedFamilies, DISABLED_Kitti00DrivingContinued) { expectContinued(kitti()); }
+
+}  // namespace
+}  // namespace marglab
