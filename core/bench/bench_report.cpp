@@ -503,6 +503,13 @@ void iterationJson(Json& j, const IterationTimes& t) {
   j["lm_iteration_us_sc_f64"] = figure6(t.sc.f64 * 1e6);
 }
 
+// What the whole-run figures cover.
+std::string runFramesNote(const BenchReport& r) {
+  if (r.runs.empty()) return "no whole runs";
+  return r.run_frames > 0 ? fmt::format("whole-run RTFs over the first {} frames", r.run_frames)
+                          : "whole sequences";
+}
+
 // The JSON object of per-ISA figures.
 Json isaJson(const BenchReport& r) {
   Json all = Json::object();
@@ -621,19 +628,15 @@ std::string benchJson(const BenchReport& r) {
   j["peak_gflops_f32"] = figure6(r.peak_f32);
   j["peak_gflops_f64"] = figure6(r.peak_f64);
   j["peak_isa"] = r.peak_isa;
-  j["realtime_factor_euroc_mh01"] = figure6(
-      wholeRunField(r, "euroc/MH_01_easy", "ns-qr-sqrt-f32", &WholeRun::realtime_factor));
+  j["realtime_factor_euroc_mh01"] =
+      figure6(wholeRunField(r, "euroc/MH_01_easy", "ns-qr-sqrt-f32", &WholeRun::realtime_factor));
   j["realtime_factor_kitti00"] =
       figure6(wholeRunField(r, "kitti/00", "ns-qr-sqrt-f32", &WholeRun::realtime_factor));
   j["whole_run_opt_ratio_sc_f64_over_ns_f32_euroc_mh01"] = figure6(wholeRunOptRatio(r));
   j["peak_rss_mb_euroc_mh01"] =
       figure6(wholeRunField(r, "euroc/MH_01_easy", "ns-qr-sqrt-f32", &WholeRun::peak_rss_mb));
   j["run_frames"] = r.run_frames;
-  j["run_frames_note"] =
-      r.runs.empty() ? "no whole runs"
-      : r.run_frames > 0
-          ? fmt::format("whole-run RTFs over the first {} frames", r.run_frames)
-          : std::string("whole sequences");
+  j["run_frames_note"] = runFramesNote(r);
   j["lm_iteration_us_ns_f32"] = figure6(all.ns.f32 * 1e6);
   j["lm_iteration_us_sc_f64"] = figure6(all.sc.f64 * 1e6);
   j["lm_iteration_us_ns_f64"] = figure6(all.ns.f64 * 1e6);
@@ -653,7 +656,8 @@ Variant IterationCell::variant() const {
   Variant v;
   v.opt = elimination;
   v.marg = elimination == OptElimination::kNullspace ? MargMethod::kQr : MargMethod::kSchur;
-  v.storage = elimination == OptElimination::kNullspace ? PriorStorage::kSqrt : PriorStorage::kHessian;
+  v.storage =
+      elimination == OptElimination::kNullspace ? PriorStorage::kSqrt : PriorStorage::kHessian;
   v.precision = precision;
   return v;
 }

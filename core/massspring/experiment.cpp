@@ -127,9 +127,9 @@ void checkSettings(const ExperimentSettings& settings) {
   }
   for (int n : settings.sizes) checkGridSize("--sizes", n);
   if (!denseFeasible(settings.grid) && settings.method != Method::kSparseSchur) {
-    throw UsageError(fmt::format("--method {} builds a dense Jacobian; use sparse-schur above {}x{}",
-                                 ceres_marg::toString(settings.method), kMaxDenseGrid,
-                                 kMaxDenseGrid));
+    throw UsageError(
+        fmt::format("--method {} builds a dense Jacobian; use sparse-schur above {}x{}",
+                    ceres_marg::toString(settings.method), kMaxDenseGrid, kMaxDenseGrid));
   }
 }
 

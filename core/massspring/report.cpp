@@ -83,7 +83,8 @@ void primerText(Out out, const Measurements& m, const PrimerTable& primer) {
 
 void scalingText(Out out, const Measurements& m) {
   if (m.scaling.empty()) return;
-  fmt::format_to(out, "\nscaling (two-stage with {}):\n\n", ceres_marg::toString(m.settings.method));
+  fmt::format_to(out, "\nscaling (two-stage with {}):\n\n",
+                 ceres_marg::toString(m.settings.method));
   fmt::format_to(
       out, "| {:>9} | {:>6} | {:>4} | {:>10} | {:>9} | {:>9} | {:>9} | {:>10} | {:>7} | {:>9} |\n",
       "grid", "masses", "reps", "single ms", "marg ms", "stage1 ms", "stage2 ms", "2-stage ms",

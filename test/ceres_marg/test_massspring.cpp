@@ -148,10 +148,10 @@ TEST(MassSpringExperiment, JsonReportParses) {
   const Json j = Json::parse(jsonReport(m, PrimerTable{}));
   std::vector<std::string> keys;
   for (const auto& item : j.items()) keys.push_back(item.key());
-  EXPECT_EQ(keys, (std::vector<std::string>{"grid", "masses", "nonlinear_masses", "iterations",
-                                            "reps", "method", "single_stage_ms", "two_stage_ms",
-                                            "speedup", "max_abs_diff", "final_energy",
-                                            "two_stage", "scaling"}));
+  EXPECT_EQ(keys,
+            (std::vector<std::string>{"grid", "masses", "nonlinear_masses", "iterations", "reps",
+                                      "method", "single_stage_ms", "two_stage_ms", "speedup",
+                                      "max_abs_diff", "final_energy", "two_stage", "scaling"}));
   EXPECT_EQ(j["masses"], 25);
   EXPECT_EQ(j["two_stage"].size(), 3u);
   EXPECT_EQ(j["two_stage"]["sparse-schur"]["prior_rows"], m.main().last.marginalization.prior_rows);

@@ -54,9 +54,10 @@ def segment_ates(run):
 
 def attitude_rms(p_est, q_est, p_gt, q_gt):
     """(tilt, yaw) RMS [deg] of the attitude error after the run's own position alignment
-    (R, t) = align_rigid(p_est, p_gt): E = (R R_est) R_gtᵀ, a world-frame rotation per frame; tilt is the
-    angle E moves gravity's axis e_z by (observable through the accelerometer), yaw E's rotation
-    about e_z (unobservable in VIO). q_* are xyzw rows; rows with a non-finite value are skipped."""
+    (R, t) = align_rigid(p_est, p_gt): E = (R R_est) R_gtᵀ, a world-frame rotation per frame; tilt
+    is the angle E moves gravity's axis e_z by (observable through the accelerometer), yaw E's
+    rotation about e_z (unobservable in VIO). q_* are xyzw rows; rows with a non-finite value are
+    skipped."""
     ok = np.all(np.isfinite(np.hstack([p_est, q_est, p_gt, q_gt])), axis=1)
     R, _ = align_rigid(p_est[ok], p_gt[ok])
     E = ((Rotation.from_matrix(R) * Rotation.from_quat(q_est[ok])) *

@@ -40,7 +40,7 @@ def mean(values):
 
 
 def sample_std(values):
-    """Sample standard deviation (n − 1) of values; NaN for fewer than two (tables.cpp sampleStd)."""
+    """Sample standard deviation (n − 1); NaN for fewer than two values (tables.cpp sampleStd)."""
     return statistics.stdev(values) if len(values) >= 2 else float("nan")
 
 
