@@ -13,6 +13,7 @@ PACKAGES=(
   libeigen3-dev libsuitesparse-dev libceres-dev libcli11-dev libfmt-dev libhdf5-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtomlplusplus-dev libopencv-dev
   libpng-dev libjpeg-dev  # core/frontend/image_file.cpp
+  nlohmann-json3-dev  # JSON output (core/massspring, core/bench)
   python3 python3-matplotlib python3-h5py python3-numpy python3-scipy  # scipy: tools/scripts
   python3-pandas jupyter-nbconvert python3-nbclient python3-nbformat python3-ipykernel
   chromium python3-websocket

@@ -18,6 +18,7 @@
 #include "core/bench/perf_suite.h"
 #include "core/bench/window_kernels.h"
 #include "core/common/error.h"
+#include "core/common/json.h"
 #include "core/estimator/linearization_kernels.h"
 #include "core/io/results_file.h"
 #include "core/linalg/isa.h"
@@ -86,12 +87,29 @@ std::function<void()> qrOf(const LinearizationKernels<Scalar>& kernels,
 // A window's kernels with one ISA's code (a linearization keeps the ISA it was made with).
 template <typename Scalar>
 std::unique_ptr<WindowKernels<Scalar>> kernelsWith(Isa isa, const WindowSnapshot& w,
-                                                   const char* variant) {
+                                                   const Variant& variant) {
   const Isa active = activeIsa();
   setActiveIsa(isa);
-  auto k = std::make_unique<WindowKernels<Scalar>>(w, Variant::parse(variant));
+  auto k = std::make_unique<WindowKernels<Scalar>>(w, variant);
   setActiveIsa(active);
   return k;
+}
+
+// The kernels of the iteration candidates, kept while they are timed.
+struct IterationKernels {
+  std::vector<std::unique_ptr<WindowKernels<float>>> f32;
+  std::vector<std::unique_ptr<WindowKernels<double>>> f64;
+};
+
+// One LM iteration of a grid cell with one ISA's code, as a timing candidate.
+std::function<void()> iterationCandidate(Isa isa, const WindowSnapshot& w, const IterationCell& c,
+                                         IterationKernels& keep) {
+  if (c.precision == Precision::kF32) {
+    keep.f32.push_back(kernelsWith<float>(isa, w, c.variant()));
+    return iterationOf(*keep.f32.back());
+  }
+  keep.f64.push_back(kernelsWith<double>(isa, w, c.variant()));
+  return iterationOf(*keep.f64.back());
 }
 
 std::vector<Isa> supportedIsas() {
@@ -164,6 +182,20 @@ double sum(const std::vector<WindowTimes>& w, double WindowTimes::*field) {
   return s;
 }
 
+// The LM-iteration grid summed over the windows, with the bench's ISA.
+IterationTimes iterationSum(const std::vector<WindowTimes>& w) {
+  IterationTimes all;
+  for (const auto& x : w) all += x.iteration;
+  return all;
+}
+
+// The same with one ISA's code.
+IterationTimes iterationSum(const std::vector<WindowTimes>& w, Isa isa) {
+  IterationTimes all;
+  for (const auto& x : w) all += x.per_isa[static_cast<size_t>(isa)].iteration;
+  return all;
+}
+
 }  // namespace
 
 namespace {
@@ -171,35 +203,24 @@ namespace {
 // One LM iteration: ns / sc × f32 / f64 with every ISA the CPU has, and ns-mixed (not a paper
 // variant) with the bench's ISA, side by side.
 void timeIterations(const WindowSnapshot& w, const BenchOptions& o, WindowTimes& t) {
-  std::vector<std::unique_ptr<WindowKernels<float>>> k32;
-  std::vector<std::unique_ptr<WindowKernels<double>>> k64;
+  IterationKernels keep;
   std::vector<std::function<void()>> candidates;
-  const std::vector<Isa> isas = supportedIsas();
-  for (const Isa isa : isas) {
-    for (const char* method : {"ns-qr-sqrt", "sc-sc-sq"}) {
-      k32.push_back(kernelsWith<float>(isa, w, (std::string(method) + "-f32").c_str()));
-      k64.push_back(kernelsWith<double>(isa, w, (std::string(method) + "-f64").c_str()));
-      candidates.push_back(iterationOf(*k32.back()));
-      candidates.push_back(iterationOf(*k64.back()));
+  std::vector<std::pair<Isa, IterationCell>> timed;  // what candidates[k] is
+  for (const Isa isa : supportedIsas()) {
+    for (const IterationCell& cell : kIterationCells) {
+      candidates.push_back(iterationCandidate(isa, w, cell, keep));
+      timed.emplace_back(isa, cell);
     }
   }
-  const auto mixed = kernelsWith<double>(activeIsa(), w, "ns-qr-sqrt-mixed");
+  const auto mixed = kernelsWith<double>(activeIsa(), w, Variant::parse("ns-qr-sqrt-mixed"));
   candidates.push_back(iterationOf(*mixed));
-  k32.front()->linearize();
-  t.landmarks = k32.front()->numLandmarkBlocks();
+  keep.f32.front()->linearize();
+  t.landmarks = keep.f32.front()->numLandmarkBlocks();
   const std::vector<double> it = timeSideBySide(candidates, o.rounds, o.batch_s);
-  for (size_t i = 0; i < isas.size(); ++i) {
-    IsaTimes& x = t.per_isa[static_cast<size_t>(isas[i])];
-    x.ns_f32 = it[4 * i];
-    x.ns_f64 = it[4 * i + 1];
-    x.sc_f32 = it[4 * i + 2];
-    x.sc_f64 = it[4 * i + 3];
+  for (size_t k = 0; k < timed.size(); ++k) {
+    t.per_isa[static_cast<size_t>(timed[k].first)].iteration[timed[k].second] = it[k];
   }
-  const IsaTimes& active = t.per_isa[static_cast<size_t>(activeIsa())];
-  t.ns_f32 = active.ns_f32;
-  t.ns_f64 = active.ns_f64;
-  t.sc_f32 = active.sc_f32;
-  t.sc_f64 = active.sc_f64;
+  t.iteration = t.per_isa[static_cast<size_t>(activeIsa())].iteration;
   t.ns_mixed = it.back();
 }
 
@@ -361,7 +382,8 @@ BenchReport runBench(const BenchOptions& o) {
   r.load_after = loadAverage();
 
   const auto& W = r.windows;
-  r.speedup_ns_f32_over_sc_f64 = sum(W, &WindowTimes::sc_f64) / sum(W, &WindowTimes::ns_f32);
+  const IterationTimes all = iterationSum(W);
+  r.speedup_ns_f32_over_sc_f64 = all.sc.f64 / all.ns.f32;
   ceresTotals(r);
   const double flops = sum(W, &WindowTimes::qr_flops);
   for (const Isa isa : supportedIsas()) {
@@ -454,18 +476,12 @@ std::string isaMarkdown(const BenchReport& r) {
       "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const Isa isa : supportedIsas()) {
     const size_t i = static_cast<size_t>(isa);
-    IsaTimes all;
-    for (const auto& t : r.windows) {
-      all.ns_f32 += t.per_isa[i].ns_f32;
-      all.ns_f64 += t.per_isa[i].ns_f64;
-      all.sc_f32 += t.per_isa[i].sc_f32;
-      all.sc_f64 += t.per_isa[i].sc_f64;
-    }
+    const IterationTimes all = iterationSum(r.windows, isa);
     s += fmt::format(
         "| {} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.2f} | {:.2f} | {:.1f} | {:.1f} % | {:.2f} | "
         "{:.1f} | {:.1f} % |\n",
-        isaName(isa), all.ns_f32 * 1e6, all.ns_f64 * 1e6, all.sc_f32 * 1e6, all.sc_f64 * 1e6,
-        all.sc_f64 / all.ns_f32, r.qr_gflops_f32_isa[i], r.isa_peak_f32[i],
+        isaName(isa), all.ns.f32 * 1e6, all.ns.f64 * 1e6, all.sc.f32 * 1e6, all.sc.f64 * 1e6,
+        all.sc.f64 / all.ns.f32, r.qr_gflops_f32_isa[i], r.isa_peak_f32[i],
         100 * r.qr_gflops_f32_isa[i] / r.isa_peak_f32[i], r.qr_gflops_f64_isa[i], r.isa_peak_f64[i],
         100 * r.qr_gflops_f64_isa[i] / r.isa_peak_f64[i]);
   }
@@ -476,27 +492,37 @@ std::string isaMarkdown(const BenchReport& r) {
   return s;
 }
 
+// A measured figure as the JSON keeps it: 6 significant digits (null when not measured).
+double figure6(double x) { return roundedTo(x, 6); }
+
+// The LM-iteration grid in µs, keyed lm_iteration_us_<ns|sc>_<f32|f64>.
+void iterationJson(Json& j, const IterationTimes& t) {
+  j["lm_iteration_us_ns_f32"] = figure6(t.ns.f32 * 1e6);
+  j["lm_iteration_us_ns_f64"] = figure6(t.ns.f64 * 1e6);
+  j["lm_iteration_us_sc_f32"] = figure6(t.sc.f32 * 1e6);
+  j["lm_iteration_us_sc_f64"] = figure6(t.sc.f64 * 1e6);
+}
+
+// What the whole-run figures cover.
+std::string runFramesNote(const BenchReport& r) {
+  if (r.runs.empty()) return "no whole runs";
+  return r.run_frames > 0 ? fmt::format("whole-run RTFs over the first {} frames", r.run_frames)
+                          : "whole sequences";
+}
+
 // The JSON object of per-ISA figures.
-std::string isaJson(const BenchReport& r) {
-  std::string s;
+Json isaJson(const BenchReport& r) {
+  Json all = Json::object();
   for (const Isa isa : supportedIsas()) {
     const size_t i = static_cast<size_t>(isa);
-    double ns32 = 0, ns64 = 0, sc32 = 0, sc64 = 0;
-    for (const auto& t : r.windows) {
-      ns32 += t.per_isa[i].ns_f32;
-      ns64 += t.per_isa[i].ns_f64;
-      sc32 += t.per_isa[i].sc_f32;
-      sc64 += t.per_isa[i].sc_f64;
-    }
-    s += fmt::format(
-        "{}\"{}\": {{\"lm_iteration_us_ns_f32\": {:.6g}, \"lm_iteration_us_ns_f64\": {:.6g}, "
-        "\"lm_iteration_us_sc_f32\": {:.6g}, \"lm_iteration_us_sc_f64\": {:.6g}, "
-        "\"qr_kernel_gflops_f32\": {:.6g}, \"qr_kernel_gflops_f64\": {:.6g}, "
-        "\"peak_gflops_f32\": {:.6g}, \"peak_gflops_f64\": {:.6g}}}",
-        s.empty() ? "" : ", ", isaName(isa), ns32 * 1e6, ns64 * 1e6, sc32 * 1e6, sc64 * 1e6,
-        r.qr_gflops_f32_isa[i], r.qr_gflops_f64_isa[i], r.isa_peak_f32[i], r.isa_peak_f64[i]);
+    Json& j = all[isaName(isa)];
+    iterationJson(j, iterationSum(r.windows, isa));
+    j["qr_kernel_gflops_f32"] = figure6(r.qr_gflops_f32_isa[i]);
+    j["qr_kernel_gflops_f64"] = figure6(r.qr_gflops_f64_isa[i]);
+    j["peak_gflops_f32"] = figure6(r.isa_peak_f32[i]);
+    j["peak_gflops_f64"] = figure6(r.isa_peak_f64[i]);
   }
-  return "{" + s + "}";
+  return all;
 }
 
 }  // namespace
@@ -513,15 +539,15 @@ std::string benchMarkdown(const BenchReport& r) {
   s += "| window | landmarks | ns-f32 | ns-f64 | sc-f32 | sc-f64 | ns-mixed | sc-f64 / ns-f32 |\n"
        "|---|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const auto& t : r.windows) {
+    const IterationTimes& i = t.iteration;
     s += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {:.2f} |\n", t.name, t.landmarks,
-                     us(t.ns_f32), us(t.ns_f64), us(t.sc_f32), us(t.sc_f64), us(t.ns_mixed),
-                     t.sc_f64 / t.ns_f32);
+                     us(i.ns.f32), us(i.ns.f64), us(i.sc.f32), us(i.sc.f64), us(t.ns_mixed),
+                     i.sc.f64 / i.ns.f32);
   }
-  s += fmt::format(
-      "| **all** | | {} | {} | {} | {} | {} | **{:.2f}** |\n\n",
-      us(sum(r.windows, &WindowTimes::ns_f32)), us(sum(r.windows, &WindowTimes::ns_f64)),
-      us(sum(r.windows, &WindowTimes::sc_f32)), us(sum(r.windows, &WindowTimes::sc_f64)),
-      us(sum(r.windows, &WindowTimes::ns_mixed)), r.speedup_ns_f32_over_sc_f64);
+  const IterationTimes all = iterationSum(r.windows);
+  s += fmt::format("| **all** | | {} | {} | {} | {} | {} | **{:.2f}** |\n\n", us(all.ns.f32),
+                   us(all.ns.f64), us(all.sc.f32), us(all.sc.f64),
+                   us(sum(r.windows, &WindowTimes::ns_mixed)), r.speedup_ns_f32_over_sc_f64);
   s += "ns = ns-qr-sqrt (nullspace projection), sc = sc-sc-sq (Schur complement, Hessian "
        "prior), ns-mixed = ns-qr-sqrt-mixed (landmarks eliminated in f32, the rest in f64).\n\n";
   s += ceresMarkdown(r);
@@ -589,45 +615,51 @@ std::string benchMarkdown(const BenchReport& r) {
 }
 
 std::string benchJson(const BenchReport& r) {
-  auto num = [](double x) {
-    return std::isfinite(x) ? fmt::format("{:.6g}", x) : std::string("null");
-  };
-  const double rtf_euroc =
-      wholeRunField(r, "euroc/MH_01_easy", "ns-qr-sqrt-f32", &WholeRun::realtime_factor);
-  const double rtf_kitti =
-      wholeRunField(r, "kitti/00", "ns-qr-sqrt-f32", &WholeRun::realtime_factor);
-  const double rss = wholeRunField(r, "euroc/MH_01_easy", "ns-qr-sqrt-f32", &WholeRun::peak_rss_mb);
-  double it_ns32 = 0, it_sc64 = 0, it_ns64 = 0, it_mixed = 0;
-  for (const auto& t : r.windows) {
-    it_ns32 += t.ns_f32;
-    it_sc64 += t.sc_f64;
-    it_ns64 += t.ns_f64;
-    it_mixed += t.ns_mixed;
-  }
-  return fmt::format(
-      "{{\"speedup_ns_f32_over_sc_f64\": {}, \"speedup_over_ceres_dense_schur\": {}, "
-      "\"speedup_over_ceres_sparse_schur\": {}, \"speedup_over_ceres_best\": {}, "
-      "\"ceres_best_solver\": \"{}\", \"qr_kernel_peak_fraction\": {}, "
-      "\"qr_kernel_gflops_f32\": {}, \"qr_kernel_gflops_f64\": {}, \"peak_gflops_f32\": {}, "
-      "\"peak_gflops_f64\": {}, \"peak_isa\": \"{}\", \"realtime_factor_euroc_mh01\": {}, "
-      "\"realtime_factor_kitti00\": {}, \"whole_run_opt_ratio_sc_f64_over_ns_f32_euroc_mh01\": {}, "
-      "\"peak_rss_mb_euroc_mh01\": {}, \"run_frames\": {}, "
-      "\"run_frames_note\": \"{}\", \"lm_iteration_us_ns_f32\": {}, \"lm_iteration_us_sc_f64\": "
-      "{}, \"lm_iteration_us_ns_f64\": {}, \"lm_iteration_us_ns_mixed\": {}, "
-      "\"windows\": {}, \"rounds\": {}, \"load_before\": \"{}\", \"load_after\": \"{}\", "
-      "\"git\": \"{}\", \"date\": \"{}\", \"isa\": \"{}\", \"per_isa\": {}}}",
-      num(r.speedup_ns_f32_over_sc_f64), num(r.speedup_over_ceres_dense_schur),
-      num(r.speedup_over_ceres_sparse_schur), num(r.speedup_over_ceres_best), r.ceres_best_solver,
-      num(r.qr_kernel_peak_fraction), num(r.qr_gflops_f32), num(r.qr_gflops_f64), num(r.peak_f32),
-      num(r.peak_f64), r.peak_isa, num(rtf_euroc), num(rtf_kitti), num(wholeRunOptRatio(r)),
-      num(rss), r.run_frames,
-      r.runs.empty()
-          ? "no whole runs"
-          : (r.run_frames > 0 ? fmt::format("whole-run RTFs over the first {} frames", r.run_frames)
-                              : std::string("whole sequences")),
-      num(it_ns32 * 1e6), num(it_sc64 * 1e6), num(it_ns64 * 1e6), num(it_mixed * 1e6),
-      r.windows.size(), r.rounds, r.load_before, r.load_after, r.git_sha, r.date_utc, r.isa,
-      isaJson(r));
+  const IterationTimes all = iterationSum(r.windows);
+  Json j;
+  j["speedup_ns_f32_over_sc_f64"] = figure6(r.speedup_ns_f32_over_sc_f64);
+  j["speedup_over_ceres_dense_schur"] = figure6(r.speedup_over_ceres_dense_schur);
+  j["speedup_over_ceres_sparse_schur"] = figure6(r.speedup_over_ceres_sparse_schur);
+  j["speedup_over_ceres_best"] = figure6(r.speedup_over_ceres_best);
+  j["ceres_best_solver"] = r.ceres_best_solver;
+  j["qr_kernel_peak_fraction"] = figure6(r.qr_kernel_peak_fraction);
+  j["qr_kernel_gflops_f32"] = figure6(r.qr_gflops_f32);
+  j["qr_kernel_gflops_f64"] = figure6(r.qr_gflops_f64);
+  j["peak_gflops_f32"] = figure6(r.peak_f32);
+  j["peak_gflops_f64"] = figure6(r.peak_f64);
+  j["peak_isa"] = r.peak_isa;
+  j["realtime_factor_euroc_mh01"] =
+      figure6(wholeRunField(r, "euroc/MH_01_easy", "ns-qr-sqrt-f32", &WholeRun::realtime_factor));
+  j["realtime_factor_kitti00"] =
+      figure6(wholeRunField(r, "kitti/00", "ns-qr-sqrt-f32", &WholeRun::realtime_factor));
+  j["whole_run_opt_ratio_sc_f64_over_ns_f32_euroc_mh01"] = figure6(wholeRunOptRatio(r));
+  j["peak_rss_mb_euroc_mh01"] =
+      figure6(wholeRunField(r, "euroc/MH_01_easy", "ns-qr-sqrt-f32", &WholeRun::peak_rss_mb));
+  j["run_frames"] = r.run_frames;
+  j["run_frames_note"] = runFramesNote(r);
+  j["lm_iteration_us_ns_f32"] = figure6(all.ns.f32 * 1e6);
+  j["lm_iteration_us_sc_f64"] = figure6(all.sc.f64 * 1e6);
+  j["lm_iteration_us_ns_f64"] = figure6(all.ns.f64 * 1e6);
+  j["lm_iteration_us_ns_mixed"] = figure6(sum(r.windows, &WindowTimes::ns_mixed) * 1e6);
+  j["windows"] = r.windows.size();
+  j["rounds"] = r.rounds;
+  j["load_before"] = r.load_before;
+  j["load_after"] = r.load_after;
+  j["git"] = r.git_sha;
+  j["date"] = r.date_utc;
+  j["isa"] = r.isa;
+  j["per_isa"] = isaJson(r);
+  return j.dump(2);
+}
+
+Variant IterationCell::variant() const {
+  Variant v;
+  v.opt = elimination;
+  v.marg = elimination == OptElimination::kNullspace ? MargMethod::kQr : MargMethod::kSchur;
+  v.storage =
+      elimination == OptElimination::kNullspace ? PriorStorage::kSqrt : PriorStorage::kHessian;
+  v.precision = precision;
+  return v;
 }
 
 }  // namespace marglab

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/bench/ceres_window.h"
+#include "core/estimator/variant.h"
 
 namespace marglab {
 
@@ -44,18 +45,50 @@ struct CeresSolverTotals {
   CeresTimeSplit split;        // summed over windows
 };
 
+// The LM-iteration grid: landmark elimination × precision. ns is the paper's √ variant
+// ns-qr-sqrt, sc its baseline sc-sc-sq (the marginalization method and storage go with the
+// elimination, as in the paper's columns).
+struct IterationCell {
+  OptElimination elimination = OptElimination::kNullspace;
+  Precision precision = Precision::kF32;  // kF32 or kF64
+  Variant variant() const;                // ns-qr-sqrt-<precision> or sc-sc-sq-<precision>
+};
+// In the order they are timed and printed: ns-f32, ns-f64, sc-f32, sc-f64.
+inline constexpr std::array<IterationCell, 4> kIterationCells = {
+    {{OptElimination::kNullspace, Precision::kF32},
+     {OptElimination::kNullspace, Precision::kF64},
+     {OptElimination::kSchur, Precision::kF32},
+     {OptElimination::kSchur, Precision::kF64}}};
+
+// A value per precision and per cell of the grid.
+struct PrecisionPair {
+  double f32 = 0, f64 = 0;
+  double& operator[](Precision p) { return p == Precision::kF32 ? f32 : f64; }
+};
+struct IterationTimes {
+  PrecisionPair ns, sc;  // seconds
+  double& operator[](const IterationCell& c) {
+    return (c.elimination == OptElimination::kNullspace ? ns : sc)[c.precision];
+  }
+  IterationTimes& operator+=(const IterationTimes& o) {
+    ns.f32 += o.ns.f32, ns.f64 += o.ns.f64, sc.f32 += o.sc.f32, sc.f64 += o.sc.f64;
+    return *this;
+  }
+};
+
 // One window's kernels with one ISA's code (core/linalg/isa.h), seconds; zero when the CPU lacks
 // the ISA.
 struct IsaTimes {
-  double ns_f32 = 0, ns_f64 = 0, sc_f32 = 0, sc_f64 = 0;  // LM iteration
-  double qr_f32_s = 0, qr_f64_s = 0;                      // landmark-block QR kernel
+  IterationTimes iteration;           // LM iteration
+  double qr_f32_s = 0, qr_f64_s = 0;  // landmark-block QR kernel
 };
 
 struct WindowTimes {
   std::string name;
   int landmarks = 0;
   // LM iteration (linearize + eliminate + solve) with the bench's ISA, seconds.
-  double ns_f32 = 0, ns_f64 = 0, sc_f32 = 0, sc_f64 = 0, ns_mixed = 0;
+  IterationTimes iteration;
+  double ns_mixed = 0;
   // To convergence with the window's LM settings, f64 (FEJ as captured).
   int marglab_iterations = 0;
   double marglab_s = 0;

@@ -129,7 +129,6 @@ class SlidingWindowEstimator {
 
   bool isVio() const { return window_.isVio(); }
   const Window<Scalar>& window() const { return window_; }
-  int numKeyframes() const { return static_cast<int>(window_.keyframeIds().size()); }
   int numLandmarks() const { return static_cast<int>(window_.landmarks.size()); }
   const MargPrior<Scalar>& prior() const { return window_.prior; }
   const MargPrior<Scalar>& shadowPrior() const { return shadow_prior_; }

@@ -1,6 +1,5 @@
 #pragma once
-// SE(3): rigid transforms, exponential/logarithm, adjoint, left/right Jacobians, and the
-// estimator's pose increment ⊞ / ⊟.
+// SE(3): rigid transforms, exponential/logarithm, and the estimator's pose increment ⊞ / ⊟.
 //
 // Representation. SE3<Scalar> stores a unit quaternion q (rotation R) and a translation t, and
 // acts as T · p = R p + t. A quaternion is renormalized cheaply after every composition and
@@ -11,18 +10,6 @@
 // "State Estimation for Robotics", §7.1.3; the same order as the ⊞ increment below).
 //   exp(ξ) = ( exp(ω), Jl(ω) υ )                    Jl = left Jacobian of SO(3), see so3.h
 //   log(T) = [ Jl⁻¹(ω) t ; ω ],  ω = log(R)
-//   Adj(T) = [ R  t^R ]         T exp(ξ) T⁻¹ = exp(Adj(T) ξ)
-//            [ 0   R  ]
-//
-// Jacobians of SE(3) (Barfoot eqs. 7.83–7.86; Barfoot & Furgale, T-RO 2014):
-//   Jl(ξ) = [ Jl(ω)  Q(υ,ω) ],   Jl⁻¹(ξ) = [ Jl⁻¹(ω)  −Jl⁻¹(ω) Q(υ,ω) Jl⁻¹(ω) ],   Jr(ξ) = Jl(−ξ),
-//           [ 0      Jl(ω)  ]               [ 0        Jl⁻¹(ω)                  ]
-//   Q(υ,ω) = ½ υ^ + C (ω^υ^ + υ^ω^ + ω^υ^ω^) + E (ω^ω^υ^ + υ^ω^ω^ − 3 ω^υ^ω^)
-//            + F (ω^υ^ω^ω^ + ω^ω^υ^ω^),
-//   C = (θ − sin θ)/θ³,  E = (θ² + 2 cos θ − 2)/(2θ⁴),  F = (2θ − 3 sin θ + θ cos θ)/(2θ⁵).
-// so that exp(ξ + δ) ≈ exp(Jl(ξ) δ) exp(ξ) ≈ exp(ξ) exp(Jr(ξ) δ). Q multiplies υ^, which does
-// not shrink with θ, so C, E, F are evaluated by their Taylor series (to double precision) for
-// θ < 1 instead of the cancelling closed forms.
 //
 // Estimator increment (docs/design.md §3): δ = [δt; δφ], translation additive, rotation
 // left-multiplied (perturbation in the world frame, not the SE(3) exponential):
@@ -55,8 +42,6 @@ class SE3 {
     q_.normalize();
   }
 
-  static SE3 identity() { return SE3(); }
-
   // exp([υ; ω]) = (exp(ω), Jl(ω) υ).
   static SE3 exp(const Vec<Scalar, 6>& xi) {
     const Vec3<Scalar> omega = xi.template tail<3>();
@@ -76,11 +61,6 @@ class SE3 {
   Mat3<Scalar> rotationMatrix() const { return q_.toRotationMatrix(); }
   const Vec3<Scalar>& translation() const { return t_; }
   Vec3<Scalar>& translation() { return t_; }
-  void setQuaternion(const Eigen::Quaternion<Scalar>& q) { q_ = q.normalized(); }
-  void setRotationMatrix(const Mat3<Scalar>& R) {
-    q_ = Eigen::Quaternion<Scalar>(R);
-    q_.normalize();
-  }
 
   SE3 operator*(const SE3& other) const { return SE3(q_ * other.q_, t_ + q_ * other.t_); }
   Vec3<Scalar> operator*(const Vec3<Scalar>& p) const { return q_ * p + t_; }
@@ -94,23 +74,6 @@ class SE3 {
     M.template topLeftCorner<3, 3>() = rotationMatrix();
     M.template topRightCorner<3, 1>() = t_;
     return M;
-  }
-  Mat<Scalar, 3, 4> matrix3x4() const {
-    Mat<Scalar, 3, 4> M;
-    M.template leftCols<3>() = rotationMatrix();
-    M.col(3) = t_;
-    return M;
-  }
-
-  // Adj(T) = [R, t^ R; 0, R] for the [υ; ω] ordering.
-  Mat<Scalar, 6, 6> Adj() const {
-    const Mat3<Scalar> R = rotationMatrix();
-    Mat<Scalar, 6, 6> A;
-    A.template topLeftCorner<3, 3>() = R;
-    A.template topRightCorner<3, 3>() = hat(t_) * R;
-    A.template bottomLeftCorner<3, 3>().setZero();
-    A.template bottomRightCorner<3, 3>() = R;
-    return A;
   }
 
   template <typename T>
@@ -142,19 +105,6 @@ inline Vec<Scalar, 6> boxMinus(const SE3<Scalar>& T_a, const SE3<Scalar>& T_b) {
       logSO3<Scalar>(T_a.unitQuaternion() * T_b.unitQuaternion().conjugate());
   return delta;
 }
-
-// Jacobians of SE(3) for ξ = [υ; ω] (see the header comment), defined in se3.cpp.
-template <typename Scalar>
-Mat<Scalar, 6, 6> leftJacobianSE3(const Vec<Scalar, 6>& xi);
-template <typename Scalar>
-Mat<Scalar, 6, 6> leftJacobianInvSE3(const Vec<Scalar, 6>& xi);
-template <typename Scalar>
-Mat<Scalar, 6, 6> rightJacobianSE3(const Vec<Scalar, 6>& xi);
-template <typename Scalar>
-Mat<Scalar, 6, 6> rightJacobianInvSE3(const Vec<Scalar, 6>& xi);
-// The 3×3 block Q(υ, ω) of Jl(ξ).
-template <typename Scalar>
-Mat3<Scalar> leftJacobianQBlockSE3(const Vec3<Scalar>& upsilon, const Vec3<Scalar>& omega);
 
 // T_ct_ch = (T_w_it T_i_ct)⁻¹ T_w_ih T_i_ch and its ⊞ Jacobians w.r.t. T_w_ih and T_w_it
 // (either Jacobian pointer may be null).

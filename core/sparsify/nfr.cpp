@@ -26,6 +26,9 @@ int blanketKindDim(BlanketKind kind) {
   return 0;
 }
 
+namespace {
+
+// "pose", "velocity", "bias", "landmark" (error messages).
 const char* blanketKindName(BlanketKind kind) {
   switch (kind) {
     case BlanketKind::kPose:
@@ -39,6 +42,8 @@ const char* blanketKindName(BlanketKind kind) {
   }
   return "?";
 }
+
+}  // namespace
 
 template <typename Scalar>
 NfrTopology paperTopology(const Blanket<Scalar>& blanket, int anchor_pose) {
@@ -80,11 +85,6 @@ NfrTopology relativePoseTopology(const Blanket<Scalar>& blanket, const std::vect
 
 std::vector<int> vioGaugeReference(int pose_offset) {
   return {pose_offset, pose_offset + 1, pose_offset + 2, pose_offset + 5};
-}
-
-std::vector<int> voGaugeReference(int pose_offset) {
-  return {pose_offset,     pose_offset + 1, pose_offset + 2,
-          pose_offset + 3, pose_offset + 4, pose_offset + 5};
 }
 
 template <typename Scalar>

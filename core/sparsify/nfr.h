@@ -53,7 +53,7 @@
 // does not exist and D = +∞ for every Λ_s ≻ 0 (the limit of Λ_t + εI, ε → 0). The pose–landmark
 // factors are gauge-invariant (h is unchanged by a rigid motion of the world), the unary pose
 // factor is not. We fix a reference: the caller names k columns measured by unary factors —
-// vioGaugeReference() the position and δφ_z of the anchor pose, voGaugeReference() all of its 6 —
+// vioGaugeReference() the position and δφ_z of the anchor pose, for VO all of its 6 —
 // that are held at their linearization values. Everything above is then taken on the subspace
 // S = {δx : δx_ref = 0}, i.e. for the conditionals of both Gaussians given the reference:
 //   Λ̃_t = Λ_t without the reference rows and columns, which must be positive definite (the
@@ -89,8 +89,7 @@
 namespace marglab {
 
 enum class BlanketKind : int { kPose = 0, kVelocity = 1, kBias = 2, kLandmark = 3 };
-int blanketKindDim(BlanketKind kind);           // 6, 3, 6, 3
-const char* blanketKindName(BlanketKind kind);  // "pose", "velocity", "bias", "landmark"
+int blanketKindDim(BlanketKind kind);  // 6, 3, 6, 3
 
 // One variable of the Markov blanket at its linearization point.
 template <typename Scalar>
@@ -125,10 +124,9 @@ template <typename Scalar>
 NfrTopology relativePoseTopology(const Blanket<Scalar>& blanket, const std::vector<int>& pose_chain,
                                  int anchor_pose);
 
-// Gauge references of a pose whose columns start at pose_offset: VIO position and δφ_z (yaw about
-// the gravity axis z of the world), VO all 6 dof.
+// The VIO gauge reference of a pose whose columns start at pose_offset: position and δφ_z (yaw
+// about the gravity axis z of the world). (VO's would be all 6 of its columns.)
 std::vector<int> vioGaugeReference(int pose_offset);
-std::vector<int> voGaugeReference(int pose_offset);
 
 // Residuals of the topology's factors (unweighted, h(x) ⊟ z) and their Jacobians w.r.t. the ⊞
 // increments (header comment).

@@ -3,9 +3,17 @@
 
 #include <gtest/gtest.h>
 
-#include <cmath>
+#include <fmt/core.h>
 
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "core/common/error.h"
+#include "core/common/json.h"
+#include "core/massspring/experiment.h"
 #include "core/massspring/mass_spring.h"
+#include "core/massspring/report.h"
 #include "test/common/cli_runner.h"
 
 namespace marglab::massspring {
@@ -87,6 +95,68 @@ TEST(MassSpringCli, UsageErrors) {
   EXPECT_EQ(test::runCli("massspring --method lu --no-plot").exit_code, 2);
   EXPECT_EQ(test::runCli("massspring --grid 3 --no-plot").exit_code, 2);
   EXPECT_EQ(test::runCli("massspring --sizes 5,x --no-plot").exit_code, 2);
+}
+
+// Unbounded counts ran for days (--reps 1000000000) or silently meant "automatic" (--reps -1).
+TEST(MassSpringCli, CountsOutOfRange) {
+  for (const std::string reps : {"-1", "1e9", "1000000000", "1001"}) {
+    const test::CliResult r = test::runCli("massspring --no-plot --reps " + reps);
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("--reps"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("an integer in [0, 1000]"), std::string::npos) << r.output;
+  }
+  for (const std::string iterations : {"0", "-3", "1001", "1e9"}) {
+    const test::CliResult r = test::runCli("massspring --no-plot --iterations " + iterations);
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("an integer in [1, 1000]"), std::string::npos) << r.output;
+  }
+}
+
+TEST(MassSpringExperiment, SettingsOutOfRangeNameTheOption) {
+  const auto message = [](const ExperimentSettings& s) -> std::string {
+    try {
+      checkSettings(s);
+    } catch (const UsageError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  ExperimentSettings s;
+  EXPECT_EQ(message(s), "");
+  s.reps = kMaxReps;
+  s.iterations = kMaxIterations;
+  EXPECT_EQ(message(s), "");
+  s.reps = -1;
+  EXPECT_EQ(message(s), "--reps -1: expected an integer in [0, 1000] (0: automatic)");
+  s.reps = kMaxReps + 1;
+  EXPECT_NE(message(s).find("--reps 1001"), std::string::npos);
+  s.reps = 1;
+  s.iterations = 0;
+  EXPECT_EQ(message(s), "--iterations 0: expected an integer in [1, 1000]");
+  s.iterations = 10;
+  s.grid = 40;
+  s.method = ceres_marg::Method::kQr;
+  EXPECT_EQ(message(s), "--method qr builds a dense Jacobian; use sparse-schur above 30x30");
+}
+
+// The JSON report is one valid object, keys in the order of the tables.
+TEST(MassSpringExperiment, JsonReportParses) {
+  ExperimentSettings s;
+  s.reps = 1;
+  s.sizes = {4};
+  const Measurements m = measure(s);
+  const Json j = Json::parse(jsonReport(m, PrimerTable{}));
+  std::vector<std::string> keys;
+  for (const auto& item : j.items()) keys.push_back(item.key());
+  EXPECT_EQ(keys,
+            (std::vector<std::string>{"grid", "masses", "nonlinear_masses", "iterations", "reps",
+                                      "method", "single_stage_ms", "two_stage_ms", "speedup",
+                                      "max_abs_diff", "final_energy", "two_stage", "scaling"}));
+  EXPECT_EQ(j["masses"], 25);
+  EXPECT_EQ(j["two_stage"].size(), 3u);
+  EXPECT_EQ(j["two_stage"]["sparse-schur"]["prior_rows"], m.main().last.marginalization.prior_rows);
+  EXPECT_EQ(j["scaling"][0]["grid"], 4);
+  EXPECT_EQ(j["final_energy"], std::stod(fmt::format("{:.12g}", m.single.last.final_cost)));
 }
 
 }  // namespace

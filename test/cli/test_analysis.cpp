@@ -229,6 +229,19 @@ TEST(AnalysisCli, NfrLengthTablePrefixIsTheShortRun) {
   EXPECT_NE(other.output.find("p_est of SHORT differs"), std::string::npos) << other.output;
 }
 
+// Issue #30: the table scripts publish "mean ± std" with the sample std of tables.cpp, align with
+// the project's ATE (not the independent checker's) and write their files atomically.
+TEST(AnalysisCli, TableScriptsShareTheSeedStatisticsAndAlignment) {
+  const std::string python = pythonWith("h5py, numpy, pandas, scipy");
+  if (python.empty()) GTEST_SKIP() << "no python3 with h5py, numpy, pandas and scipy";
+  const fs::path dir = fs::path(test::binaryDir()) / "test_analysis" / "table_scripts";
+  fs::remove_all(dir);
+  const auto agree = runShell(python + " '" + sourceDir() + "/test/cli/table_scripts_agree.py' '" +
+                              dir.string() + "'");
+  EXPECT_EQ(agree.exit_code, 0) << agree.output;
+  EXPECT_NE(agree.output.find("AGREE"), std::string::npos) << agree.output;
+}
+
 TEST(AnalysisCli, BadInputNamesTheFile) {
   const fs::path dir = fs::path(test::binaryDir()) / "test_analysis" / "not_a_sweep";
   fs::create_directories(dir);

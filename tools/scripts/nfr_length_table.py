@@ -8,7 +8,7 @@ SWEEP_DIR/figures/length.{png,pdf})
 A run is causal: frames 1..N of a whole run are bit for bit the N-frame run (checked by
 test/cli/nfr_length_agrees.py). So the ATE of an N-frame run is the ATE of the first N frames of
 the whole run, aligned on their own: Umeyama without scale, with the reflection fix, as
-core/diagnostics/ate.h (check_results.umeyama_rmse), over the frames whose p_est and p_gt are both
+core/diagnostics/ate.h (table_common.ate_rmse), over the frames whose p_est and p_gt are both
 finite. Per prefix length: the (sequence, seed) pairs where nfr's ATE is below discard's, and
 the geometric mean of ATE(nfr) / ATE(discard). Per 400-frame segment, each aligned on its own, the
 same comparison of local accuracy: does nfr lose locally late in a run, or only in accumulated
@@ -17,7 +17,6 @@ drift? And the whole run's attitude error against the ground truth's orientation
 scipy, h5py, pandas (marglab_results.py) and matplotlib, and the shipped
 datasets/*/gt_tum.txt.gz.
 """
-import csv
 import gzip
 import math
 import os
@@ -28,8 +27,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import atomic_save  # noqa: E402
 import marglab_results as mr  # noqa: E402
-from check_results import umeyama, umeyama_rmse  # noqa: E402
+from table_common import align_rigid, ate_rmse, write_csv, write_text  # noqa: E402
 
 DATASETS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
     os.path.abspath(__file__)))), "datasets")
@@ -40,31 +40,26 @@ CURVE_STEP = 100                        # frames between the prefixes of the fig
 GT_MAX_DT_NS = 5_000_000                # nearest GT orientation within 5 ms (EuRoC GT: 200 Hz)
 
 
-def aligned_rmse(p_est, p_gt):
-    """ATE RMSE after the rigid alignment of core/diagnostics/ate.h; NaN without pairs."""
-    ok = np.all(np.isfinite(p_est), axis=1) & np.all(np.isfinite(p_gt), axis=1)
-    return umeyama_rmse(p_est[ok], p_gt[ok])[0] if ok.any() else float("nan")
-
-
 def prefix_ate(run, n):
     """ATE of the first n frames of `run` (a marglab_results.Run), aligned on their own."""
-    return aligned_rmse(run.positions("p_est")[:n], run.positions("p_gt")[:n])
+    return ate_rmse(run.positions("p_est")[:n], run.positions("p_gt")[:n])
 
 
 def segment_ates(run):
     """ATE of each whole SEGMENT-frame segment, each aligned on its own."""
     p_est, p_gt = run.positions("p_est"), run.positions("p_gt")
-    return [aligned_rmse(p_est[k:k + SEGMENT], p_gt[k:k + SEGMENT])
+    return [ate_rmse(p_est[k:k + SEGMENT], p_gt[k:k + SEGMENT])
             for k in range(0, len(p_est) - SEGMENT + 1, SEGMENT)]
 
 
 def attitude_rms(p_est, q_est, p_gt, q_gt):
     """(tilt, yaw) RMS [deg] of the attitude error after the run's own position alignment
-    (R, t) = umeyama(p_est, p_gt): E = (R R_est) R_gtᵀ, a world-frame rotation per frame; tilt is the
-    angle E moves gravity's axis e_z by (observable through the accelerometer), yaw E's rotation
-    about e_z (unobservable in VIO). q_* are xyzw rows; rows with a non-finite value are skipped."""
+    (R, t) = align_rigid(p_est, p_gt): E = (R R_est) R_gtᵀ, a world-frame rotation per frame; tilt
+    is the angle E moves gravity's axis e_z by (observable through the accelerometer), yaw E's
+    rotation about e_z (unobservable in VIO). q_* are xyzw rows; rows with a non-finite value are
+    skipped."""
     ok = np.all(np.isfinite(np.hstack([p_est, q_est, p_gt, q_gt])), axis=1)
-    R, _ = umeyama(p_est[ok], p_gt[ok])
+    R, _ = align_rigid(p_est[ok], p_gt[ok])
     E = ((Rotation.from_matrix(R) * Rotation.from_quat(q_est[ok])) *
          Rotation.from_quat(q_gt[ok]).inv()).as_matrix()
     tilt = np.degrees(np.arctan2(np.hypot(E[:, 0, 2], E[:, 1, 2]), E[:, 2, 2]))  # ∠(E e_z, e_z)
@@ -208,22 +203,20 @@ def write_figure(out_dir, ps):
     fig.tight_layout()
     os.makedirs(out_dir, exist_ok=True)
     for ext in ("png", "pdf"):  # no creation date: the same runs give the same file
-        fig.savefig(os.path.join(out_dir, "length." + ext), dpi=150,
-                    metadata={"CreationDate": None} if ext == "pdf" else None)
+        atomic_save.savefig(fig, os.path.join(out_dir, "length." + ext), dpi=150,
+                            metadata={"CreationDate": None} if ext == "pdf" else None)
     plt.close(fig)
 
 
-def write_csv(path, runs):
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["strategy", "dataset", "seed", "frames", "kind", "length_or_segment", "value"])
-        for (o, d, s), r in sorted(runs.items()):
-            for L, ate in r["prefix"].items():
-                w.writerow([o, d, s, r["n"], "prefix_ate_m", L, repr(ate)])
-            for k, ate in enumerate(r["segments"]):
-                w.writerow([o, d, s, r["n"], "segment_ate_m", k * SEGMENT, repr(ate)])
-            for key in ("tilt", "yaw"):
-                w.writerow([o, d, s, r["n"], key + "_rms_deg", "whole", repr(r[key])])
+def csv_rows(runs):
+    rows = [["strategy", "dataset", "seed", "frames", "kind", "length_or_segment", "value"]]
+    for (o, d, s), r in sorted(runs.items()):
+        rows += [[o, d, s, r["n"], "prefix_ate_m", L, repr(ate)] for L, ate in r["prefix"].items()]
+        rows += [[o, d, s, r["n"], "segment_ate_m", k * SEGMENT, repr(ate)]
+                 for k, ate in enumerate(r["segments"])]
+        rows += [[o, d, s, r["n"], key + "_rms_deg", "whole", repr(r[key])]
+                 for key in ("tilt", "yaw")]
+    return rows
 
 
 def main():
@@ -249,9 +242,8 @@ def main():
     lines += pair_lines(ps)
     out_dir = os.path.join(sweep, "tables")
     os.makedirs(out_dir, exist_ok=True)
-    write_csv(os.path.join(out_dir, "length.csv"), runs)
-    with open(os.path.join(out_dir, "length.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+    write_csv(os.path.join(out_dir, "length.csv"), csv_rows(runs))
+    write_text(os.path.join(out_dir, "length.md"), "\n".join(lines) + "\n")
     write_figure(os.path.join(sweep, "figures"), ps)
     print(os.path.join(out_dir, "length.md"))
     return 0

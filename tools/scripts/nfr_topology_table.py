@@ -22,6 +22,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import marglab_results as mr  # noqa: E402
+from table_common import mean, seed_cell, write_csv, write_text  # noqa: E402
 
 ORDER = ["discard", "dense", "nfr-paper", "nfr-joint-states", "nfr-relative-pose"]
 
@@ -75,11 +76,6 @@ def information_lines(runs, overrides):
     return lines
 
 
-def mean(values):
-    v = [x for x in values if np.isfinite(x)]
-    return statistics.fmean(v) if v else float("nan")
-
-
 def against_discard(runs, override):
     """(pairs with a lower ATE than discard, pairs compared, geometric-mean ATE ratio)."""
     better, ratios = 0, []
@@ -122,12 +118,7 @@ def per_sequence_lines(runs, overrides):
         for o in overrides:
             sel = [r for k, r in runs.items() if k[0] == o and k[1] == d]
             ates = [r["ate"] for r in sel if np.isfinite(r["ate"])]
-            cell = (f"{statistics.fmean(ates):.4f} ± {statistics.pstdev(ates):.4f} ({len(ates)})"
-                    if ates else "–")
-            failed = sum(r["status"] == "failed" for r in sel)
-            if failed:
-                cell += f" x {failed}/{len(sel)}"
-            cells.append(cell)
+            cells.append(seed_cell(ates, sum(r["status"] == "failed" for r in sel), len(sel), 4))
         lines.append(f"| {d} | " + " | ".join(cells) + " |")
     return lines
 
@@ -149,7 +140,7 @@ def main():
              "exact); recovered: share of such events; < discard: (sequence, seed) pairs with a "
              "lower ATE than discard.", ""]
     lines += summary_lines(runs, overrides)
-    lines += ["", "Per sequence: mean ± population std of the ATE over the seeds, (n) runs with an "
+    lines += ["", "Per sequence: mean ± sample std of the ATE over the seeds, (n) runs with an "
               "ATE; x k/n: k of n runs failed; runs not yet done (status pending) are left out.",
               ""]
     lines += per_sequence_lines(runs, overrides)
@@ -164,17 +155,14 @@ def main():
         lines += info
     out_dir = os.path.join(sweep, "tables")
     os.makedirs(out_dir, exist_ok=True)
-    with open(os.path.join(out_dir, "topology.csv"), "w", newline="") as f:
-        w = csv.writer(f)
-        columns = ["info_" + d for d in mr.DEM_DIRECTIONS]
-        w.writerow(["strategy", "dataset", "seed", "status", "ate_rmse", "kld_mean",
-                    "recovered_share", "nnz_ratio", "blanket_poses", "blanket_landmarks"] +
-                   [c + "_ratio" for c in columns])
-        for (o, d, s), r in sorted(runs.items()):
-            w.writerow([o, d, s, r["status"], r["ate"], r["kld"], r["recovered"], r["nnz"],
-                        r["poses"], r["landmarks"]] + [r.get(c, float("nan")) for c in columns])
-    with open(os.path.join(out_dir, "topology.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+    columns = ["info_" + d for d in mr.DEM_DIRECTIONS]
+    rows = [["strategy", "dataset", "seed", "status", "ate_rmse", "kld_mean", "recovered_share",
+             "nnz_ratio", "blanket_poses", "blanket_landmarks"] + [c + "_ratio" for c in columns]]
+    rows += [[o, d, s, r["status"], r["ate"], r["kld"], r["recovered"], r["nnz"], r["poses"],
+              r["landmarks"]] + [r.get(c, float("nan")) for c in columns]
+             for (o, d, s), r in sorted(runs.items())]
+    write_csv(os.path.join(out_dir, "topology.csv"), rows)
+    write_text(os.path.join(out_dir, "topology.md"), "\n".join(lines) + "\n")
     print(os.path.join(out_dir, "topology.md"))
     return 0
 

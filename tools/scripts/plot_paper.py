@@ -373,11 +373,10 @@ def plot_noise_sigma(runs, out, written):
     fig.tight_layout()
     save(fig, out, "noise_sigma", written)
     path = os.path.join(out, "noise_sigma.csv")
-    with open(path, "w") as f:
-        f.write("dataset,profile,variant,event,sigma_max,sigma_min\n")
-        for d, p, v, mx, mn in runs:
-            for k in range(len(mx)):
-                f.write("%s,%s,%s,%d,%.17g,%.17g\n" % (d, p, v, k + 1, mx[k], mn[k]))
+    text = "dataset,profile,variant,event,sigma_max,sigma_min\n" + "".join(
+        "%s,%s,%s,%d,%.17g,%.17g\n" % (d, p, v, k + 1, mx[k], mn[k])
+        for d, p, v, mx, mn in runs for k in range(len(mx)))
+    atomic_save.write_text(path, text)
     written.append(path)
 
 

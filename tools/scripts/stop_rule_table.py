@@ -17,6 +17,9 @@ import sys
 import h5py
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from table_common import finite, write_csv, write_text  # noqa: E402
+
 
 def load(sweep):
     runs = {}
@@ -38,10 +41,6 @@ def load(sweep):
 
 def rel(a, b):
     return (a - b) / b if b > 0 and np.isfinite(a) and np.isfinite(b) else float("nan")
-
-
-def finite(values):
-    return [v for v in values if np.isfinite(v)]
 
 
 def summary_rows(runs):
@@ -75,6 +74,16 @@ def effects(runs):
                 seed_noise.setdefault(group, []).append(
                     abs(rel(r["ate"], 0.5 * (r["ate"] + s1["ate"]))) * 2)
     return rule_effect, seed_noise
+
+
+def run_text(run, key, digits):
+    """A run's value, or why it has none (failed at frame k, missing, pending)."""
+    status = run.get("status", "missing")
+    if status == "failed":
+        return f"failed (frame {run.get('failure_frame', '?')})"
+    if status != "ok":
+        return status
+    return f"{run[key]:.{digits}f}"
 
 
 def main():
@@ -113,26 +122,18 @@ def main():
     lines += ["", "## Per run", "",
               "| group | dataset | variant | seed | ATE marglab | ATE basalt | it marglab | "
               "it basalt |", "|---|---|---|---:|---:|---:|---:|---:|"]
-    with open(os.path.join(out_dir, "stop_rule.csv"), "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["group", "dataset", "variant", "seed", "rule", "status", "ate_rmse",
-                    "lm_iterations_per_frame", "opt_ms_per_frame"])
-        for k in sorted(runs):
-            r = runs[k]
-            w.writerow(list(k[:4]) + [k[4], r["status"], r["ate"], r["it"], r["opt_ms"]])
-            if k[4] == "marglab":
-                b = runs.get(k[:4] + ("basalt",), {"status": "missing"})
-                def fmt(run, key, digits):
-                    status = run.get("status", "missing")
-                    if status == "failed":
-                        return f"failed (frame {run.get('failure_frame', '?')})"
-                    if status != "ok":
-                        return status
-                    return f"{run[key]:.{digits}f}"
-                lines.append(f"| {k[0]} | {k[1]} | {k[2]} | {k[3]} | {fmt(r, 'ate', 4)} | "
-                             f"{fmt(b, 'ate', 4)} | {fmt(r, 'it', 2)} | {fmt(b, 'it', 2)} |")
-    with open(os.path.join(out_dir, "stop_rule.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
+    rows = [["group", "dataset", "variant", "seed", "rule", "status", "ate_rmse",
+             "lm_iterations_per_frame", "opt_ms_per_frame"]]
+    for k in sorted(runs):
+        r = runs[k]
+        rows.append(list(k[:4]) + [k[4], r["status"], r["ate"], r["it"], r["opt_ms"]])
+        if k[4] == "marglab":
+            b = runs.get(k[:4] + ("basalt",), {"status": "missing"})
+            lines.append(f"| {k[0]} | {k[1]} | {k[2]} | {k[3]} | {run_text(r, 'ate', 4)} | "
+                         f"{run_text(b, 'ate', 4)} | {run_text(r, 'it', 2)} | "
+                         f"{run_text(b, 'it', 2)} |")
+    write_csv(os.path.join(out_dir, "stop_rule.csv"), rows)
+    write_text(os.path.join(out_dir, "stop_rule.md"), "\n".join(lines) + "\n")
     print(os.path.join(out_dir, "stop_rule.md"))
     return 0
 
