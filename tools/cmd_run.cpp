@@ -148,7 +148,7 @@ int runRun(const RunArgs& args) {
       "  status            {}\n",
       outcome.status == RunStatus::kOk
           ? "ok"
-          : fmt::format("FAILED ({}) at frame {}: {}", outcome.failure_kind, outcome.failure_frame,
+          : fmt::format("FAILED at frame {} ({}): {}", outcome.failure_frame, outcome.failure_kind,
                         outcome.failure_reason));
   fmt::print("  frames            {} ({:.1f} s of data, {:.0f} features/frame)\n", s.n_frames,
              s.duration_s, outcome.mean_features_per_frame);

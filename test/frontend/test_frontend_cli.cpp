@@ -209,7 +209,7 @@ TEST_F(FrontendCli, VioOnBlackImagesFailsAsTracking) {
   const auto result = runCli("run --dataset '" + folder.string() +
                              "' --imu real --variant ns-qr-sqrt-f64 -o '" + out + "'");
   EXPECT_EQ(result.exit_code, 1) << result.output;
-  EXPECT_NE(result.output.find("FAILED (tracking)"), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("(tracking): tracking lost"), std::string::npos) << result.output;
   const ResultsReader reader(out);
   EXPECT_EQ(reader.info().metadata.mode, "vio");
   EXPECT_EQ(reader.info().failure_kind, "tracking");

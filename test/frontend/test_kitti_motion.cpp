@@ -174,7 +174,7 @@ TEST_F(KittiMotion, ImagesGoingBlackFailAsTracking) {
   const auto result =
       runCli("run --dataset '" + folder.string() + "' --variant ns-qr-sqrt-f64 -o '" + out + "'");
   EXPECT_EQ(result.exit_code, 1) << result.output;
-  EXPECT_NE(result.output.find("FAILED (tracking)"), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("(tracking): tracking lost"), std::string::npos) << result.output;
   const ResultsReader reader(out);
   EXPECT_EQ(reader.info().status, "failed");
   EXPECT_EQ(reader.info().failure_kind, "tracking");
