@@ -19,6 +19,7 @@
 
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
+#include "core/common/subprocess.h"
 #include "core/experiment/tables.h"
 #include "core/io/hdf5.h"
 #include "core/massspring/mass_spring.h"
@@ -160,8 +161,7 @@ std::string plotJson(const MassSpringSystem& system, const std::vector<double>& 
 
 std::string findPythonWithMatplotlib() {
   for (const std::string candidate : {"/usr/bin/python3", "python3"}) {
-    const std::string command = candidate + " -c 'import matplotlib' > /dev/null 2>&1";
-    if (std::system(command.c_str()) == 0) return candidate;
+    if (probeSucceeds({candidate, "-c", "import matplotlib"})) return candidate;
   }
   return {};
 }
@@ -186,11 +186,10 @@ std::string writeFigure(const Options& opt, const MassSpringSystem& system,
   if (!written) {
     message = "figure skipped: cannot write the temporary file";
   } else {
-    const std::string command =
-        fmt::format("'{}' '{}' '{}' '{}' 2>&1", python, script, tmp, opt.plot_dir + "/massspring");
-    message = std::system(command.c_str()) == 0
+    const std::vector<std::string> command = {python, script, tmp, opt.plot_dir + "/massspring"};
+    message = runHelper(command) == 0
                   ? fmt::format("figure: {0}/massspring.png, {0}/massspring.pdf", opt.plot_dir)
-                  : "figure failed: " + command;
+                  : "figure failed: " + fmt::format("{}", fmt::join(command, " "));
   }
   std::remove(tmp);
   return message;
