@@ -72,21 +72,22 @@ std::string imuSampleProblem(const PlausibilityLimits& limits, bool first, int64
   return {};
 }
 
+std::string pathLengthNote(const Sequence& seq) {
+  if (!seq.hasTrajectory()) return {};
+  double length = 0;
+  for (std::size_t i = 1; i < seq.gt.size(); ++i) {
+    length += (seq.gt.p_w_b[i] - seq.gt.p_w_b[i - 1]).norm();
+  }
+  if (length >= plausibilityLimits(seq.kind).note_path_length_m) return {};
+  return fmt::format(
+      "the trajectory moves {:.3g} m over {:.1f} s ({} poses): a static or short recording, "
+      "little motion to estimate",
+      length, 1e-9 * static_cast<double>(seq.gt.t_ns.back() - seq.gt.t_ns.front()),
+      seq.gt.size());
+}
+
 void checkSequencePlausibility(const Sequence& seq) {
   const PlausibilityLimits& limits = plausibilityLimits(seq.kind);
-  if (seq.hasTrajectory()) {
-    double length = 0;
-    for (std::size_t i = 1; i < seq.gt.size(); ++i) {
-      length += (seq.gt.p_w_b[i] - seq.gt.p_w_b[i - 1]).norm();
-    }
-    if (!(length >= limits.min_path_length_m)) {
-      throw InputError(
-          seq.gt_file, 0,
-          fmt::format("expected a trajectory that moves at least {:g} m ({}), found a "
-                      "path of {:.6g} m over {} poses: nothing to estimate",
-                      limits.min_path_length_m, limits.platform, length, seq.gt.size()));
-    }
-  }
   const double baseline = seq.calib.baseline();
   if (!(baseline >= limits.min_baseline_m && baseline <= limits.max_baseline_m)) {
     throw InputError(

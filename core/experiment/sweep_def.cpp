@@ -238,7 +238,7 @@ class Parser {
     }
     fs::path path(dataset);
     if (path.is_relative()) path = fs::path(base_dir_) / path;
-    if (fs::is_directory(path)) return fs::absolute(path).lexically_normal().string();
+    if (fs::is_directory(path)) return normalizeDatasetArgument(fs::absolute(path).string());
     throw error(node, fmt::format("unknown dataset '{}': not a shipped sequence (see `marglab "
                                   "datasets list`) nor a folder",
                                   dataset));
