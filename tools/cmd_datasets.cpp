@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/common/error.h"
+#include "core/common/interrupt.h"
 #include "core/data/sequence.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/feature_tracker.h"
@@ -246,8 +247,10 @@ CommandRun setupTrack(CLI::App& app) {
       ->required();
   return [options] {
     checkDatasetArgument(options->dataset);
+    cli::checkOutputFile(options->output, "-o");
     cli::refuseOverwritingInputs({options->output},
                                  {{}, cli::datasetInputFolders(options->dataset)});
+    installInterruptCleanup();  // SIGINT / SIGTERM while tracking: says so, exits 128 + signal
     const ImageSequence images = loadImageSequence(options->dataset);
     ImageTracking tracking;
     double best_s = 0, best_cpu_s = 0;
