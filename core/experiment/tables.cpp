@@ -17,6 +17,7 @@
 
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
+#include "core/data/sequence.h"
 #include "core/io/results_file.h"
 
 namespace marglab::experiment {
@@ -1014,6 +1015,38 @@ bool fromIndexRow(RunRecord* r) {
   return true;
 }
 
+// The dataset a run's table row is keyed by, "<kind>/<sequence>": the index holds what the sweep
+// file said, which for a user's folder is its path ("/data/euroc/MH_01_easy"), so the kind and
+// sequence the results file records are used; without the file, the folder's layout.
+std::string tableDataset(const std::string& indexed, const RunMetadata* recorded) {
+  if (recorded != nullptr && !recorded->dataset.empty() && !recorded->sequence.empty()) {
+    return recorded->dataset + "/" + recorded->sequence;
+  }
+  if (indexed.empty() || (indexed.front() != '/' && indexed.front() != '.')) return indexed;
+  try {
+    const std::string folder = normalizeDatasetArgument(indexed);
+    return std::string(datasetKindName(sequenceKind(folder))) + "/" +
+           fs::path(folder).filename().string();
+  } catch (const InputError&) {
+    return indexed;  // the folder is gone: the run keeps a row of its own
+  }
+}
+
+}  // namespace
+
+namespace {
+
+void requireSomeTable(const std::vector<TableSet>& sets, const std::vector<std::string>& dirs) {
+  std::set<std::string> why;
+  for (const TableSet& set : sets) {
+    if (!set.tables.empty() || set.claim) return;
+    why.insert(set.skipped.begin(), set.skipped.end());
+  }
+  throw InputError((fs::path(dirs.front()) / "index.csv").string(), 0,
+                   fmt::format("expected runs that make at least one table, found none ({})",
+                               why.empty() ? "no runs" : fmt::format("{}", fmt::join(why, "; "))));
+}
+
 }  // namespace
 
 ResultSet loadResults(const std::vector<std::string>& dirs) {
@@ -1027,7 +1060,9 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
       r.dir = dir;
       r.results_path = (fs::path(dir) / row.get("results")).string();
       r.state = row.get("status") == "failed" ? "failed" : "missing";
-      if (!row.get("results").empty() && fs::is_regular_file(r.results_path)) {
+      const bool has_file = !row.get("results").empty() && fs::is_regular_file(r.results_path);
+      if (!has_file) r.row.set("dataset", tableDataset(row.get("dataset"), nullptr));
+      if (has_file) {
         try {
           const ResultsReader reader(r.results_path);
           const RunInfo& info = reader.info();
@@ -1037,6 +1072,7 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
                                          row.get("variant")));
           }
           const SummaryValues s = reader.summary();
+          r.row.set("dataset", tableDataset(row.get("dataset"), &info.metadata));
           r.state = info.status == "ok" ? "ok" : "failed";
           r.mode = info.metadata.mode;
           r.marg_strategy = info.metadata.marg_strategy;
@@ -1379,8 +1415,10 @@ std::vector<std::string> writeTables(const TablesRequest& request, std::string* 
   for (const std::string& w : results.warnings) fmt::print(stderr, "warning: {}\n", w);
   const std::string out =
       request.out.empty() ? (fs::path(request.dirs.front()) / "tables").string() : request.out;
+  const std::vector<TableSet> sets = buildTables(results, paper, request.seeds);
+  if (request.require_tables) requireSomeTable(sets, request.dirs);
   std::vector<std::string> written;
-  for (const TableSet& set : buildTables(results, paper, request.seeds)) {
+  for (const TableSet& set : sets) {
     const std::string suffix = set.override_name.empty() ? "" : "__" + set.override_name;
     std::string md =
         set.override_name.empty() ? std::string() : "## Override " + set.override_name + "\n\n";

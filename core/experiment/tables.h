@@ -212,6 +212,9 @@ struct TablesRequest {
   std::string paper_values;  // default defaultPaperValuesPath()
   SeedStats seeds = SeedStats::kAuto;
   bool print = false;
+  // `marglab tables`: runs none of whose tables can be made are an InputError (before anything is
+  // written), not an exit 0 without a table; the notebooks and the report accept them.
+  bool require_tables = false;
 };
 
 // Reads the results of the folders and writes, per override set, tables[__<override>].{md,tex,csv}
