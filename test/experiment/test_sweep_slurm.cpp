@@ -184,6 +184,53 @@ args = ["--inject-nan-frame", "12"]
   fs::remove_all(dir);
 }
 
+// Issue #29: a `frontend = "images"` sweep tracks each dataset once, as the local backend does —
+// here in a tracking job the run arrays depend on (before, the runs found no track file).
+TEST(SlurmSweep, ImagesAreTrackedOncePerDatasetInAJobTheRunsDependOn) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("images");
+  std::ofstream(dir / "img.toml") << R"(name = "img"
+[[group]]
+name = "images"
+datasets = ["euroc/V1_01_easy_images"]
+variants = ["ns-qr-sqrt-f64", "sc-sc-sq-f64"]
+frontend = "images"
+frames = 5
+)";
+  const auto local =
+      runCli("sweep " + quote(dir / "img.toml") + " --jobs 2 --out " + quote(dir / "local"));
+  ASSERT_EQ(local.exit_code, 0) << local.output;
+  const fs::path out = dir / "slurm";
+  const auto slurm = runCli("sweep " + quote(dir / "img.toml") +
+                            " --backend slurm --wait --jobs 2 --out " + quote(out));
+  ASSERT_EQ(slurm.exit_code, 0) << slurm.output;
+  EXPECT_NE(slurm.output.find("2 ok, 0 failed numerically, 0 crashed"), std::string::npos)
+      << slurm.output;
+  const std::string track_id = "tracks_euroc-V1_01_easy_images";
+  EXPECT_EQ(scriptIds(out / "slurm" / "array-1.sbatch"), std::set<std::string>{track_id});
+  EXPECT_NE(readText(out / "slurm" / "array-1.sbatch").find("datasets track"), std::string::npos);
+  const std::regex tracking_job(R"(submitted tracking job ([0-9]+) )");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(slurm.output, m, tracking_job)) << slurm.output;
+  EXPECT_NE(readText(out / "slurm" / "array-2.sbatch").find("#SBATCH --dependency=afterok:" +
+                                                           m[1].str() + "\n"),
+            std::string::npos);
+  EXPECT_FALSE(fs::exists(out / "slurm" / "array-3.sbatch"));  // tracked once
+  EXPECT_TRUE(fs::is_regular_file(out / "tracks/euroc-V1_01_easy_images.h5"));
+  EXPECT_NE(readText(out / "logs" / (track_id + ".log")).find("wrote"), std::string::npos);
+  const auto a = readIndex((dir / "local" / "index.csv").string());
+  const auto b = readIndex((out / "index.csv").string());
+  ASSERT_EQ(a.size(), b.size());
+  for (const IndexRow& row : a) {
+    SCOPED_TRACE(row.get("id"));
+    const IndexRow* other = findRow(b, row.get("id"));
+    ASSERT_NE(other, nullptr);
+    EXPECT_EQ(other->get("status"), "ok");
+    EXPECT_EQ(row.get("ate_rmse"), other->get("ate_rmse"));
+  }
+  fs::remove_all(dir);
+}
+
 // The state of one task as squeue shows it ("" when unknown).
 std::string taskState(const std::string& task) {
   const auto r = runShell("squeue -h -t all -j " + task + " -o %T");
