@@ -1,8 +1,9 @@
 // `marglab datasets <sub-verb>`: the real datasets shipped in datasets/ (or a user's folder).
 //
 //   marglab datasets list                   table of the shipped sequences
-//   marglab datasets check [--all | SEQ...]  load + validate, one line per sequence; exit 1 on
-//   error
+//   marglab datasets check [--all | SEQ...]  load + validate as `run` does (the camera models and
+//                                           every image too), one line per sequence; exit 1 on
+//                                           error
 //   marglab datasets simulate --dataset SEQ [--seed S] [--frames N] [--no-noise]
 //                             [--profile ideal|realistic] -o FILE
 //                                           simulated stereo tracks along the GT spline -> track
@@ -24,6 +25,7 @@
 #include "core/common/error.h"
 #include "core/common/interrupt.h"
 #include "core/data/sequence.h"
+#include "core/frontend/image_check.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/sim_profile.h"
@@ -113,6 +115,9 @@ CommandRun setupCheck(CLI::App& app) {
         }
         if (seq.imu)
           summary += fmt::format(", IMU {} @ {:.1f} Hz", seq.imu->size(), check.imu_rate_hz);
+        // What `run` loads beyond the sequence: the camera models and every image.
+        if (const std::size_t pairs = checkImages(loadImageSequence(target)); pairs > 0)
+          summary += fmt::format(", {} stereo image pairs decoded", pairs);
         if (!check.notes.empty()) summary += " [" + joined(check.notes, "; ") + "]";
         fmt::print("ok    {:<24} {}\n", seq.name, summary);
       } catch (const InputError& e) {

@@ -9,11 +9,13 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 
 #include "common/cli_runner.h"
 #include "core/data/sequence.h"
+#include "core/frontend/image_file.h"
 
 namespace marglab {
 namespace {
@@ -165,6 +167,103 @@ TEST_F(RunInputs, ShortStaticClipIsRunWithANote) {
   EXPECT_NE(run.output.find("note: " + (seq / "gt_tum.txt").string()), std::string::npos)
       << run.output;
   EXPECT_TRUE(fs::exists(dir_ / "clip.h5"));
+}
+
+// A user's ASL folder <dir>/<name>/mav0 with the first n shipped frames of V1_01_easy_images.
+fs::path aslCopy(const fs::path& dir, const std::string& name, int n) {
+  const fs::path shipped = fs::path(datasetsRoot()) / "euroc/V1_01_easy_images/mav0";
+  const fs::path mav = dir / name / "mav0";
+  for (const char* cam : {"cam0", "cam1"}) {
+    fs::create_directories(mav / cam / "data");
+    fs::copy_file(shipped / cam / "sensor.yaml", mav / cam / "sensor.yaml");
+    std::istringstream in(readText(shipped / cam / "data.csv"));
+    std::ofstream out(mav / cam / "data.csv");
+    std::string line;
+    std::getline(in, line);
+    out << line << "\n";
+    for (int i = 0; i < n && std::getline(in, line); ++i) {
+      out << line << "\n";
+      const std::string file = line.substr(line.find(',') + 1);
+      fs::copy_file(shipped / cam / "data" / file, mav / cam / "data" / file);
+    }
+  }
+  return dir / name;
+}
+
+// Minor item of issue #32: `datasets check` said ok for folders `run` refused; it now runs the
+// loaders `run` runs (camera models, every image decoded at its size).
+TEST_F(RunInputs, CheckRefusesTheImageFoldersRunRefuses) {
+  struct Case {
+    std::string what;
+    std::function<std::string(const fs::path& mav)> spoil;  // returns the file to be named
+  };
+  const auto first_image = [](const fs::path& mav, const char* cam) {
+    std::istringstream in(readText(mav / cam / "data.csv"));
+    std::string line;
+    std::getline(in, line);
+    std::getline(in, line);
+    return mav / cam / "data" / line.substr(line.find(',') + 1);
+  };
+  const auto rewrite_yaml = [](const fs::path& yaml, const std::string& from, const std::string& to) {
+    std::string text = readText(yaml);
+    const auto at = text.find(from);
+    if (at != std::string::npos) text.replace(at, from.size(), to);
+    std::ofstream(yaml) << text;
+    return yaml.string();
+  };
+  const std::vector<Case> cases = {
+      {"a truncated image",
+       [&](const fs::path& mav) {
+         const fs::path png = first_image(mav, "cam0");
+         fs::resize_file(png, 100);
+         return png.string();
+       }},
+      {"a folder in place of an image",
+       [&](const fs::path& mav) {
+         const fs::path png = first_image(mav, "cam1");
+         fs::remove(png);
+         fs::create_directories(png);
+         return png.string();
+       }},
+      {"a missing image",
+       [&](const fs::path& mav) {
+         const fs::path png = first_image(mav, "cam1");
+         fs::remove(png);
+         return png.string();
+       }},
+      {"an image of another size",
+       [&](const fs::path& mav) {
+         const fs::path png = first_image(mav, "cam0");
+         const std::vector<uint8_t> bytes = encodePng(cv::Mat(32, 64, CV_8UC1, cv::Scalar(0)));
+         std::ofstream(png, std::ios::binary)
+             .write(reinterpret_cast<const char*>(bytes.data()),
+                    static_cast<std::streamsize>(bytes.size()));
+         return png.string();
+       }},
+      {"radtan with 2 coefficients",
+       [&](const fs::path& mav) {
+         return rewrite_yaml(mav / "cam0/sensor.yaml", ", 0.00019359, 1.76187114e-05]", "]");
+       }},
+      {"an unknown distortion model",
+       [&](const fs::path& mav) {
+         return rewrite_yaml(mav / "cam1/sensor.yaml", "radial-tangential", "fisheye-624");
+       }},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    fs::remove_all(dir_ / "user");
+    const fs::path seq = aslCopy(dir_, "user", 3);
+    ASSERT_EQ(runCli("datasets check " + quote(seq)).exit_code, 0);
+    // The file as the message names it (both cameras' sensor.yaml as cam{0,1}/sensor.yaml).
+    std::string file = c.spoil(seq / "mav0");
+    const auto yaml = file.find("/cam0/sensor.yaml") != std::string::npos
+                          ? file.find("/cam0/sensor.yaml")
+                          : file.find("/cam1/sensor.yaml");
+    if (yaml != std::string::npos) file = file.substr(0, yaml) + "/cam{0,1}/sensor.yaml";
+    const auto check = runCli("datasets check " + quote(seq));
+    EXPECT_EQ(check.exit_code, 1) << check.output;
+    EXPECT_NE(check.output.find(file), std::string::npos) << file << "\n" << check.output;
+  }
 }
 
 // Minor item of issue #32: -o was checked only after the work.
