@@ -276,9 +276,10 @@ class Follower {
 };
 
 // The closing summary; the exit code of `sweep`.
-// stop_signal: the SIGINT / SIGTERM that interrupted the follower, 0 if none.
+// stop_signal: the SIGINT / SIGTERM that interrupted the follower, 0 if none. slurm: the folder
+// holds Slurm submissions (else it is a local sweep's, whose rows left were never run).
 int report(const std::string& name, const std::vector<IndexRow>& rows, const fs::path& out,
-           double wall_s, int stop_signal, std::FILE* stream) {
+           double wall_s, int stop_signal, std::FILE* stream, bool slurm = true) {
   int ok = 0, numerical = 0, process = 0, reused = 0, queued = 0, unsubmitted = 0;
   std::map<std::string, int> kinds;
   for (const IndexRow& row : rows) {
@@ -306,7 +307,9 @@ int report(const std::string& name, const std::vector<IndexRow>& rows, const fs:
              name, ok, numerical, process, kind_text,
              reused ? fmt::format(" ({} kept from an earlier invocation)", reused) : "",
              queued ? fmt::format(", {} still queued in Slurm", queued) : "",
-             unsubmitted ? fmt::format(", {} not submitted", unsubmitted) : "", wall_s);
+             unsubmitted ? fmt::format(", {} not {}", unsubmitted, slurm ? "submitted" : "run")
+                         : "",
+             wall_s);
   fmt::print(stream, "  index {}\n", (out / "index.csv").string());
   if (stop_signal != 0) {
     fmt::print(stream, "  interrupted by {}: the arrays were cancelled; continue with --resume\n",
@@ -315,6 +318,11 @@ int report(const std::string& name, const std::vector<IndexRow>& rows, const fs:
   }
   if (queued > 0) {
     fmt::print(stream, "  follow: marglab sweep --status {} [--wait]\n", out.string());
+  }
+  if (!slurm && unsubmitted > 0) {
+    fmt::print(stream, "  a local sweep that was stopped: continue it with marglab sweep {} "
+                       "--resume --out {}\n",
+               (out / "sweep.toml").string(), out.string());
   }
   return process > 0 || unsubmitted > 0 ? 1 : 0;
 }
@@ -492,7 +500,7 @@ int slurmSweepStatus(const std::string& dir, const SweepOptions& options) {
     }
   }
   const double wall = std::chrono::duration<double>(Clock::now() - start).count();
-  return report(name, rows, out, wall, interrupted, options.out);
+  return report(name, rows, out, wall, interrupted, options.out, !binary.revision.empty());
 }
 
 }  // namespace marglab::experiment

@@ -228,6 +228,22 @@ TEST_F(SweepFolders, ForceClearsOnlyWhatTheSweepWrote) {
   EXPECT_EQ(readIndex((out / "index.csv").string()).size(), 1u);
 }
 
+// Minor item of issue #32: `sweep --status` on a stopped local sweep spoke of "not submitted"
+// (Slurm's word).
+TEST_F(SweepFolders, StatusOfAStoppedLocalSweepSaysNotRun) {
+  const fs::path out = dir_ / "out";
+  ASSERT_EQ(runCli("sweep " + quote(quickSweep()) + " --out " + quote(out)).exit_code, 0);
+  std::vector<IndexRow> rows = readIndex((out / "index.csv").string());
+  rows[0].set("status", "running");  // as a SIGKILLed sweep leaves it
+  writeIndex((out / "index.csv").string(), rows);
+  const auto status = runCli("sweep --status " + quote(out));
+  EXPECT_EQ(status.exit_code, 1) << status.output;
+  EXPECT_NE(status.output.find("1 not run"), std::string::npos) << status.output;
+  EXPECT_NE(status.output.find("--resume --out " + out.string()), std::string::npos)
+      << status.output;
+  EXPECT_EQ(status.output.find("submitted"), std::string::npos) << status.output;
+}
+
 // Defect 6: "x/" (tab completion) gave the sequence name "" (check said "euroc/"), and a sweep
 // listing "x" and "x/" had two datasets, tracked twice.
 TEST_F(SweepFolders, TrailingSlashNamesTheSameDataset) {
