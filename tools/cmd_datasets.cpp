@@ -247,7 +247,7 @@ CommandRun setupTrack(CLI::App& app) {
       ->check(nonNegativeInt("the number of frames (0: all)"));
   app.add_option("--passes", options->passes,
                  "track the images this many times and report the fastest pass (timing)")
-      ->check(positiveInt("the number of passes"));
+      ->check(cli::intRange("the number of passes", 1, 100));
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   return [options] {

@@ -24,6 +24,7 @@
 #include "core/io/hdf5.h"
 #include "core/massspring/mass_spring.h"
 #include "tools/command.h"
+#include "tools/option_checks.h"
 
 namespace marglab {
 namespace {
@@ -512,11 +513,13 @@ const bool kRegistered = cli::registerCommand(
                           "not given; with --grid only if given)")
                ->capture_default_str();
        sub.add_option("--iterations", opt->iterations, "Gauss-Newton iterations")
-           ->capture_default_str();
+           ->capture_default_str()
+           ->check(cli::intRange("Gauss-Newton iterations", 1, 1000));
        sub.add_option("--method", opt->method, "Marginalization: qr, schur or sparse-schur")
            ->capture_default_str();
        sub.add_option("--reps", opt->reps, "Timing repetitions (0: automatic, median reported)")
-           ->capture_default_str();
+           ->capture_default_str()
+           ->check(cli::intRange("timing repetitions (0: automatic)", 0, 10000));
        sub.add_option("-o,--output", opt->output, "Write the states and timings to FILE.h5");
        sub.add_flag("--json", opt->json, "Print one JSON object instead of tables");
        sub.add_flag("--no-plot", opt->no_plot, "Do not write the figure");

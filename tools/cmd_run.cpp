@@ -64,6 +64,15 @@ void checkInputsBeforeRunning(const RunArgs& args) {
     checkTracksBelongTo(readTrackFile(args.tracks), args.tracks, sequence);
   }
   if (args.imu == "real") checkImuCoverage(sequence);
+  // A window the run can never reach would be captured silently never.
+  const int frames = args.frames > 0 ? args.frames : static_cast<int>(sequence.cam_t_ns.size());
+  for (const int frame : args.dump_windows) {
+    if (frame >= frames) {
+      throw UsageError(fmt::format("--dump-windows {}: the run has {} frames ({}), expected "
+                                   "indices below",
+                                   frame, frames, args.frames > 0 ? "--frames" : sequence.name));
+    }
+  }
   if (const std::string note = pathLengthNote(sequence); !note.empty()) {
     fmt::print(stderr, "marglab run: note: {}: {}\n", sequence.gt_file, note);
   }

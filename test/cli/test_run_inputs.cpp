@@ -287,6 +287,30 @@ TEST_F(RunInputs, OutputPathIsCheckedBeforeTheWork) {
   }
 }
 
+// Minor item of issue #32: counts without a bound (a run of years, or silently nothing).
+TEST_F(RunInputs, UnboundedCountsAreUsageErrors) {
+  const std::string out = " -o " + quote(dir_ / "x.h5");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"massspring --no-plot --reps 1e9", "--reps: 1e9: expected timing repetitions"},
+      {"massspring --no-plot --reps -1", "--reps: -1: expected timing repetitions"},
+      {"massspring --no-plot --iterations 100000000", "--iterations: 100000000: expected"},
+      {"datasets track --dataset euroc/V1_01_easy_images --passes 1000000" + out,
+       "--passes: 1000000: expected the number of passes, an integer in [1, 100]"},
+      {"run --dataset kitti/05 --variant ns-qr-sqrt-f64 --frames 10 --dump-windows 99999999" +
+           out,
+       "--dump-windows 99999999: the run has 10 frames"},
+      {"run --dataset kitti/05 --variant ns-qr-sqrt-f64 --dump-windows 3,99999999" + out,
+       "--dump-windows 99999999: the run has 2761 frames (kitti/05)"},
+  };
+  for (const auto& [args, fragment] : cases) {
+    SCOPED_TRACE(args);
+    const auto result = runCli(args);
+    EXPECT_EQ(result.exit_code, 2) << result.output;
+    EXPECT_NE(result.output.find(fragment), std::string::npos) << result.output;
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
+}
+
 // Minor item of issue #32: "0.0000 m (1 pairs, SE(3)-aligned)" for a one-frame run.
 TEST_F(RunInputs, AteOfFewerThanThreePairsIsUnavailable) {
   const auto run = runCli("run --variant ns-qr-sqrt-f64 --frames 2 --dataset kitti/05 -o " +
