@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "common/cli_runner.h"
+#include "core/common/error.h"
 #include "core/common/source_dir.h"
 #include "core/common/subprocess.h"
 #include "core/experiment/sweep_def.h"
@@ -226,6 +227,28 @@ TEST_F(SweepFolders, ForceClearsOnlyWhatTheSweepWrote) {
   ASSERT_EQ(again.exit_code, 0) << again.output;
   EXPECT_EQ(readText(out / "logs/notes.txt"), "mine\n");
   EXPECT_EQ(readIndex((out / "index.csv").string()).size(), 1u);
+}
+
+// Minor item of issue #32: 2 M runs planned for minutes without output; the count is bounded and
+// the group that exceeds it named.
+TEST_F(SweepFolders, SweepOfTooManyRunsIsRefusedAtItsGroup) {
+  std::string seeds;
+  for (int s = 1; s <= 20001; ++s) seeds += (s > 1 ? "," : "") + std::to_string(s);
+  const std::string text =
+      "name = \"huge\"\n[[group]]\nname = \"small\"\ndatasets = [\"kitti/04\"]\n"
+      "variants = [\"ns-qr-sqrt-f64\"]\n[[group]]\nname = \"big\"\n"
+      "datasets = [\"kitti/04\"]\nvariants = [\"headline\", \"sc-qr-sqrt-f64\"]\nseeds = [" +
+      seeds + "]\n";
+  try {
+    parseSweep(text, "huge.toml", dir_.string());
+    ADD_FAILURE() << "a sweep of 100006 runs was planned";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 6);
+    EXPECT_NE(std::string(e.what()).find("group 'big' brings the sweep to 100006 runs; a sweep "
+                                         "holds at most 100000"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 // Minor item of issue #32: `sweep --status` on a stopped local sweep spoke of "not submitted"
