@@ -229,6 +229,26 @@ TEST_F(SweepFolders, ForceClearsOnlyWhatTheSweepWrote) {
   EXPECT_EQ(readIndex((out / "index.csv").string()).size(), 1u);
 }
 
+// Minor item of issue #32: `--dry-run` and the validation before a sweep accepted frontend =
+// "images" on a dataset without images.
+TEST_F(SweepFolders, ImagesFrontendOnADatasetWithoutImagesIsRefusedBeforeAnyRun) {
+  const fs::path file = write("noimg.toml",
+                              "name = \"noimg\"\n[[group]]\nname = \"g\"\ndatasets = "
+                              "[\"kitti/04\"]\nvariants = [\"ns-qr-sqrt-f64\"]\n"
+                              "frontend = \"images\"\n");
+  for (const std::string& how : {std::string("--dry-run"), "--out " + quote(dir_ / "out")}) {
+    SCOPED_TRACE(how);
+    const auto result = runCli("sweep " + quote(file) + " " + how);
+    EXPECT_EQ(result.exit_code, 1) << result.output;
+    EXPECT_NE(result.output.find(file.string() + ":2: run g__kitti-04__ns-qr-sqrt-f64__s1: "
+                                                 "frontend = \"images\" on kitti/04, which has "
+                                                 "no images"),
+              std::string::npos)
+        << result.output;
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "out"));
+}
+
 // Minor item of issue #32: 2 M runs planned for minutes without output; the count is bounded and
 // the group that exceeds it named.
 TEST_F(SweepFolders, SweepOfTooManyRunsIsRefusedAtItsGroup) {
