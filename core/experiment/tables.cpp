@@ -315,10 +315,19 @@ StrategyStats readStrategyStats(const std::string& path) {
 // nullopt: not part of the set.
 using ColumnOf = std::function<std::optional<std::string>(const RunRecord&)>;
 
-std::string oursNote(const std::string& paper_machine) {
-  return "Ours: simulated stereo tracks along the real trajectories, `frames` = frames per run "
-         "(`all`: the whole sequence); the paper: real images, whole sequences" +
-         (paper_machine.empty() ? std::string(".") : ", on " + paper_machine + ".");
+// frontends: where the runs' tracks came from (results file attribute "frontend").
+std::string oursNote(const std::string& paper_machine, const std::set<std::string>& frontends) {
+  std::vector<std::string> sources;
+  for (const std::string& f : frontends) {
+    sources.push_back(f == "images"   ? "the image front-end on the real images"
+                      : f == "tracks" ? "track files (--tracks)"
+                                      : "simulated stereo tracks along the real trajectories");
+  }
+  if (sources.empty()) sources.push_back("simulated stereo tracks along the real trajectories");
+  return fmt::format("Ours: {}, `frames` = frames per run (`all`: the whole sequence); the "
+                     "paper: real images, whole sequences{}",
+                     fmt::join(sources, "; "),
+                     paper_machine.empty() ? std::string(".") : ", on " + paper_machine + ".");
 }
 
 class Builder {
@@ -343,7 +352,18 @@ class Builder {
       by_cell_[run->row.get("dataset") + "|" + column].runs.push_back(run);
       datasets_.insert(run->row.get("dataset"));
       modes_[run->row.get("dataset")].insert(run->mode.empty() ? "?" : run->mode);
+      if (!run->frontend.empty()) frontends_[run->row.get("dataset")].insert(run->frontend);
     }
+  }
+
+  // Where the tracks of these datasets' runs came from (results file attribute "frontend").
+  std::set<std::string> frontendsOf(const std::vector<std::string>& datasets) const {
+    std::set<std::string> all;
+    for (const std::string& d : datasets) {
+      const auto it = frontends_.find(d);
+      if (it != frontends_.end()) all.insert(it->second.begin(), it->second.end());
+    }
+    return all;
   }
 
   bool hasVariant(const std::string& variant) const {
@@ -483,7 +503,7 @@ class Builder {
     std::vector<std::string> keys;
     for (const TableRow& r : t.rows) keys.push_back(r.key);
     t.notes.push_back(modeNote(keys));
-    t.notes.push_back(oursNote(ate ? "" : "a 12-thread Xeon W-2133"));
+    t.notes.push_back(oursNote(ate ? "" : "a 12-thread Xeon W-2133", frontendsOf(keys)));
     if (seed_stats && ate) t.notes.push_back(kSeedNote);
     if (any_estimate) {
       t.notes.push_back(
@@ -687,7 +707,7 @@ class Builder {
         "pipeline — beside discard; the paper has no dense column (its OKVIS, VINS-MONO* and "
         "ROVIO are in paper_values.toml).");
     t.notes.push_back(modeNote(datasets));
-    t.notes.push_back(oursNote(""));
+    t.notes.push_back(oursNote("", frontendsOf(datasets)));
     addCommonNotes(&t, paper, isEurocDataset);
     return t;
   }
@@ -751,7 +771,7 @@ class Builder {
         "Paper: the proposed method only (beside our nfr rows), marginalization including "
         "sparsification.");
     t.notes.push_back(modeNote(datasets));
-    t.notes.push_back(oursNote("an Intel i7-6700"));
+    t.notes.push_back(oursNote("an Intel i7-6700", frontendsOf(datasets)));
     addCommonNotes(&t, paper, nullptr, /*ranked=*/false);
     return t;
   }
@@ -836,6 +856,7 @@ class Builder {
   const PaperValues& paper_;
   std::map<std::string, Selection> by_cell_;
   std::set<std::string> datasets_;
+  std::map<std::string, std::set<std::string>> frontends_;  // dataset → where its tracks came from
   std::map<std::string, std::set<std::string>> modes_;       // dataset → modes
   mutable std::map<const RunRecord*, StrategyStats> stats_;  // read on first use
 };
@@ -1076,6 +1097,7 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
           r.state = info.status == "ok" ? "ok" : "failed";
           r.mode = info.metadata.mode;
           r.marg_strategy = info.metadata.marg_strategy;
+          r.frontend = info.metadata.frontend;
           for (const auto& [name, value] : info.metadata.extra) {
             if (name == "gt_source") r.gt_source = value;
           }

@@ -95,6 +95,7 @@ struct RunRecord {
   std::string mode;           // results file attribute "mode" ("vo" | "vio")
   std::string gt_source;      // results file attribute "gt_source" (may be "")
   std::string marg_strategy;  // results file attribute "marg_strategy" ("" without a file)
+  std::string frontend;       // results file attribute "frontend" ("" without a file)
   double ate_rmse = 0, t_opt_s = 0, t_marg_s = 0, wall_s = 0, duration_s = 0;
   long long n_frames = 0;
   long long failure_frame = -1;

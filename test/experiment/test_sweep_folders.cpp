@@ -335,6 +335,11 @@ TEST_F(SweepFolders, UserFoldersGetTheirTableRows) {
       << readText(out / "tables/table1.md");
   EXPECT_NE(readText(out / "tables/table2.md").find("04"), std::string::npos)
       << readText(out / "tables/table2.md");
+  // The footnote says where each table's tracks came from (minor item of issue #32).
+  EXPECT_NE(readText(out / "tables/table1.md").find("Ours: the image front-end on the real images"),
+            std::string::npos);
+  EXPECT_NE(readText(out / "tables/table2.md").find("Ours: simulated stereo tracks"),
+            std::string::npos);
 
   // Runs that make no table: an error naming the index, no table files.
   const fs::path none = write("none.toml",
