@@ -160,10 +160,13 @@ CommandRun setupSimulate(CLI::App& app) {
       ->required();
   return [options] {
     checkDatasetArgument(options->dataset);
+    cli::checkOutputFile(options->output, "-o");
     cli::refuseOverwritingInputs({options->output},
                                  {{}, cli::datasetInputFolders(options->dataset)});
     const auto start = std::chrono::steady_clock::now();
-    const Sequence seq = loadSequence(options->dataset, LoadOptions{false});
+    // The sequence as `run --frontend simulated` loads it: an image folder's ground truth may come
+    // from the shipped sequence of its recording (image_folder.h).
+    const Sequence seq = loadImageSequence(options->dataset).sequence;
     if (!seq.hasTrajectory()) {
       throw InputError(
           seq.directory, 0,

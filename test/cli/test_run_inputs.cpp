@@ -311,6 +311,19 @@ TEST_F(RunInputs, UnboundedCountsAreUsageErrors) {
   EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
 }
 
+// Minor item of issue #32: `datasets simulate` refused euroc/V1_01_easy_images ("no trajectory")
+// though `run --frontend simulated` uses the ground truth of its shipped recording.
+TEST_F(RunInputs, SimulateUsesTheGroundTruthRunUses) {
+  const fs::path tracks = dir_ / "v101.h5";
+  const auto simulate = runCli("datasets simulate --dataset euroc/V1_01_easy_images -o " +
+                               quote(tracks));
+  ASSERT_EQ(simulate.exit_code, 0) << simulate.output;
+  const auto run = runCli("run --variant ns-qr-sqrt-f64 --frames 5 --dataset "
+                          "euroc/V1_01_easy_images --tracks " +
+                          quote(tracks) + " -o " + quote(dir_ / "run.h5"));
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+}
+
 // Minor item of issue #32: "0.0000 m (1 pairs, SE(3)-aligned)" for a one-frame run.
 TEST_F(RunInputs, AteOfFewerThanThreePairsIsUnavailable) {
   const auto run = runCli("run --variant ns-qr-sqrt-f64 --frames 2 --dataset kitti/05 -o " +
