@@ -271,6 +271,43 @@ TEST_F(SweepFolders, SweepOfTooManyRunsIsRefusedAtItsGroup) {
   }
 }
 
+bool pythonHas(const std::string& modules) {
+  return runShell("/usr/bin/python3 -c 'import " + modules + "'").exit_code == 0;
+}
+
+// Minor items of issue #32: `notebooks` exited 1 with a traceback on one truncated .h5 (tables,
+// plot and report skip it with a warning); `plot` on a non-UTF-8 index.csv printed a traceback.
+TEST_F(SweepFolders, AnalysisSkipsATruncatedFileAndNamesANonUtf8Index) {
+  if (!pythonHas("nbclient, nbconvert, ipykernel, pandas, h5py, matplotlib")) {
+    GTEST_SKIP() << "no /usr/bin/python3 with Jupyter, pandas, h5py and matplotlib";
+  }
+  const fs::path out = dir_ / "out";
+  const fs::path file = write("two.toml",
+                              "name = \"two\"\n[[group]]\nname = \"g\"\ndatasets = "
+                              "[\"kitti/04\"]\nvariants = [\"ns-qr-sqrt-f64\", "
+                              "\"ns-qr-sqrt-f32\"]\nframes = 5\n");
+  ASSERT_EQ(runCli("sweep " + quote(file) + " --out " + quote(out)).exit_code, 0);
+  const fs::path truncated = out / "runs/g__kitti-04__ns-qr-sqrt-f32__s1.h5";
+  fs::resize_file(truncated, 2000);
+  const auto notebooks =
+      runCli("notebooks " + quote(out) + " --jobs 1 --out " + quote(dir_ / "nb"));
+  EXPECT_EQ(notebooks.exit_code, 0) << notebooks.output;
+  EXPECT_NE(notebooks.output.find("warning: " + truncated.string() +
+                                  ": not a complete results file"),
+            std::string::npos)
+      << notebooks.output;
+  EXPECT_EQ(notebooks.output.find("Traceback"), std::string::npos) << notebooks.output;
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "nb/runs/g__kitti-04__ns-qr-sqrt-f64__s1.html"));
+
+  std::ofstream(out / "index.csv", std::ios::app) << "\xff\xfe\n";
+  const auto plot = runCli("plot " + quote(out) + " --out " + quote(dir_ / "fig"));
+  EXPECT_EQ(plot.exit_code, 1) << plot.output;
+  EXPECT_NE(plot.output.find((out / "index.csv").string() + ": byte "), std::string::npos)
+      << plot.output;
+  EXPECT_NE(plot.output.find("expected UTF-8 text"), std::string::npos) << plot.output;
+  EXPECT_EQ(plot.output.find("Traceback"), std::string::npos) << plot.output;
+}
+
 // Minor item of issue #32: `sweep --status` on a stopped local sweep spoke of "not submitted"
 // (Slurm's word).
 TEST_F(SweepFolders, StatusOfAStoppedLocalSweepSaysNotRun) {
