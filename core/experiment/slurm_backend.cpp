@@ -19,6 +19,7 @@
 #include "core/common/utc_time.h"
 #include "core/experiment/slurm_client.h"
 #include "core/experiment/slurm_reconcile.h"
+#include "core/experiment/slurm_script.h"
 #include "core/experiment/sweep_common.h"
 #include "marglab/version.h"
 
@@ -50,6 +51,24 @@ void writeProvenance(const fs::path& out, const Provenance& p) {
 }  // namespace
 
 namespace {
+
+// A run whose tracking job failed is cancelled by Slurm (--kill-on-invalid-dep), which reads as
+// "cancelled in Slurm": say that its images could not be tracked, and where the log is.
+void explainTrackingFailure(const fs::path& out, IndexRow* row) {
+  if (row->get("status") != "failed" || row->get("failure_kind") != "interrupted") return;
+  const std::string& dataset = row->get("dataset");
+  if (row->get("command").find("--tracks tracks/" + slug(dataset) + ".h5") == std::string::npos) {
+    return;
+  }
+  const std::string id = "tracks_" + slug(dataset);
+  const TaskExit exit = readTaskExit((out / "slurm" / "exit" / id).string());
+  if (!exit.present || !exit.signal.empty() || exit.exit_code == 0) return;
+  const fs::path log = out / "logs" / (id + ".log");
+  row->set("failure_kind", "error");
+  row->set("reason", fmt::format("tracking the images of {} failed (exit {}): {} (see {})",
+                                 dataset, exit.exit_code, detail::lastNonEmptyLine(log.string()),
+                                 log.string()));
+}
 
 std::string describeRow(const IndexRow& row) {
   if (row.get("status") == "ok") return fmt::format("ATE {:.4f} m", row.number("ate_rmse"));
@@ -205,7 +224,10 @@ class Follower {
         cancelAll(*rows);
         stop_time = Clock::now();
       }
-      for (std::size_t i : reconciler_.update(rows)) announce((*rows)[i]);
+      for (std::size_t i : reconciler_.update(rows)) {
+        explainTrackingFailure(out_, &(*rows)[i]);
+        announce((*rows)[i]);
+      }
       writeIndex(index_path_, *rows);
       if (unresolvedJobs(*rows).empty()) break;
       // Cancelled tasks end within Slurm's KillWait; do not hang on a controller that is gone.
@@ -488,6 +510,7 @@ int slurmSweepStatus(const std::string& dir, const SweepOptions& options) {
   int interrupted = 0;
   if (!binary.revision.empty()) {
     for (std::size_t i : SlurmReconciler(out, binary.revision).update(&rows)) {
+      explainTrackingFailure(out, &rows[i]);
       fmt::print(options.out, "  {:<6} {}  {}\n", rows[i].get("status"), rows[i].get("id"),
                  describeRow(rows[i]));
     }

@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "common/cli_runner.h"
+#include "core/data/sequence.h"
 #include "core/experiment/slurm_backend.h"
 #include "core/experiment/slurm_client.h"
 #include "core/experiment/sweep_common.h"
@@ -228,6 +229,48 @@ frames = 5
     EXPECT_EQ(other->get("status"), "ok");
     EXPECT_EQ(row.get("ate_rmse"), other->get("ate_rmse"));
   }
+  fs::remove_all(dir);
+}
+
+// A dataset whose tracking job fails: Slurm cancels the runs that depend on it, and the index says
+// why (the tracking failed, its log) instead of "cancelled in Slurm".
+TEST(SlurmSweep, FailedTrackingJobFailsItsRunsSayingWhy) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("badtracks");
+  // A user's ASL folder of 3 frames whose second left image is cut short.
+  const fs::path shipped = fs::path(datasetsRoot()) / "euroc/V1_01_easy_images/mav0";
+  const fs::path mav = dir / "clip/mav0";
+  for (const char* cam : {"cam0", "cam1"}) {
+    fs::create_directories(mav / cam / "data");
+    fs::copy_file(shipped / cam / "sensor.yaml", mav / cam / "sensor.yaml");
+    std::istringstream in(readText(shipped / cam / "data.csv"));
+    std::ofstream csv(mav / cam / "data.csv");
+    std::string line;
+    for (int i = 0; i < 4 && std::getline(in, line); ++i) {
+      csv << line << "\n";
+      if (i > 0) {
+        const std::string file = line.substr(line.find(',') + 1);
+        fs::copy_file(shipped / cam / "data" / file, mav / cam / "data" / file);
+        if (i == 2 && std::string(cam) == "cam0") fs::resize_file(mav / cam / "data" / file, 100);
+      }
+    }
+  }
+  std::ofstream(dir / "bad.toml") << "name = \"bad\"\n[[group]]\nname = \"images\"\ndatasets = [\""
+                                  << (dir / "clip").string()
+                                  << "\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n";
+  const fs::path out = dir / "out";
+  const auto sweep = runCli("sweep " + quote(dir / "bad.toml") + " --backend slurm --wait --out " +
+                            quote(out));
+  EXPECT_EQ(sweep.exit_code, 1) << sweep.output;
+  const auto rows = readIndex((out / "index.csv").string());
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0].get("failure_kind"), "error") << rows[0].get("reason");
+  EXPECT_NE(rows[0].get("reason").find("tracking the images of " + (dir / "clip").string() +
+                                       " failed (exit 1)"),
+            std::string::npos)
+      << rows[0].get("reason");
+  EXPECT_NE(rows[0].get("reason").find("the file ends early"), std::string::npos)
+      << rows[0].get("reason");
   fs::remove_all(dir);
 }
 
