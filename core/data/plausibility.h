@@ -45,7 +45,10 @@ std::string imuSampleProblem(const PlausibilityLimits& limits, bool first, int64
                              int64_t t_ns, const Eigen::Vector3d& gyro,
                              const Eigen::Vector3d& accel);
 
-// Throws InputError naming the sequence's files when the stereo baseline is outside its limits.
+// Throws InputError naming the sequence's files when the stereo baseline is outside its limits,
+// cam1 is not to the right of cam0 (swapped cameras: a KITTI P1 of the wrong sign), or an
+// intrinsic is beyond any real camera (fx, fy outside [20, 10000] px, the principal point outside
+// the image, a distortion coefficient beyond ±5).
 // Only the physically impossible is refused: a static or short recording (the MAV on the floor,
 // a 5 s clip) is valid data, and gets a note (pathLengthNote).
 void checkSequencePlausibility(const Sequence& sequence);

@@ -244,6 +244,10 @@ TEST_F(RunInputs, CheckRefusesTheImageFoldersRunRefuses) {
        [&](const fs::path& mav) {
          return rewrite_yaml(mav / "cam0/sensor.yaml", ", 0.00019359, 1.76187114e-05]", "]");
        }},
+      {"radtan with k1 = -280",
+       [&](const fs::path& mav) {
+         return rewrite_yaml(mav / "cam0/sensor.yaml", "[-0.28340811,", "[-280,");
+       }},
       {"an unknown distortion model",
        [&](const fs::path& mav) {
          return rewrite_yaml(mav / "cam1/sensor.yaml", "radial-tangential", "fisheye-624");

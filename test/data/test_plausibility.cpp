@@ -219,5 +219,45 @@ TEST(ErrorMessages, LongTokensAreCutAndEmptyFilesLeaveNoPrefix) {
   }
 }
 
+// Minor item of issue #32: a KITTI calib.txt whose P1 has the wrong sign (the cameras swapped,
+// baseline −0.54 m) or absurd intrinsics passed check and ran with 0–7 % stereo matches. P0 and
+// P1 values: fx = [0], cx = [2], tx·fx = [3], fy = [5], cy = [6].
+TEST(Plausibility, ImpossibleKittiCalibrationIsAnInputError) {
+  struct Case {
+    const char* what;
+    const char* camera;
+    int value;
+    const char* text;
+    const char* message;
+  };
+  const std::vector<Case> cases = {
+      {"P1 of the wrong sign", "P1:", 3, "3.798145000000e+02", "expected cam1 to the right of cam0"},
+      {"fx = 1e30", "P0:", 0, "1e30", "cam0: expected fx in [20, 10000] px"},
+      {"fy = 2", "P1:", 5, "2", "cam1: expected fy in [20, 10000] px"},
+      {"principal point far outside", "P0:", 2, "-5e5", "cam0: expected the principal point"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    TempDir dir;
+    const fs::path seq = kittiCopy(dir, 0, [](const std::string& r) { return r; });
+    std::istringstream in(test::readGz((kShipped / "kitti/10/calib.txt").string()));
+    std::string text, row;
+    while (std::getline(in, row)) {
+      if (row.rfind(c.camera, 0) == 0) {
+        std::istringstream fields(row.substr(3));
+        std::vector<std::string> v(12);
+        for (auto& value : v) fields >> value;
+        v[static_cast<std::size_t>(c.value)] = c.text;
+        row = c.camera;
+        for (const auto& value : v) row += " " + value;
+      }
+      text += row + "\n";
+    }
+    writeFile((seq / "calib.txt").string(), text);
+    expectInputError([&] { loadSequence(seq.string()); }, (seq / "calib.txt").string(), 0,
+                     c.message);
+  }
+}
+
 }  // namespace
 }  // namespace marglab
