@@ -270,6 +270,35 @@ TEST_F(RunInputs, CheckRefusesTheImageFoldersRunRefuses) {
   }
 }
 
+// Minor item of issue #32: one catch-all "no camera frame lies inside the trajectory" for an empty
+// cam1/data.csv and one whose timestamps are 1 ns off cam0's; now the file and the cause.
+TEST_F(RunInputs, CameraListsWithoutAStereoFrameSayWhich) {
+  struct Case {
+    const char* what;
+    int64_t shift_ns;
+    int rows;
+    const char* message;
+  };
+  for (const Case& c : {Case{"header only", 0, 0, "lists no images"},
+                        Case{"1 ns off", 1, 3, "none of its 3 timestamps is one of the 3"}}) {
+    SCOPED_TRACE(c.what);
+    fs::remove_all(dir_ / "user");
+    const fs::path seq = aslCopy(dir_, "user", 3);
+    const fs::path csv = seq / "mav0/cam1/data.csv";
+    std::istringstream in(readText(csv));
+    std::string text, line;
+    std::getline(in, line);
+    text = line + "\n";
+    for (int i = 0; i < c.rows && std::getline(in, line); ++i) {
+      const auto comma = line.find(',');
+      text += std::to_string(std::stoll(line.substr(0, comma)) + c.shift_ns) +
+              line.substr(comma) + "\n";
+    }
+    std::ofstream(csv) << text;
+    expectRefused("--dataset " + quote(seq), 1, {csv.string() + ": " + c.message});
+  }
+}
+
 // Minor item of issue #32: -o was checked only after the work.
 TEST_F(RunInputs, OutputPathIsCheckedBeforeTheWork) {
   const std::string run = "run --variant ns-qr-sqrt-f64 --frames 5 --dataset kitti/05 -o ";
