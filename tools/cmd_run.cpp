@@ -55,6 +55,7 @@ struct RunArgs {
 // static or short recording is run, with a note.
 void checkInputsBeforeRunning(const RunArgs& args) {
   cli::checkOutputFile(args.output, "-o");
+  cli::checkOutputFile(tumPathFor(args.output), "the TUM trajectory beside -o");
   if (!args.tracks.empty() && args.frontend != "auto") {
     throw UsageError("--tracks FILE and --frontend " + args.frontend +
                      " both say where the tracks come from: give one of them");
@@ -172,6 +173,14 @@ int runRun(const RunArgs& args) {
     fmt::print(stderr, "{}marglab: {}: stopped, no results file written\n", terminal ? "\n" : "",
                e.what());
     return e.exitCode();
+  } catch (const InputError& e) {
+    // The trajectory is written after the results file: both or neither.
+    if (e.file() != tumPathFor(args.output)) throw;
+    std::error_code ec;
+    std::filesystem::remove(args.output, ec);
+    throw InputError(e.file(), e.line(),
+                     e.detail() + " (the results file " + args.output +
+                         " was removed with it: a run leaves both files or neither)");
   }
   if (terminal) fmt::print(stderr, "\n");
 

@@ -357,6 +357,33 @@ TEST_F(RunInputs, SimulateUsesTheGroundTruthRunUses) {
   EXPECT_EQ(run.exit_code, 0) << run.output;
 }
 
+// Minor item of issue #32: a failed .tum write left the complete .h5 while the run exited 1. An
+// immutable file (chattr +i: not even root may replace it) makes the write of the trajectory,
+// which comes after the results file, fail.
+TEST_F(RunInputs, FailedTrajectoryWriteLeavesNeitherFile) {
+  const fs::path tum = dir_ / "imm.tum";
+  std::ofstream(tum) << "";
+  if (test::runShell("chattr +i " + quote(tum)).exit_code != 0) {
+    GTEST_SKIP() << "chattr +i is not available here (needs root and a file system with it)";
+  }
+  const auto result = runCli("run --variant ns-qr-sqrt-f64 --frames 5 --dataset kitti/05 -o " +
+                             quote(dir_ / "imm.h5"));
+  test::runShell("chattr -i " + quote(tum));
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find(tum.string() + ": "), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("was removed with it"), std::string::npos) << result.output;
+  EXPECT_FALSE(fs::exists(dir_ / "imm.h5"));
+  // A folder in place of the trajectory is refused before the work.
+  fs::remove(tum);
+  fs::create_directories(tum);
+  const auto folder = runCli("run --variant ns-qr-sqrt-f64 --frames 5 --dataset kitti/05 -o " +
+                             quote(dir_ / "imm.h5"));
+  EXPECT_EQ(folder.exit_code, 1) << folder.output;
+  EXPECT_NE(folder.output.find(tum.string() + ": is a folder"), std::string::npos)
+      << folder.output;
+  EXPECT_FALSE(fs::exists(dir_ / "imm.h5"));
+}
+
 // Minor item of issue #32: "0.0000 m (1 pairs, SE(3)-aligned)" for a one-frame run.
 TEST_F(RunInputs, AteOfFewerThanThreePairsIsUnavailable) {
   const auto run = runCli("run --variant ns-qr-sqrt-f64 --frames 2 --dataset kitti/05 -o " +
