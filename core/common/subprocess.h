@@ -70,6 +70,16 @@ int runHelper(const std::vector<std::string>& argv);
 // browser on PATH). Throws Interrupted like runHelper.
 bool probeSucceeds(const std::vector<std::string>& argv);
 
+// A short command whose output is wanted (the Slurm client's sbatch, squeue, scancel): argv[0]
+// searched on PATH, stdin /dev/null, stdout and stderr read to their end together (neither pipe
+// fills up and blocks the child). It stays in this process's group: a Ctrl-C reaches it too.
+struct CommandResult {
+  int exit_code = -1;  // -1: could not start, 128+N: killed by signal N
+  std::string out;     // stdout
+  std::string err;     // stderr
+};
+CommandResult runCommand(const std::vector<std::string>& argv);
+
 // While an object lives, SIGINT and SIGTERM are recorded instead of acting (the previous actions
 // are restored by the destructor): the sweep's loop, a Slurm follower and runChild poll
 // stopSignal() and wind down in order. Nestable: an inner scope keeps a signal the outer one
