@@ -1,8 +1,9 @@
 // `marglab datasets <sub-verb>`: the real datasets shipped in datasets/ (or a user's folder).
 //
 //   marglab datasets list                   table of the shipped sequences
-//   marglab datasets check [--all | SEQ...]  load + validate, one line per sequence; exit 1 on
-//   error
+//   marglab datasets check [--all | SEQ...]  load + validate as `run` does (the camera models and
+//                                           every image too), one line per sequence; exit 1 on
+//                                           error
 //   marglab datasets simulate --dataset SEQ [--seed S] [--frames N] [--no-noise]
 //                             [--profile ideal|realistic] -o FILE
 //                                           simulated stereo tracks along the GT spline -> track
@@ -31,6 +32,7 @@
 #include "core/data/sequence.h"
 #include "core/estimator/config.h"
 #include "core/frontend/rendered_folder.h"
+#include "core/frontend/image_check.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/sim_profile.h"
@@ -120,6 +122,9 @@ CommandRun setupCheck(CLI::App& app) {
         }
         if (seq.imu)
           summary += fmt::format(", IMU {} @ {:.1f} Hz", seq.imu->size(), check.imu_rate_hz);
+        // What `run` loads beyond the sequence: the camera models and every image.
+        if (const std::size_t pairs = checkImages(loadImageSequence(target)); pairs > 0)
+          summary += fmt::format(", {} stereo image pairs decoded", pairs);
         if (!check.notes.empty()) summary += " [" + joined(check.notes, "; ") + "]";
         fmt::print("ok    {:<24} {}\n", seq.name, summary);
       } catch (const InputError& e) {
@@ -162,10 +167,13 @@ CommandRun setupSimulate(CLI::App& app) {
       ->required();
   return [options] {
     checkDatasetArgument(options->dataset);
+    cli::checkOutputFile(options->output, "-o");
     cli::refuseOverwritingInputs({options->output},
                                  {{}, cli::datasetInputFolders(options->dataset)});
     const auto start = std::chrono::steady_clock::now();
-    const Sequence seq = loadSequence(options->dataset, LoadOptions{false});
+    // The sequence as `run --frontend simulated` loads it: an image folder's ground truth may come
+    // from the shipped sequence of its recording (image_folder.h).
+    const Sequence seq = loadImageSequence(options->dataset).sequence;
     if (!seq.hasTrajectory()) {
       throw InputError(
           seq.directory, 0,
@@ -250,7 +258,7 @@ CommandRun setupTrack(CLI::App& app) {
       ->check(nonNegativeInt("the number of frames (0: all)"));
   app.add_option("--passes", options->passes,
                  "track the images this many times and report the fastest pass (timing)")
-      ->check(positiveInt("the number of passes"));
+      ->check(cli::intRange("the number of passes", 1, 100));
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   app.add_option("--config", options->config,
@@ -258,10 +266,12 @@ CommandRun setupTrack(CLI::App& app) {
                  "checked and ignored; prediction: the tracker's own, there is no estimator)");
   return [options] {
     checkDatasetArgument(options->dataset);
+    cli::checkOutputFile(options->output, "-o");
     EstimatorConfig config;
     if (!options->config.empty()) config.loadToml(options->config);
     cli::refuseOverwritingInputs({options->output},
                                  {{}, cli::datasetInputFolders(options->dataset)});
+    installInterruptCleanup();  // SIGINT / SIGTERM while tracking: says so, exits 128 + signal
     const ImageSequence images = loadImageSequence(options->dataset);
     ImageTracking tracking;
     double best_s = 0, best_cpu_s = 0;

@@ -17,6 +17,7 @@
 #include "core/common/source_dir.h"
 #include "core/massspring/experiment.h"
 #include "core/massspring/report.h"
+#include "core/common/subprocess.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
 
@@ -39,8 +40,7 @@ struct Options {
 
 std::string findPythonWithMatplotlib() {
   for (const std::string candidate : {"/usr/bin/python3", "python3"}) {
-    const std::string command = candidate + " -c 'import matplotlib' > /dev/null 2>&1";
-    if (std::system(command.c_str()) == 0) return candidate;
+    if (probeSucceeds({candidate, "-c", "import matplotlib"})) return candidate;
   }
   return {};
 }
@@ -65,11 +65,10 @@ std::string writeFigure(const Options& opt, const MassSpringSystem& system,
   if (!written) {
     message = "figure skipped: cannot write the temporary file";
   } else {
-    const std::string command =
-        fmt::format("'{}' '{}' '{}' '{}' 2>&1", python, script, tmp, opt.plot_dir + "/massspring");
-    message = std::system(command.c_str()) == 0
+    const std::vector<std::string> command = {python, script, tmp, opt.plot_dir + "/massspring"};
+    message = runHelper(command) == 0
                   ? fmt::format("figure: {0}/massspring.png, {0}/massspring.pdf", opt.plot_dir)
-                  : "figure failed: " + command;
+                  : "figure failed: " + fmt::format("{}", fmt::join(command, " "));
   }
   std::remove(tmp);
   return message;

@@ -7,7 +7,6 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -18,6 +17,7 @@
 
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
+#include "core/common/subprocess.h"
 #include "core/experiment/sweep_index.h"
 #include "core/experiment/sweep_runner.h"
 #include "core/experiment/tables.h"
@@ -45,9 +45,7 @@ std::string findPythonWith(const std::vector<std::string>& modules) {
       "['{}']))",
       fmt::join(modules, "', '"));
   for (const std::string& candidate : candidates) {
-    const std::string command =
-        experiment::shellJoin({candidate, "-c", probe}) + " > /dev/null 2>&1";
-    if (std::system(command.c_str()) == 0) return candidate;
+    if (probeSucceeds({candidate, "-c", probe})) return candidate;
   }
   return {};
 }
@@ -63,18 +61,6 @@ void requireSweepFolder(const std::string& dir) {
   const auto rows = experiment::readIndex(index);  // throws InputError(index, line, ...)
   if (rows.empty()) throw InputError(index, 0, "the sweep has no runs");
 }
-
-namespace {
-
-// Runs a command line; returns its exit code (-1 when it did not exit normally).
-int runCommand(const std::vector<std::string>& args) {
-  std::fflush(stdout);
-  std::fflush(stderr);
-  const int status = std::system(experiment::shellJoin(args).c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-}  // namespace
 
 int runNotebooks(const NotebooksRequest& request) {
   requireSweepFolder(request.dir);
@@ -104,7 +90,8 @@ int runNotebooks(const NotebooksRequest& request) {
     experiment::writeTables(tables, nullptr);
   }
   const std::string out = request.out.empty() ? defaultAnalysisOut(request.dir) : request.out;
-  const int code = runCommand({python, script, "--sweep", request.dir, "--out", out, "--notebooks",
+  // The runner and its Jupyter kernels end with this process (subprocess.h).
+  const int code = runHelper({python, script, "--sweep", request.dir, "--out", out, "--notebooks",
                                source + "/notebooks", "--runs", request.runs, "--jobs",
                                std::to_string(request.jobs)});
   if (code == 2) throw UsageError("marglab notebooks: see the message above");

@@ -7,7 +7,6 @@
 
 #include <fmt/core.h>
 
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -17,6 +16,7 @@
 
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
+#include "core/common/subprocess.h"
 #include "core/experiment/plotting.h"
 #include "core/experiment/sweep_runner.h"
 #include "core/experiment/tables.h"
@@ -28,13 +28,6 @@ namespace marglab::cli {
 namespace fs = std::filesystem;
 
 namespace {
-
-int runCommand(const std::vector<std::string>& args) {
-  std::fflush(stdout);
-  std::fflush(stderr);
-  const int status = std::system(experiment::shellJoin(args).c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
 
 bool hasFigures(const std::string& dir) {
   if (!fs::is_directory(dir)) return false;
@@ -50,9 +43,7 @@ bool hasFigures(const std::string& dir) {
 
 bool chromiumAvailable() {
   for (const char* name : {"chromium", "chromium-browser", "google-chrome"}) {
-    const std::string command =
-        experiment::shellJoin({"sh", "-c", std::string("command -v ") + name}) + " > /dev/null";
-    if (std::system(command.c_str()) == 0) return true;
+    if (probeSucceeds({"sh", "-c", std::string("command -v ") + name})) return true;
   }
   return false;
 }
@@ -91,7 +82,7 @@ int runReport(const ReportRequest& request) {
       fmt::print(stderr, "marglab report: no figures (see above); the report says so\n");
     }
   }
-  if (runCommand({python, make_report, "--sweep", request.dir, "--out", out, "--tables", tables,
+  if (runHelper({python, make_report, "--sweep", request.dir, "--out", out, "--tables", tables,
                   "--figures", figures}) != 0) {
     fmt::print(stderr, "marglab report: {} failed\n", make_report);
     return 1;
@@ -109,7 +100,8 @@ int runReport(const ReportRequest& request) {
   const std::string browser_python = findPythonWith({"websocket"});
   const std::string screenshot =
       request.screenshot.empty() ? (fs::path(out) / "report.png").string() : request.screenshot;
-  const int code = runCommand({browser_python.empty() ? python : browser_python,
+  // The checker and its headless Chromium end with this process (subprocess.h).
+  const int code = runHelper({browser_python.empty() ? python : browser_python,
                                scripts + "/check_report.py", page, "--report", "--min-tables", "2",
                                "--min-figures", "1", "--screenshot", screenshot});
   if (code == 3) {

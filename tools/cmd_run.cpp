@@ -12,9 +12,12 @@
 
 #include "core/common/error.h"
 #include "core/common/interrupt.h"
+#include "core/data/plausibility.h"
 #include "core/data/sequence.h"
+#include "core/frontend/image_folder.h"
 #include "core/linalg/isa.h"
 #include "core/pipeline/run.h"
+#include "core/sim/track_io.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
 #include "tools/output_checks.h"
@@ -43,7 +46,38 @@ struct RunArgs {
   std::vector<int> dump_windows;
   std::string dump_dir = "windows";
   std::string isa = "auto";
+  bool tracks_any_sequence = false;
 };
+
+// What can be checked before any work (issue #32: a run must not track images or estimate for
+// minutes and then fail on its input): --tracks against --frontend, the track file against the
+// dataset (its sequence and timestamps), a real IMU against the camera frames, the output path. A
+// static or short recording is run, with a note.
+void checkInputsBeforeRunning(const RunArgs& args) {
+  cli::checkOutputFile(args.output, "-o");
+  cli::checkOutputFile(tumPathFor(args.output), "the TUM trajectory beside -o");
+  if (!args.tracks.empty() && args.frontend != "auto") {
+    throw UsageError("--tracks FILE and --frontend " + args.frontend +
+                     " both say where the tracks come from: give one of them");
+  }
+  const Sequence sequence = loadImageSequence(args.dataset).sequence;
+  if (!args.tracks.empty() && !args.tracks_any_sequence) {
+    checkTracksBelongTo(readTrackFile(args.tracks), args.tracks, sequence);
+  }
+  if (args.imu == "real") checkImuCoverage(sequence);
+  // A window the run can never reach would be captured silently never.
+  const int frames = args.frames > 0 ? args.frames : static_cast<int>(sequence.cam_t_ns.size());
+  for (const int frame : args.dump_windows) {
+    if (frame >= frames) {
+      throw UsageError(fmt::format("--dump-windows {}: the run has {} frames ({}), expected "
+                                   "indices below",
+                                   frame, frames, args.frames > 0 ? "--frames" : sequence.name));
+    }
+  }
+  if (const std::string note = pathLengthNote(sequence); !note.empty()) {
+    fmt::print(stderr, "marglab run: note: {}: {}\n", sequence.gt_file, note);
+  }
+}
 
 // The results file, its TUM trajectory and the captured windows against the files and folders
 // the run reads.
@@ -113,6 +147,7 @@ int runRun(const RunArgs& args) {
   // A meaningless setting is refused here, never reported as a numerical failure of the run.
   config.validate();
   refuseOverwritingInputs(args);
+  checkInputsBeforeRunning(args);
   if (!options.dump_windows.empty()) std::filesystem::create_directories(options.dump_dir);
 
   const auto start = std::chrono::steady_clock::now();
@@ -138,6 +173,14 @@ int runRun(const RunArgs& args) {
     fmt::print(stderr, "{}marglab: {}: stopped, no results file written\n", terminal ? "\n" : "",
                e.what());
     return e.exitCode();
+  } catch (const InputError& e) {
+    // The trajectory is written after the results file: both or neither.
+    if (e.file() != tumPathFor(args.output)) throw;
+    std::error_code ec;
+    std::filesystem::remove(args.output, ec);
+    throw InputError(e.file(), e.line(),
+                     e.detail() + " (the results file " + args.output +
+                         " was removed with it: a run leaves both files or neither)");
   }
   if (terminal) fmt::print(stderr, "\n");
 
@@ -153,8 +196,12 @@ int runRun(const RunArgs& args) {
   fmt::print("  frames            {} ({:.1f} s of data, {:.0f} features/frame)\n", s.n_frames,
              s.duration_s, outcome.mean_features_per_frame);
   fmt::print("  front-end         {}\n", outcome.frontend_summary);
-  if (s.n_ate_pairs > 0) {
+  if (s.n_ate_pairs >= 3) {
     fmt::print("  ATE RMSE          {:.4f} m ({} pairs, SE(3)-aligned)\n", s.ate_rmse,
+               s.n_ate_pairs);
+  } else if (s.n_ate_pairs > 0) {
+    // An SE(3) alignment of 1 or 2 positions fits them exactly: the 0 it gives says nothing.
+    fmt::print("  ATE RMSE          unavailable ({} pair(s); the SE(3) alignment needs 3)\n",
                s.n_ate_pairs);
   } else {
     fmt::print("  ATE RMSE          unavailable (no ground truth for these frames)\n");
@@ -208,6 +255,9 @@ const bool kRegistered = cli::registerCommand(
                       "Run on this track file (HDF5 or text, datasets/README.md) instead of a "
                       "front-end; --dataset supplies calibration, ground truth and IMU")
            ->check(cli::existingPath("--tracks", cli::PathKind::kFile));
+       sub.add_flag("--tracks-any-sequence", args->tracks_any_sequence,
+                    "Run on a --tracks file recorded for another sequence or at other timestamps "
+                    "(refused by default)");
        sub.add_option("--frames", args->frames, "Process only the first N frames (0: all)")
            ->capture_default_str()
            ->check(cli::nonNegativeInt("the number of frames (0: all)"));

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -15,6 +16,7 @@
 #include "core/experiment/slurm_backend.h"
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_runner.h"
+#include "core/frontend/image_folder.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
 #include "tools/output_checks.h"
@@ -34,9 +36,28 @@ std::string optionValue(const std::vector<std::string>& args, const std::string&
   return value;
 }
 
-// What `marglab run` would refuse only after loading the dataset: VIO on KITTI (no IMU), so that
-// `sweep --dry-run` and the validation before a sweep refuse it too.
+// Whether a dataset has stereo images (loaded once per dataset: a sweep plans many runs of each).
+bool hasImages(const std::string& dataset) {
+  static std::map<std::string, bool> known;
+  const auto it = known.find(dataset);
+  if (it != known.end()) return it->second;
+  bool images = true;  // a folder that cannot be loaded: the run itself reports it
+  try {
+    images = loadImageSequence(dataset).images.has_value();
+  } catch (const InputError&) {
+  }
+  return known[dataset] = images;
+}
+
+// What `marglab run` would refuse only after loading the dataset: VIO on KITTI (no IMU), the image
+// front-end on a folder without images, so that `sweep --dry-run` and the validation before a
+// sweep refuse it too.
 std::string runPlanProblem(const experiment::PlannedRun& run) {
+  if (run.frontend == "images" && !hasImages(run.dataset)) {
+    return fmt::format("frontend = \"images\" on {}, which has no images (expected mav0/cam0/data/ "
+                       "or image_0/ and image_1/)",
+                       run.dataset);
+  }
   try {
     if (sequenceKind(run.dataset) != DatasetKind::kKitti) return {};
   } catch (const InputError&) {

@@ -57,6 +57,7 @@ const bool kRegistered = cli::registerCommand(
        return [request, seeds] {
          experiment::parseSeedStats(*seeds, &request->seeds);
          requireRuns(request->dirs);
+         request->require_tables = true;
          std::string md;
          experiment::writeTables(*request, &md);
          if (request->print) fmt::print("\n{}", md);

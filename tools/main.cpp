@@ -11,6 +11,7 @@
 #include <string_view>
 
 #include "core/common/error.h"
+#include "core/common/interrupt.h"
 #include "marglab/version.h"
 #include "tools/command.h"
 
@@ -112,6 +113,9 @@ int main(int argc, char** argv) {
   } catch (const InputError& e) {
     fmt::print(stderr, "marglab: error: {}\n", e.what());
     return 1;
+  } catch (const Interrupted& e) {  // a helper process stopped with us (subprocess.h)
+    fmt::print(stderr, "marglab: {}\n", e.what());
+    return e.exitCode();
   } catch (const std::exception& e) {
     fmt::print(stderr, "marglab: error: {}\n", e.what());
     return 1;

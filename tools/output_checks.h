@@ -6,6 +6,7 @@
 // folder: every file in it counts as data). An output that does not exist yet replaces nothing.
 
 #include <fmt/core.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <string>
@@ -64,6 +65,28 @@ inline void refuseOverwritingInputs(const std::vector<std::string>& outputs,
                                      folder));
       }
     }
+  }
+}
+
+// An output file checked before any work (a run must not track or estimate for minutes and then
+// find it cannot write): not "", not a folder, in an existing folder this process may write.
+// Throws UsageError for "" and InputError naming the path and what was expected otherwise.
+inline void checkOutputFile(const std::string& output, const std::string& option) {
+  namespace fs = std::filesystem;
+  if (output.empty()) throw UsageError(option + " is empty: expected the path of a file to write");
+  std::error_code ec;
+  if (fs::is_directory(output, ec)) {
+    throw InputError(output, 0, "is a folder: expected the path of a file to write (" + option +
+                                    ")");
+  }
+  const fs::path parent = fs::absolute(output, ec).parent_path();
+  if (!fs::is_directory(parent, ec)) {
+    throw InputError(parent.string(), 0,
+                     "no such folder: expected the folder of " + option + " to exist");
+  }
+  if (::access(parent.c_str(), W_OK) != 0) {
+    throw InputError(parent.string(), 0,
+                     "not writable: cannot write " + option + " " + output + " there");
   }
 }
 

@@ -1,11 +1,7 @@
 #include "core/bench/bench_report.h"
 
-#include <fcntl.h>
 #include <fmt/core.h>
 #include <fmt/format.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -19,6 +15,8 @@
 #include "core/bench/window_kernels.h"
 #include "core/common/error.h"
 #include "core/common/json.h"
+#include "core/common/interrupt.h"
+#include "core/common/subprocess.h"
 #include "core/estimator/linearization_kernels.h"
 #include "core/io/results_file.h"
 #include "core/linalg/isa.h"
@@ -140,28 +138,16 @@ WholeRun wholeRun(const BenchOptions& o, const std::string& dataset, const std::
                                    std::to_string(o.run_frames),
                                    "-o",
                                    out};
-  std::vector<char*> argv;
-  for (std::string& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
   const auto t0 = Clock::now();
-  const pid_t pid = fork();
-  if (pid < 0) throw InputError("", 0, "bench: fork failed");
-  if (pid == 0) {
-    const int null = open("/dev/null", O_WRONLY);
-    if (null >= 0) {
-      dup2(null, STDOUT_FILENO);
-      dup2(null, STDERR_FILENO);
-    }
-    execv(argv[0], argv.data());
-    _exit(127);
-  }
-  int status = 0;
-  rusage usage{};
-  if (wait4(pid, &status, 0, &usage) != pid) throw InputError("", 0, "bench: wait4 failed");
+  ChildSpec spec;
+  spec.argv = std::move(args);
+  spec.discard_output = true;
+  const ChildResult child = runChild(spec);
   run.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
-  run.peak_rss_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    run.status = fmt::format("failed (exit {})", WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+  run.peak_rss_mb = static_cast<double>(child.usage.ru_maxrss) / 1024.0;
+  if (child.stop_signal != 0) throw Interrupted(child.stop_signal);
+  if (child.exit_code != 0) {
+    run.status = fmt::format("failed (exit {})", child.exit_code);
     return run;
   }
   const SummaryValues s = ResultsReader(out).summary();

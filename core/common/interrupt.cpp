@@ -22,6 +22,11 @@ extern "C" void onInterrupt(int signal) {
   g_signal = signal;
   if (g_polling.load() > 0) return;
   detail::unlinkLiveTemporaries();
+  // write(2) only: the one async-signal-safe way to say why the process stops.
+  const char* text = signal == SIGINT
+                         ? "\nmarglab: interrupted by SIGINT: stopped, unfinished outputs removed\n"
+                         : "\nmarglab: interrupted by SIGTERM: stopped, unfinished outputs removed\n";
+  [[maybe_unused]] const ssize_t n = ::write(STDERR_FILENO, text, std::strlen(text));
   ::_exit(128 + signal);
 }
 

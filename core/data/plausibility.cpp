@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 
 #include <cmath>
+#include <utility>
 
 #include "core/common/error.h"
 
@@ -72,27 +73,73 @@ std::string imuSampleProblem(const PlausibilityLimits& limits, bool first, int64
   return {};
 }
 
-void checkSequencePlausibility(const Sequence& seq) {
-  const PlausibilityLimits& limits = plausibilityLimits(seq.kind);
-  if (seq.hasTrajectory()) {
-    double length = 0;
-    for (std::size_t i = 1; i < seq.gt.size(); ++i) {
-      length += (seq.gt.p_w_b[i] - seq.gt.p_w_b[i - 1]).norm();
-    }
-    if (!(length >= limits.min_path_length_m)) {
-      throw InputError(
-          seq.gt_file, 0,
-          fmt::format("expected a trajectory that moves at least {:g} m ({}), found a "
-                      "path of {:.6g} m over {} poses: nothing to estimate",
-                      limits.min_path_length_m, limits.platform, length, seq.gt.size()));
+std::string pathLengthNote(const Sequence& seq) {
+  if (!seq.hasTrajectory()) return {};
+  double length = 0;
+  for (std::size_t i = 1; i < seq.gt.size(); ++i) {
+    length += (seq.gt.p_w_b[i] - seq.gt.p_w_b[i - 1]).norm();
+  }
+  if (length >= plausibilityLimits(seq.kind).note_path_length_m) return {};
+  return fmt::format(
+      "the trajectory moves {:.3g} m over {:.1f} s ({} poses): a static or short recording, "
+      "little motion to estimate",
+      length, 1e-9 * static_cast<double>(seq.gt.t_ns.back() - seq.gt.t_ns.front()),
+      seq.gt.size());
+}
+
+namespace {
+
+// Intrinsics no real camera of these datasets comes near (EuRoC fx 458 px, TUM-VI 190 px, KITTI
+// 718 px; |k| ≤ 0.3): a mistyped or corrupted calibration, refused like an impossible pose.
+constexpr double kMinFocalPx = 20, kMaxFocalPx = 10000, kMaxDistortion = 5;
+
+void checkIntrinsics(const CameraCalib& cam, const char* which, const std::string& source) {
+  const auto refuse = [&](const std::string& what) {
+    throw InputError(source, 0, fmt::format("{}: expected {}", which, what));
+  };
+  for (const auto& [name, f] : {std::pair<const char*, double>{"fx", cam.fx}, {"fy", cam.fy}}) {
+    if (!(f >= kMinFocalPx && f <= kMaxFocalPx)) {
+      refuse(fmt::format("{} in [{:g}, {:g}] px (any real camera), found {:.6g}", name,
+                         kMinFocalPx, kMaxFocalPx, f));
     }
   }
+  const double w = cam.width > 0 ? cam.width : kMaxFocalPx;  // KITTI: no size in calib.txt
+  const double h = cam.height > 0 ? cam.height : kMaxFocalPx;
+  if (!(cam.cx >= 0 && cam.cx <= w && cam.cy >= 0 && cam.cy <= h)) {
+    refuse(fmt::format("the principal point inside the image [0, {:g}] x [0, {:g}] px, found "
+                       "({:.6g}, {:.6g})",
+                       w, h, cam.cx, cam.cy));
+  }
+  for (const double k : cam.distortion) {
+    if (!(std::abs(k) <= kMaxDistortion)) {
+      refuse(fmt::format("distortion coefficients within ±{:g}, found {:.6g}", kMaxDistortion, k));
+    }
+  }
+}
+
+}  // namespace
+
+void checkSequencePlausibility(const Sequence& seq) {
+  const PlausibilityLimits& limits = plausibilityLimits(seq.kind);
+  checkIntrinsics(seq.calib.cam0, "cam0", seq.calib_source);
+  checkIntrinsics(seq.calib.cam1, "cam1", seq.calib_source);
   const double baseline = seq.calib.baseline();
   if (!(baseline >= limits.min_baseline_m && baseline <= limits.max_baseline_m)) {
     throw InputError(
         seq.calib_source, 0,
         fmt::format("expected a stereo baseline in [{:g}, {:g}] m ({}), found {:.6g} m",
                     limits.min_baseline_m, limits.max_baseline_m, limits.platform, baseline));
+  }
+  // cam1 is the right camera: its centre lies on cam0's +x side (a P1 with the wrong sign swaps
+  // the cameras, and the stereo matching then finds next to nothing).
+  const Eigen::Vector3d c1_in_c0 =
+      seq.calib.cam0.R_b_c.transpose() * (seq.calib.cam1.t_b_c - seq.calib.cam0.t_b_c);
+  if (!(c1_in_c0.x() > 0)) {
+    throw InputError(seq.calib_source, 0,
+                     fmt::format("expected cam1 to the right of cam0 (+x of cam0), found it at "
+                                 "x = {:.6g} m: are the cameras swapped (the sign of P1's "
+                                 "translation)?",
+                                 c1_in_c0.x()));
   }
 }
 

@@ -24,7 +24,7 @@ struct PlausibilityLimits {
   const char* platform;                   // what moves: "MAV / handheld rig", "car"
   double max_speed_mps;                   // |Δp| / Δt between consecutive poses
   double max_step_m;                      // |Δp| between consecutive poses, whatever Δt
-  double min_path_length_m;               // below: a static trajectory, nothing to estimate
+  double note_path_length_m;              // below: a static or short recording (a note)
   double min_baseline_m, max_baseline_m;  // stereo baseline
   double imu_rate_hz;                     // nominal IMU rate (0: the dataset has no IMU)
   double max_imu_gap_s;                   // largest time between two IMU samples
@@ -45,8 +45,17 @@ std::string imuSampleProblem(const PlausibilityLimits& limits, bool first, int64
                              int64_t t_ns, const Eigen::Vector3d& gyro,
                              const Eigen::Vector3d& accel);
 
-// Throws InputError naming the sequence's files when the trajectory does not move (path length
-// below the limit) or the stereo baseline is outside its limits.
+// Throws InputError naming the sequence's files when the stereo baseline is outside its limits,
+// cam1 is not to the right of cam0 (swapped cameras: a KITTI P1 of the wrong sign), or an
+// intrinsic is beyond any real camera (fx, fy outside [20, 10000] px, the principal point outside
+// the image, a distortion coefficient beyond ±5).
+// Only the physically impossible is refused: a static or short recording (the MAV on the floor,
+// a 5 s clip) is valid data, and gets a note (pathLengthNote).
 void checkSequencePlausibility(const Sequence& sequence);
+
+// "" when the trajectory moves at least note_path_length_m (or there is none), else a note for
+// `datasets check` and `run`: "the trajectory moves 0.015 m over 5.0 s (a static or short
+// recording: little motion to estimate)".
+std::string pathLengthNote(const Sequence& sequence);
 
 }  // namespace marglab

@@ -300,7 +300,8 @@ SequenceFolder sequenceFolder(const std::string& name_or_path) {
   const bool looks_like_path =
       !name_or_path.empty() && (name_or_path.front() == '/' || name_or_path.front() == '.');
   if (!looks_like_path && !name.empty() && isDir(root / name)) return {root / name, name};
-  if (isDir(name_or_path)) return {name_or_path, ""};
+  const std::string path = normalizeDatasetArgument(name_or_path);
+  if (isDir(path)) return {path, ""};
   throw InputError(
       name_or_path, 0,
       fmt::format("expected a sequence name or an existing folder; sequences in {}: {}",
@@ -308,6 +309,17 @@ SequenceFolder sequenceFolder(const std::string& name_or_path) {
 }
 
 }  // namespace
+
+std::string normalizeDatasetArgument(const std::string& name_or_path) {
+  const bool looks_like_path =
+      !name_or_path.empty() && (name_or_path.front() == '/' || name_or_path.front() == '.');
+  const std::string name = canonicalName(name_or_path);
+  if (!looks_like_path && !name.empty() && isDir(fs::path(datasetsRoot()) / name)) return name;
+  if (name_or_path.empty()) return name_or_path;
+  std::string path = fs::path(name_or_path).lexically_normal().string();
+  while (path.size() > 1 && path.back() == '/') path.pop_back();
+  return path;
+}
 
 std::string datasetsRoot() {
   const char* env = std::getenv("MARGLAB_DATASETS");
@@ -362,6 +374,34 @@ std::pair<std::size_t, std::size_t> framesWithinTrajectory(const Sequence& seque
           static_cast<std::size_t>(last - cam.begin())};
 }
 
+double checkImuCoverage(const Sequence& seq) {
+  if (!seq.imu) return 0;
+  const auto& cam = seq.cam_t_ns;
+  if (cam.empty()) throw InputError(seq.cam_file, 0, "expected at least 2 camera timestamps");
+  const auto& t = seq.imu->t_ns;
+  if (t.size() < 2) throw InputError(seq.imu_file, 0, "expected at least 2 IMU samples");
+  std::vector<int64_t> dt(t.size() - 1);
+  for (std::size_t i = 1; i < t.size(); ++i) dt[i - 1] = t[i] - t[i - 1];
+  std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
+  const double rate_hz = 1e9 / static_cast<double>(dt[dt.size() / 2]);
+  if (std::abs(rate_hz / kNominalImuRateHz - 1.0) > kImuRateTolerance) {
+    throw InputError(seq.imu_file, 0,
+                     fmt::format("expected an IMU rate of {:.0f} Hz ± {:.0f} %, found {:.1f} Hz",
+                                 kNominalImuRateHz, 100 * kImuRateTolerance, rate_hz));
+  }
+  std::size_t first = 0, last = cam.size();
+  if (seq.hasTrajectory()) std::tie(first, last) = framesWithinTrajectory(seq);
+  if (first >= last) return rate_hz;  // no frame to cover (checkSequence says so)
+  if (t.front() > cam[first] || t.back() < cam[last - 1]) {
+    throw InputError(seq.imu_file, 0,
+                     fmt::format("expected the IMU [{}, {}] ns to cover the camera frames "
+                                 "[{}, {}] ns{}",
+                                 t.front(), t.back(), cam[first], cam[last - 1],
+                                 seq.hasTrajectory() ? " within the trajectory" : ""));
+  }
+  return rate_hz;
+}
+
 SequenceCheck checkSequence(const Sequence& seq) {
   SequenceCheck check;
   const auto& cam = seq.cam_t_ns;
@@ -388,6 +428,7 @@ SequenceCheck checkSequence(const Sequence& seq) {
           check.max_gt_gap_s, 1e-9 * static_cast<double>(seq.gt.t_ns[i] - seq.gt.t_ns[i - 1]));
     }
     if (seq.gt_is_estimate) check.notes.push_back(seq.gt_source + ", not ground truth");
+    if (const std::string note = pathLengthNote(seq); !note.empty()) check.notes.push_back(note);
     if (check.frames_in_gt < check.frames) {
       check.notes.push_back(
           fmt::format("trajectory spans {} of {} frames", check.frames_in_gt, check.frames));
@@ -401,28 +442,7 @@ SequenceCheck checkSequence(const Sequence& seq) {
     }
   }
 
-  if (seq.imu) {
-    const auto& t = seq.imu->t_ns;
-    if (t.size() < 2) throw InputError(seq.imu_file, 0, "expected at least 2 IMU samples");
-    std::vector<int64_t> dt(t.size() - 1);
-    for (std::size_t i = 1; i < t.size(); ++i) dt[i - 1] = t[i] - t[i - 1];
-    std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
-    check.imu_rate_hz = 1e9 / static_cast<double>(dt[dt.size() / 2]);
-    if (std::abs(check.imu_rate_hz / kNominalImuRateHz - 1.0) > kImuRateTolerance) {
-      throw InputError(seq.imu_file, 0,
-                       fmt::format("expected an IMU rate of {:.0f} Hz ± {:.0f} %, found {:.1f} Hz",
-                                   kNominalImuRateHz, 100 * kImuRateTolerance, check.imu_rate_hz));
-    }
-    std::size_t first = 0, last = cam.size();
-    if (seq.hasTrajectory()) std::tie(first, last) = framesWithinTrajectory(seq);
-    if (t.front() > cam[first] || t.back() < cam[last - 1]) {
-      throw InputError(seq.imu_file, 0,
-                       fmt::format("expected the IMU [{}, {}] ns to cover the camera frames "
-                                   "[{}, {}] ns{}",
-                                   t.front(), t.back(), cam[first], cam[last - 1],
-                                   seq.hasTrajectory() ? " within the trajectory" : ""));
-    }
-  }
+  if (seq.imu) check.imu_rate_hz = checkImuCoverage(seq);
   return check;
 }
 

@@ -42,6 +42,11 @@ struct LoadOptions {
   bool load_imu = true;  // false: only record whether a real IMU file exists (imu_file)
 };
 
+// A sequence argument as it enters (--dataset, a sweep's datasets): a shipped name unchanged but
+// for the TUM-VI export's folder names; a folder path lexically normalized without trailing
+// slashes, so that "x", "x/" and "./x/" (tab completion) name one dataset, called "x".
+std::string normalizeDatasetArgument(const std::string& name_or_path);
+
 // Throws InputError: for an unknown name (listing the available ones), an unreadable folder, any
 // bad file or an implausible sequence (core/data/plausibility.h).
 Sequence loadSequence(const std::string& name_or_path, const LoadOptions& options = {});
@@ -68,5 +73,10 @@ struct SequenceCheck {
 // gaps, real IMU rate within 10 % of 200 Hz and covering the frames inside the GT span. Throws
 // InputError naming the file and what was expected when a check fails.
 SequenceCheck checkSequence(const Sequence& sequence);
+
+// The IMU part of checkSequence, which `run --imu real` runs before any work: a real IMU at
+// 200 Hz ± 10 % that covers the camera frames (within the trajectory). Returns the median rate
+// (0 without an IMU); throws InputError naming the IMU file and what was expected.
+double checkImuCoverage(const Sequence& sequence);
 
 }  // namespace marglab

@@ -3,7 +3,6 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
-#include <sys/wait.h>
 #include <unistd.h>
 #include <cstdlib>
 #include <filesystem>
@@ -11,6 +10,7 @@
 
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
+#include "core/common/subprocess.h"
 #include "core/experiment/sweep_runner.h"
 
 namespace marglab::experiment {
@@ -22,9 +22,7 @@ std::string findPlottingPython() {
   }
   candidates.insert(candidates.end(), {"/usr/bin/python3", "python3"});
   for (const std::string& candidate : candidates) {
-    const std::string command =
-        shellJoin({candidate}) + " -c 'import matplotlib, h5py, numpy' > /dev/null 2>&1";
-    if (std::system(command.c_str()) == 0) return candidate;
+    if (probeSucceeds({candidate, "-c", "import matplotlib, h5py, numpy"})) return candidate;
   }
   return {};
 }
@@ -70,11 +68,9 @@ int runPlot(const PlotRequest& request) {
                                    "--vio-dataset", request.vio_dataset,
                                    "--vo-dataset",  request.vo_dataset};
   args.insert(args.end(), request.dirs.begin(), request.dirs.end());
-  std::fflush(stdout);
-  const int status = std::system(shellJoin(args).c_str());
-  if (status != 0) {
-    fmt::print(stderr, "marglab plot: {} failed (exit {})\n", script,
-               WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+  const int code = runHelper(args);
+  if (code != 0) {
+    fmt::print(stderr, "marglab plot: {} failed (exit {})\n", script, code);
     return 1;
   }
   return 0;

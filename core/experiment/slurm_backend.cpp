@@ -15,9 +15,11 @@
 #include <thread>
 
 #include "core/common/error.h"
+#include "core/common/subprocess.h"
 #include "core/common/utc_time.h"
 #include "core/experiment/slurm_client.h"
 #include "core/experiment/slurm_reconcile.h"
+#include "core/experiment/slurm_script.h"
 #include "core/experiment/sweep_common.h"
 #include "marglab/version.h"
 
@@ -26,9 +28,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-volatile std::sig_atomic_t g_stop_signal = 0;
-extern "C" void onSlurmStopSignal(int signal) { g_stop_signal = signal; }
 
 // The binary and git revision that planned the folder's Slurm submissions (slurm/binary.txt).
 struct Provenance {
@@ -53,6 +52,24 @@ void writeProvenance(const fs::path& out, const Provenance& p) {
 
 namespace {
 
+// A run whose tracking job failed is cancelled by Slurm (--kill-on-invalid-dep), which reads as
+// "cancelled in Slurm": say that its images could not be tracked, and where the log is.
+void explainTrackingFailure(const fs::path& out, IndexRow* row) {
+  if (row->get("status") != "failed" || row->get("failure_kind") != "interrupted") return;
+  const std::string& dataset = row->get("dataset");
+  if (row->get("command").find("--tracks tracks/" + slug(dataset) + ".h5") == std::string::npos) {
+    return;
+  }
+  const std::string id = "tracks_" + slug(dataset);
+  const TaskExit exit = readTaskExit((out / "slurm" / "exit" / id).string());
+  if (!exit.present || !exit.signal.empty() || exit.exit_code == 0) return;
+  const fs::path log = out / "logs" / (id + ".log");
+  row->set("failure_kind", "error");
+  row->set("reason", fmt::format("tracking the images of {} failed (exit {}): {} (see {})",
+                                 dataset, exit.exit_code, detail::lastNonEmptyLine(log.string()),
+                                 log.string()));
+}
+
 std::string describeRow(const IndexRow& row) {
   if (row.get("status") == "ok") return fmt::format("ATE {:.4f} m", row.number("ate_rmse"));
   const std::string& frame = row.get("failure_frame");
@@ -70,16 +87,29 @@ class Submitter {
   // array Slurm rejected stay pending without a job (--resume submits them again).
   std::vector<std::string> submit(const std::vector<std::size_t>& queue,
                                   std::vector<IndexRow>* rows) {
+    const std::map<std::string, std::string> tracking = submitTracking(queue);
     std::map<std::string, std::vector<std::size_t>> by_time;
     for (std::size_t i : queue) by_time[timeOf(plan_.runs[i])].push_back(i);
     std::vector<std::string> jobs;
+    for (const auto& [tracks, job] : tracking) {
+      jobs.push_back(job);
+      tracking_jobs_.push_back(job);
+    }
     for (const auto& [time, indices] : by_time) {
-      jobs.push_back(submitArray(time, indices, rows));
+      std::set<std::string> after_ok;
+      for (std::size_t i : indices) {
+        const auto it = tracking.find(sweepTrackFile(plan_.runs[i]));
+        if (plan_.runs[i].frontend == "images" && it != tracking.end()) after_ok.insert(it->second);
+      }
+      jobs.push_back(submitArray(time, indices, {after_ok.begin(), after_ok.end()}, rows));
     }
     return jobs;
   }
 
-  std::vector<std::string> scripts() const { return scripts_; }
+  // What was submitted, in order: the tracking jobs, then the run arrays.
+  const std::vector<std::string>& describedJobs() const { return described_; }
+  const std::vector<std::string>& trackingJobs() const { return tracking_jobs_; }
+
 
  private:
   std::string timeOf(const PlannedRun& run) const {
@@ -108,9 +138,31 @@ class Submitter {
     }
   }
 
+  // The image front-end once per dataset of the queued `frontend = "images"` runs, on a compute
+  // node like the runs (a one-task array each; the run arrays depend on it, slurm_script.h). A
+  // track file kept by --resume is reused. Returns track file → job id.
+  std::map<std::string, std::string> submitTracking(const std::vector<std::size_t>& queue) {
+    std::map<std::string, std::string> jobs;
+    for (std::size_t i : queue) {
+      const PlannedRun& run = plan_.runs[i];
+      const std::string tracks = sweepTrackFile(run);
+      if (run.frontend != "images" || jobs.count(tracks)) continue;
+      if (options_.resume && fs::exists(out_ / tracks)) continue;
+      fs::create_directories(out_ / "tracks");
+      SlurmArraySpec s = spec(timeOf(run));
+      s.throttle = 0;
+      s.tasks.push_back({"tracks_" + slug(run.dataset),
+                         {"datasets", "track", "--dataset", run.dataset, "-o", tracks}});
+      jobs[tracks] = submitScript(s, 1);
+      described_.push_back(fmt::format("tracking job {} ({})", jobs[tracks], run.dataset));
+    }
+    return jobs;
+  }
+
   std::string submitArray(const std::string& time, const std::vector<std::size_t>& indices,
-                          std::vector<IndexRow>* rows) {
+                          const std::vector<std::string>& after_ok, std::vector<IndexRow>* rows) {
     SlurmArraySpec s = spec(time);
+    s.after_ok = after_ok;
     for (std::size_t i : indices) {
       IndexRow& row = (*rows)[i];
       detail::prepareRunFiles(out_, plan_.name, plan_.runs[i], &row);
@@ -118,15 +170,22 @@ class Submitter {
       s.tasks.push_back(
           {row.get("id"), runArguments(plan_.runs[i], row.get("results"), row.get("config"))});
     }
-    const std::string script = nextScriptPath();
-    writeFileAtomically(script, sbatchScript(s));
-    scripts_.push_back(script);
-    const std::string job = SlurmClient().submit(script);  // throws with Slurm's message
+    const std::string job = submitScript(s, indices.size());
     for (std::size_t k = 0; k < indices.size(); ++k) {
       (*rows)[indices[k]].set("slurm_job", fmt::format("{}_{}", job, k));
     }
+    described_.push_back(fmt::format("job array {} ({})", job, scripts_.back()));
+    return job;
+  }
+
+  // Writes and submits the script; throws InputError with Slurm's message.
+  std::string submitScript(const SlurmArraySpec& s, std::size_t tasks) {
+    const std::string script = nextScriptPath();
+    writeFileAtomically(script, sbatchScript(s));
+    scripts_.push_back(script);
+    const std::string job = SlurmClient().submit(script);
     std::ofstream log(out_ / "slurm" / "submissions.log", std::ios::app);
-    log << utcNowIso8601() << " job " << job << " " << indices.size() << " task(s) "
+    log << utcNowIso8601() << " job " << job << " " << tasks << " task(s) "
         << fs::path(script).filename().string() << " revision " << binary_.revision << "\n";
     return job;
   }
@@ -136,6 +195,8 @@ class Submitter {
   fs::path out_;
   Provenance binary_;
   std::vector<std::string> scripts_;
+  std::vector<std::string> described_;
+  std::vector<std::string> tracking_jobs_;
 };
 
 // Follows the queued rows until none is left: a line per finished run, the status line, Ctrl-C
@@ -149,18 +210,24 @@ class Follower {
         reconciler_(out_, std::move(revision)),
         options_(options) {}
 
-  // Returns true when interrupted.
-  bool run(std::vector<IndexRow>* rows) {
+  // Jobs without index rows (the tracking jobs) to cancel with the arrays on Ctrl-C.
+  void alsoCancel(std::vector<std::string> jobs) { also_cancel_ = std::move(jobs); }
+
+  // Returns the SIGINT / SIGTERM that interrupted it, 0 when none did.
+  int run(std::vector<IndexRow>* rows) {
     total_ = static_cast<int>(std::count_if(rows->begin(), rows->end(), isUnresolvedTask));
-    installSignalHandlers();
+    const StopSignals stop;
     const auto start = Clock::now();
     auto stop_time = Clock::time_point::max();
     while (true) {
-      if (g_stop_signal != 0 && stop_time == Clock::time_point::max()) {
+      if (StopSignals::received() != 0 && stop_time == Clock::time_point::max()) {
         cancelAll(*rows);
         stop_time = Clock::now();
       }
-      for (std::size_t i : reconciler_.update(rows)) announce((*rows)[i]);
+      for (std::size_t i : reconciler_.update(rows)) {
+        explainTrackingFailure(out_, &(*rows)[i]);
+        announce((*rows)[i]);
+      }
       writeIndex(index_path_, *rows);
       if (unresolvedJobs(*rows).empty()) break;
       // Cancelled tasks end within Slurm's KillWait; do not hang on a controller that is gone.
@@ -169,14 +236,15 @@ class Follower {
       std::this_thread::sleep_for(std::chrono::duration<double>(options_.slurm.poll_s));
     }
     if (options_.status_line) fmt::print(stderr, "\r\033[K");
-    restoreSignalHandlers();
-    return g_stop_signal != 0;
+    return StopSignals::received();
   }
 
  private:
   void cancelAll(const std::vector<IndexRow>& rows) {
-    const std::set<std::string> jobs = unresolvedJobs(rows);
     std::string message;
+    // A tracking job that has ended is no longer known to scancel: nothing to report then.
+    if (!also_cancel_.empty()) SlurmClient().cancel(also_cancel_, &message);
+    const std::set<std::string> jobs = unresolvedJobs(rows);
     if (!SlurmClient().cancel({jobs.begin(), jobs.end()}, &message)) {
       fmt::print(stderr, "\nmarglab sweep: scancel failed: {}\n", message);
     }
@@ -219,33 +287,21 @@ class Follower {
     std::fflush(stderr);
   }
 
-  void installSignalHandlers() {
-    g_stop_signal = 0;
-    struct sigaction action {};
-    action.sa_handler = onSlurmStopSignal;
-    sigemptyset(&action.sa_mask);
-    sigaction(SIGINT, &action, &old_int_);
-    sigaction(SIGTERM, &action, &old_term_);
-  }
-  void restoreSignalHandlers() {
-    sigaction(SIGINT, &old_int_, nullptr);
-    sigaction(SIGTERM, &old_term_, nullptr);
-  }
-
   std::string name_;
   fs::path out_;
   std::string index_path_;
   SlurmReconciler reconciler_;
   const SweepOptions& options_;
+  std::vector<std::string> also_cancel_;
   int total_ = 0;
   int finished_ = 0;
-  struct sigaction old_int_ {};
-  struct sigaction old_term_ {};
 };
 
 // The closing summary; the exit code of `sweep`.
+// stop_signal: the SIGINT / SIGTERM that interrupted the follower, 0 if none. slurm: the folder
+// holds Slurm submissions (else it is a local sweep's, whose rows left were never run).
 int report(const std::string& name, const std::vector<IndexRow>& rows, const fs::path& out,
-           double wall_s, bool interrupted, std::FILE* stream) {
+           double wall_s, int stop_signal, std::FILE* stream, bool slurm = true) {
   int ok = 0, numerical = 0, process = 0, reused = 0, queued = 0, unsubmitted = 0;
   std::map<std::string, int> kinds;
   for (const IndexRow& row : rows) {
@@ -253,7 +309,7 @@ int report(const std::string& name, const std::vector<IndexRow>& rows, const fs:
     reused += !row.get("reused").empty();
     if (status == "ok") {
       ++ok;
-    } else if (status == "failed" && row.get("failure_kind") == "numerical") {
+    } else if (detail::isFailedResult(row)) {
       ++numerical;
     } else if (status == "failed") {
       ++process;
@@ -273,14 +329,22 @@ int report(const std::string& name, const std::vector<IndexRow>& rows, const fs:
              name, ok, numerical, process, kind_text,
              reused ? fmt::format(" ({} kept from an earlier invocation)", reused) : "",
              queued ? fmt::format(", {} still queued in Slurm", queued) : "",
-             unsubmitted ? fmt::format(", {} not submitted", unsubmitted) : "", wall_s);
+             unsubmitted ? fmt::format(", {} not {}", unsubmitted, slurm ? "submitted" : "run")
+                         : "",
+             wall_s);
   fmt::print(stream, "  index {}\n", (out / "index.csv").string());
-  if (interrupted) {
-    fmt::print(stream, "  interrupted: the arrays were cancelled; continue with --resume\n");
-    return 130;
+  if (stop_signal != 0) {
+    fmt::print(stream, "  interrupted by {}: the arrays were cancelled; continue with --resume\n",
+               detail::signalName(stop_signal));
+    return exitCodeForSignal(stop_signal);
   }
   if (queued > 0) {
     fmt::print(stream, "  follow: marglab sweep --status {} [--wait]\n", out.string());
+  }
+  if (!slurm && unsubmitted > 0) {
+    fmt::print(stream, "  a local sweep that was stopped: continue it with marglab sweep {} "
+                       "--resume --out {}\n",
+               (out / "sweep.toml").string(), out.string());
   }
   return process > 0 || unsubmitted > 0 ? 1 : 0;
 }
@@ -379,9 +443,7 @@ bool submitQueue(Submitter* submitter, const std::vector<std::size_t>& queue,
     return false;
   }
   writeIndex(index_path, *rows);
-  for (std::size_t k = 0; k < jobs->size(); ++k) {
-    fmt::print(out, "  submitted job array {} ({})\n", (*jobs)[k], submitter->scripts()[k]);
-  }
+  for (const std::string& job : submitter->describedJobs()) fmt::print(out, "  submitted {}\n", job);
   std::fflush(out);
   return true;
 }
@@ -397,6 +459,8 @@ int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
     throw UsageError("--backend slurm: no Slurm cluster answers here (" + why +
                      "); to try it on this machine: scripts/slurm_local.sh start");
   }
+  // A folder another program wrote is refused whatever the flags, before anything is created.
+  if (fs::exists(out / "index.csv")) detail::readOwnSweepIndex(out);
   if (!options.resume && !options.force && fs::exists(out / "index.csv")) {
     throw UsageError(fmt::format(
         "{} already holds a sweep: continue it with --resume, or start over with --force",
@@ -425,9 +489,11 @@ int runSlurmSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
   if (!options.slurm.wait) {
     const double wall = std::chrono::duration<double>(Clock::now() - start).count();
     if (!jobs.empty()) fmt::print(options.out, "  cancel: scancel {}\n", fmt::join(jobs, " "));
-    return report(plan.name, rows, out, wall, false, options.out);
+    return report(plan.name, rows, out, wall, 0, options.out);
   }
-  const bool interrupted = Follower(plan.name, out, binary.revision, options).run(&rows);
+  Follower follower(plan.name, out, binary.revision, options);
+  follower.alsoCancel(submitter.trackingJobs());
+  const int interrupted = follower.run(&rows);
   const double wall = std::chrono::duration<double>(Clock::now() - start).count();
   return report(plan.name, rows, out, wall, interrupted, options.out);
 }
@@ -441,9 +507,10 @@ int slurmSweepStatus(const std::string& dir, const SweepOptions& options) {
   std::vector<IndexRow> rows = readIndex(index_path);
   const Provenance binary = readProvenance(out);
   const std::string name = out.filename().string();
-  bool interrupted = false;
+  int interrupted = 0;
   if (!binary.revision.empty()) {
     for (std::size_t i : SlurmReconciler(out, binary.revision).update(&rows)) {
+      explainTrackingFailure(out, &rows[i]);
       fmt::print(options.out, "  {:<6} {}  {}\n", rows[i].get("status"), rows[i].get("id"),
                  describeRow(rows[i]));
     }
@@ -451,12 +518,12 @@ int slurmSweepStatus(const std::string& dir, const SweepOptions& options) {
     if (options.slurm.wait) interrupted = Follower(name, out, binary.revision, options).run(&rows);
   }
   for (const IndexRow& row : rows) {
-    if (row.get("status") == "failed" && row.get("failure_kind") != "numerical") {
+    if (row.get("status") == "failed" && !detail::isFailedResult(row)) {
       fmt::print(options.out, "  failed {}  {}\n", row.get("id"), describeRow(row));
     }
   }
   const double wall = std::chrono::duration<double>(Clock::now() - start).count();
-  return report(name, rows, out, wall, interrupted, options.out);
+  return report(name, rows, out, wall, interrupted, options.out, !binary.revision.empty());
 }
 
 }  // namespace marglab::experiment

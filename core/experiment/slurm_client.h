@@ -13,16 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "core/common/subprocess.h"  // runCommand
+
 namespace marglab::experiment {
-
-struct CommandResult {
-  int exit_code = -1;  // -1: could not start, 128+N: killed by signal N
-  std::string out;     // stdout
-  std::string err;     // stderr
-};
-
-// Runs argv[0] (searched on PATH) with the arguments; stdin /dev/null.
-CommandResult runCommand(const std::vector<std::string>& argv);
 
 // A task's state as Slurm names it (PENDING, RUNNING, COMPLETED, FAILED, TIMEOUT, CANCELLED,
 // OUT_OF_MEMORY, NODE_FAIL, ...), per "JOBID_TASK".

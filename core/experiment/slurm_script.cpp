@@ -26,6 +26,12 @@ std::string directives(const SlurmArraySpec& spec) {
   if (!spec.time.empty()) add("--time=" + spec.time);
   if (!spec.partition.empty()) add("--partition=" + spec.partition);
   if (!spec.mem.empty()) add("--mem=" + spec.mem);
+  if (!spec.after_ok.empty()) {
+    std::string jobs;
+    for (const std::string& job : spec.after_ok) jobs += ":" + job;
+    add("--dependency=afterok" + jobs);
+    add("--kill-on-invalid-dep=yes");
+  }
   for (const std::string& option : spec.extra) add(option);
   return text;
 }
@@ -72,8 +78,8 @@ std::string sbatchScript(const SlurmArraySpec& spec) {
   std::string text = "#!/bin/bash\n";
   text += fmt::format(
       "# marglab sweep {}: {} run(s) as one Slurm job array, written by `marglab sweep --backend "
-      "slurm`.\n# Submitted as: sbatch --parsable <this file>. Task N runs the N-th `marglab run` "
-      "below.\n",
+      "slurm`.\n# Submitted as: sbatch --parsable <this file>. Task N runs the N-th marglab "
+      "command below.\n",
       spec.sweep_name, spec.tasks.size());
   text += directives(spec);
   text += "set -u\n";

@@ -9,6 +9,9 @@
 // slurm/exit/<id> when it ends — also on SIGTERM (time limit, scancel) — so that the outcome of a
 // task can be read where Slurm has forgotten the job and there is no accounting (sacct):
 //   exit=CODE|signal=TERM start=EPOCH_S end=EPOCH_S job=JOBID_TASK host=NODE
+// A task may be another marglab verb than `run`: the image front-end of a `frontend = "images"`
+// dataset is tracked once by a one-task array (`datasets track`, id tracks_<dataset slug>, so its
+// log is logs/tracks_<dataset slug>.log as with the local backend) that the run arrays depend on.
 
 #include <string>
 #include <vector>
@@ -31,6 +34,9 @@ struct SlurmArraySpec {
   std::string mem;         // "" : the default
   int cpus = 1;
   std::vector<std::string> extra;  // verbatim #SBATCH options
+  // Jobs that must end successfully before any task starts (--dependency=afterok); a task whose
+  // dependency failed is cancelled by Slurm (--kill-on-invalid-dep) instead of waiting forever.
+  std::vector<std::string> after_ok;
   std::vector<SlurmTask> tasks;
 };
 

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "core/common/error.h"
@@ -113,6 +114,11 @@ bool readCompleteResults(const std::string& path, IndexRow* row, const char* git
   }
 }
 
+bool isFailedResult(const IndexRow& row) {
+  const std::string& kind = row.get("failure_kind");
+  return row.get("status") == "failed" && (kind == "numerical" || kind == "tracking");
+}
+
 void clearOutcome(IndexRow* row) {
   for (const char* column :
        {"failure_kind", "failure_frame", "reason", "exit_code", "signal", "reused", "wall_s",
@@ -163,17 +169,91 @@ SweepLock::~SweepLock() {
   if (fd_ >= 0) ::close(fd_);
 }
 
+std::vector<IndexRow> readOwnSweepIndex(const fs::path& out) {
+  const fs::path index = out / "index.csv";
+  const std::string why =
+      "; marglab writes, resumes and clears (--force) only its own sweep folders: choose another "
+      "--out, or move the folder's files away";
+  if (!fs::is_regular_file(out / "sweep.toml")) {
+    throw InputError(index.string(), 0,
+                     "not a marglab sweep folder: " + (out / "sweep.toml").string() +
+                         " is missing beside it" + why);
+  }
+  std::vector<IndexRow> rows;
+  try {
+    rows = readIndex(index.string());
+  } catch (const InputError& e) {
+    throw InputError(e.file(), e.line(),
+                     "not a marglab sweep index (" + e.detail() + ")" + why);
+  }
+  const std::string text = readTextFile(index.string());
+  std::istringstream header(text.substr(0, text.find('\n')));
+  std::set<std::string> columns;
+  for (std::string column; std::getline(header, column, ',');) columns.insert(column);
+  for (const char* column : {"id", "status", "results", "log", "command"}) {
+    if (!columns.count(column)) {
+      throw InputError(index.string(), 1,
+                       fmt::format("not a marglab sweep index (no '{}' column){}", column, why));
+    }
+  }
+  return rows;
+}
+
+namespace {
+
+// A path the index lists, kept only when it lies in the sweep's own subfolder `sub`: an index
+// that names anything else never gets it deleted.
+void removeListed(const fs::path& out, const std::string& listed, const char* sub) {
+  const fs::path relative = fs::path(listed).lexically_normal();
+  if (listed.empty() || relative.is_absolute() || relative.begin() == relative.end() ||
+      *relative.begin() != sub || relative.string().find("..") != std::string::npos) {
+    return;
+  }
+  std::error_code ec;
+  fs::remove(out / relative, ec);
+}
+
+// --force: removes what the earlier sweep wrote — the files its index lists, its track files and
+// their logs, its Slurm scripts — and nothing else a user may keep in the folder.
+void clearEarlierSweep(const fs::path& out, const std::vector<IndexRow>& rows) {
+  for (const IndexRow& row : rows) {
+    const std::string& results = row.get("results");
+    removeListed(out, results, "runs");
+    if (!results.empty()) {
+      removeListed(out, fs::path(results).replace_extension(".tum").string(), "runs");
+      removeListed(out, fs::path(results).replace_extension(".cmd").string(), "runs");
+      if (fs::is_directory(out / "runs")) removeTemporaries(out / results);
+    }
+    removeListed(out, row.get("log"), "logs");
+    removeListed(out, row.get("config"), "configs");
+  }
+  std::error_code ec;
+  for (const char* sub : {"tracks", "logs"}) {
+    for (const auto& entry : fs::directory_iterator(out / sub, ec)) {
+      const std::string name = entry.path().filename().string();
+      const bool written = std::string(sub) == "tracks" ? entry.path().extension() == ".h5"
+                                                         : name.rfind("tracks_", 0) == 0;
+      if (written) fs::remove(entry.path(), ec);
+    }
+  }
+  fs::remove_all(out / "slurm", ec);
+  fs::remove(out / "index.csv");
+}
+
+}  // namespace
+
 void prepareSweepFolder(const fs::path& out, const std::string& sweep_file_text, bool resume,
                         bool force) {
-  if (fs::exists(out / "index.csv") && !resume) {
-    if (!force) {
-      throw UsageError(fmt::format(
-          "{} already holds a sweep: continue it with --resume, or start over with --force",
-          out.string()));
+  if (fs::exists(out / "index.csv")) {
+    const std::vector<IndexRow> earlier = readOwnSweepIndex(out);
+    if (!resume) {
+      if (!force) {
+        throw UsageError(fmt::format(
+            "{} already holds a sweep: continue it with --resume, or start over with --force",
+            out.string()));
+      }
+      clearEarlierSweep(out, earlier);
     }
-    for (const char* sub : {"runs", "logs", "configs", "slurm", "tracks"})
-      fs::remove_all(out / sub);
-    fs::remove(out / "index.csv");
   }
   for (const char* sub : {"runs", "logs", "configs"}) fs::create_directories(out / sub);
   writeFileAtomically((out / "sweep.toml").string(), sweep_file_text);

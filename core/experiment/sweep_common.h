@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_index.h"
@@ -27,6 +28,9 @@ bool readCompleteResults(const std::string& path, IndexRow* row, const char* git
 
 // Empties the outcome columns of a row that is about to run (again).
 void clearOutcome(IndexRow* row);
+// A failed run whose results file is complete — the estimator failed numerically or lost the scene
+// (failure_kind "numerical" | "tracking"): a result of the sweep, not a failure of its processes.
+bool isFailedResult(const IndexRow& row);
 
 // Removes what a killed writer may leave behind: <results>.tmp-<pid>-<n>.
 void removeTemporaries(const std::filesystem::path& results);
@@ -49,8 +53,15 @@ class SweepLock {
   int fd_ = -1;
 };
 
-// Creates the folder (runs/, logs/, configs/, sweep.toml); with force, removes an earlier sweep.
-// Throws UsageError when out holds a sweep and neither resume nor force is set.
+// The index of the marglab sweep in `out` (which has an index.csv). Throws InputError naming the
+// file when the folder is not one marglab wrote: no sweep.toml beside the index, or an index that
+// is not a sweep index (malformed, or without the columns id, status, results, log, command).
+std::vector<IndexRow> readOwnSweepIndex(const std::filesystem::path& out);
+
+// Creates the folder (runs/, logs/, configs/, sweep.toml); with force, removes the earlier sweep's
+// files (those its index lists, its track files and Slurm scripts; nothing else). Throws
+// UsageError when out holds a sweep and neither resume nor force is set; InputError when out
+// holds an index.csv that is not a marglab sweep's (readOwnSweepIndex), whatever the flags.
 void prepareSweepFolder(const std::filesystem::path& out, const std::string& sweep_file_text,
                         bool resume, bool force);
 

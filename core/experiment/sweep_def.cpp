@@ -238,7 +238,7 @@ class Parser {
     }
     fs::path path(dataset);
     if (path.is_relative()) path = fs::path(base_dir_) / path;
-    if (fs::is_directory(path)) return fs::absolute(path).lexically_normal().string();
+    if (fs::is_directory(path)) return normalizeDatasetArgument(fs::absolute(path).string());
     throw error(node, fmt::format("unknown dataset '{}': not a shipped sequence (see `marglab "
                                   "datasets list`) nor a folder",
                                   dataset));
@@ -274,12 +274,13 @@ class Parser {
     std::vector<std::uint64_t> seeds{1};
     if (group.get("seeds") != nullptr) {
       seeds.clear();
+      std::set<std::int64_t> listed;  // linear in the number of seeds, not quadratic
       for (const toml::node* node : nonEmptyArray(group, "seeds", "a [[group]]", line)) {
         const auto seed = node->value<std::int64_t>();
         if (!node->is_integer() || !seed || *seed < 0) {
           throw error(*node, "seeds must be non-negative integers");
         }
-        if (std::find(seeds.begin(), seeds.end(), *seed) != seeds.end()) {
+        if (!listed.insert(*seed).second) {
           throw error(*node, fmt::format("seed {} is listed twice", *seed));
         }
         seeds.push_back(static_cast<std::uint64_t>(*seed));
@@ -368,10 +369,31 @@ class Parser {
       overrides.push_back({});
     }
 
+    const double planned = static_cast<double>(plan->runs.size()) +
+                           static_cast<double>(datasets.size()) * variants.size() * seeds.size() *
+                               overrides.size();
+    if (planned > kMaxSweepRuns) {
+      throw InputError(name_, line,
+                       fmt::format("group '{}' brings the sweep to {:.0f} runs; a sweep holds at "
+                                   "most {} (split it into several sweeps)",
+                                   group_name, planned, kMaxSweepRuns));
+    }
+    // The merged config of each override, checked once (not once per run).
+    std::vector<std::string> override_config;
+    for (const Override& o : overrides) {
+      toml::table config = group_config;
+      mergeInto(config, o.config);
+      override_config.push_back(toTomlText(config));
+      checkMergedConfig(override_config.back(), o.name.empty() ? line : o.line,
+                        o.name.empty() ? fmt::format("group '{}'", group_name)
+                                       : fmt::format("group '{}', override '{}'", group_name,
+                                                     o.name));
+    }
     for (const std::string& dataset : datasets) {
       for (const std::string& variant : variants) {
         for (const std::uint64_t seed : seeds) {
-          for (const Override& o : overrides) {
+          for (std::size_t k = 0; k < overrides.size(); ++k) {
+            const Override& o = overrides[k];
             PlannedRun run;
             run.group = group_name;
             run.dataset = dataset;
@@ -383,13 +405,7 @@ class Parser {
             run.frontend = frontend;
             run.extra_args = group_args;
             run.extra_args.insert(run.extra_args.end(), o.args.begin(), o.args.end());
-            toml::table config = group_config;
-            mergeInto(config, o.config);
-            run.config_toml = toTomlText(config);
-            checkMergedConfig(run.config_toml, o.name.empty() ? line : o.line,
-                              o.name.empty()
-                                  ? fmt::format("group '{}'", group_name)
-                                  : fmt::format("group '{}', override '{}'", group_name, o.name));
+            run.config_toml = override_config[k];
             run.line = line;
             run.id = fmt::format("{}__{}__{}__s{}", group_name, slug(dataset), variant, seed);
             if (!o.name.empty()) run.id += "__" + o.name;
@@ -400,13 +416,12 @@ class Parser {
                                  fmt::format("run {}: {}", run.id, problem));
               }
             }
-            for (const PlannedRun& other : plan->runs) {
-              if (other.id == run.id) {
-                throw InputError(name_, line,
-                                 fmt::format("run {} is planned twice (lines {} and {}): a "
-                                             "dataset, variant or seed is listed twice",
-                                             run.id, other.line, line));
-              }
+            const auto [earlier, fresh] = planned_ids_.emplace(run.id, line);
+            if (!fresh) {
+              throw InputError(name_, line,
+                               fmt::format("run {} is planned twice (lines {} and {}): a "
+                                           "dataset, variant or seed is listed twice",
+                                           run.id, earlier->second, line));
             }
             plan->runs.push_back(std::move(run));
           }
@@ -416,6 +431,7 @@ class Parser {
   }
 
   std::string name_;
+  std::map<std::string, int> planned_ids_;  // run id → line of its group
   std::string base_dir_;
   const ParseOptions& options_;
   std::vector<std::string> sequences_;

@@ -86,6 +86,10 @@ struct ParseOptions {
   bool known_sequences_given = false;
 };
 
+// The most runs a sweep plans (a larger one is refused at the group that exceeds it): its index is
+// rewritten as runs end, and a million-row index is no way to work.
+inline constexpr int kMaxSweepRuns = 100000;
+
 // Reads and validates a sweep file; throws InputError(file, line, what).
 SweepPlan loadSweepFile(const std::string& path, const ParseOptions& options = {});
 // The same from text (`name` is used in messages; relative folders resolve against base_dir).

@@ -3,12 +3,8 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
-#include <fcntl.h>
 #include <signal.h>
-#include <sys/prctl.h>
-#include <sys/stat.h>
 #include <sys/wait.h>
-#include <unistd.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -23,6 +19,7 @@
 #include <thread>
 
 #include "core/common/error.h"
+#include "core/common/subprocess.h"
 #include "core/common/utc_time.h"
 #include "core/data/sequence.h"
 #include "core/estimator/variant.h"
@@ -37,9 +34,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-volatile std::sig_atomic_t g_stop_signal = 0;
-extern "C" void onStopSignal(int signal) { g_stop_signal = signal; }
 
 struct Slot {
   std::size_t row = 0;
@@ -60,13 +54,14 @@ class Runner {
                                        : options_.executable;
     jobs_ = options_.jobs > 0 ? options_.jobs : std::max(1u, std::thread::hardware_concurrency());
 
+    // From here on SIGINT / SIGTERM wind the sweep down: the children are stopped and reaped
+    // before the lock is released, so nothing writes into the folder after it.
+    const StopSignals stop;
+    start_ = Clock::now();
     planRows(out);
     trackImagesOnce(out);
     writeIndex(index_path_, rows_);
-    installSignalHandlers();
-    start_ = Clock::now();
     loop(out);
-    restoreSignalHandlers();
     return finish();
   }
 
@@ -92,28 +87,65 @@ class Runner {
     std::stable_sort(queue_.begin(), queue_.end(),
                      [&](std::size_t a, std::size_t b) { return weights_[a] > weights_[b]; });
     for (std::size_t i : queue_) remaining_weight_ += weights_[i];
+    queue_total_ = static_cast<int>(queue_.size());
   }
 
   // The image front-end once per dataset of the queued `frontend = "images"` runs, before any run
-  // starts (they read its track file). A file kept by --resume is reused.
+  // starts (they read its track file). A file kept by --resume is reused. A dataset whose tracking
+  // fails fails its runs (they could not start); the other datasets' runs go on.
   void trackImagesOnce(const fs::path& out) {
+    std::map<std::string, std::string> failed;  // track file → reason
     std::set<std::string> done;
     for (const std::size_t index : queue_) {
       const PlannedRun& run = plan_.runs[index];
       const std::string tracks = sweepTrackFile(run);
       if (run.frontend != "images" || !done.insert(tracks).second) continue;
       if (options_.resume && fs::exists(out / tracks)) continue;
-      fs::create_directories(out / "tracks");
-      const std::string log = (out / "logs" / ("tracks_" + slug(run.dataset) + ".log")).string();
-      const std::string command =
-          "cd " + shellJoin({out.string()}) + " && " +
-          shellJoin({exe_, "datasets", "track", "--dataset", run.dataset, "-o", tracks}) + " > " +
-          shellJoin({log}) + " 2>&1";
-      if (std::system(command.c_str()) != 0) {
-        throw InputError(
-            log, 0, fmt::format("tracking the images of {} failed (see the log)", run.dataset));
-      }
+      const std::string reason = trackDataset(out, run.dataset, tracks);
+      if (StopSignals::received() != 0) return;  // the runs stay pending for --resume
+      if (!reason.empty()) failed[tracks] = reason;
     }
+    if (failed.empty()) return;
+    std::vector<std::size_t> startable;
+    for (const std::size_t index : queue_) {
+      const PlannedRun& run = plan_.runs[index];
+      const auto it = run.frontend == "images" ? failed.find(sweepTrackFile(run)) : failed.end();
+      if (it == failed.end()) {
+        startable.push_back(index);
+        continue;
+      }
+      rows_[index].set("status", "failed");
+      rows_[index].set("failure_kind", "error");
+      rows_[index].set("reason", it->second);
+      remaining_weight_ -= weights_[index];
+      announce(index, 0);
+    }
+    queue_ = std::move(startable);
+  }
+
+  // `marglab datasets track` into <out>/<tracks>; "" when it succeeded, else why not.
+  std::string trackDataset(const fs::path& out, const std::string& dataset,
+                           const std::string& tracks) {
+    fs::create_directories(out / "tracks");
+    const fs::path log =
+        fs::absolute(out / "logs" / ("tracks_" + slug(dataset) + ".log")).lexically_normal();
+    fmt::print(options_.out, "tracking the images of {} -> {}\n", dataset,
+               (out / tracks).string());
+    std::fflush(options_.out);
+    ChildSpec spec;
+    spec.argv = {exe_, "datasets", "track", "--dataset", dataset, "-o", tracks};
+    spec.working_dir = fs::absolute(out).string();
+    spec.output = log.string();
+    std::ofstream(log, std::ios::trunc) << "# " << shellJoin(spec.argv) << "\n";
+    const ChildResult result = runChild(spec);
+    if (result.stop_signal != 0) {
+      fmt::print(options_.out, "tracking the images of {} interrupted ({})\n", dataset,
+                 detail::signalName(result.stop_signal));
+      return "interrupted";
+    }
+    if (result.exit_code == 0) return {};
+    return fmt::format("tracking the images of {} failed (exit {}): {} (see {})", dataset,
+                       result.exit_code, detail::lastNonEmptyLine(log.string()), log.string());
   }
 
   void launch(const fs::path& out, std::size_t index) {
@@ -122,42 +154,25 @@ class Runner {
     detail::prepareRunFiles(out, plan_.name, run, &row);
     const fs::path log = out / row.get("log");
 
-    std::vector<std::string> args = runArguments(run, row.get("results"), row.get("config"));
-    args.insert(args.begin(), exe_);
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    const std::string dir = out.string();
-    const std::string log_path = log.string();
-
-    std::fflush(nullptr);
-    const pid_t parent = getpid();
-    const pid_t pid = fork();
-    if (pid == 0) {
-      // Child: only async-signal-safe calls from here on. It dies with the sweep (even a SIGKILLed
-      // one), so that a --resume never runs beside an orphan of the same run; getppid() catches a
-      // parent that died before prctl.
-      if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || getppid() != parent) _exit(126);
-      signal(SIGINT, SIG_DFL);
-      signal(SIGTERM, SIG_DFL);
-      const int fd = open(log_path.c_str(), O_WRONLY | O_APPEND | O_CREAT, 0644);
-      const int null_fd = open("/dev/null", O_RDONLY);
-      if (fd < 0 || null_fd < 0 || chdir(dir.c_str()) != 0) _exit(126);
-      dup2(null_fd, STDIN_FILENO);
-      dup2(fd, STDOUT_FILENO);
-      dup2(fd, STDERR_FILENO);
-      close(fd);
-      close(null_fd);
-      execv(argv[0], argv.data());
-      const char message[] = "marglab sweep: exec of the marglab binary failed\n";
-      [[maybe_unused]] const ssize_t n = write(STDERR_FILENO, message, sizeof(message) - 1);
-      _exit(127);
+    ChildSpec spec;
+    spec.argv = runArguments(run, row.get("results"), row.get("config"));
+    spec.argv.insert(spec.argv.begin(), exe_);
+    spec.working_dir = out.string();
+    spec.output = log.string();
+    // The run dies with the sweep (even a SIGKILLed one, subprocess.h), so that a --resume never
+    // runs beside an orphan of the same run.
+    pid_t pid = -1;
+    std::string why;
+    try {
+      pid = startChild(spec);
+    } catch (const InputError& e) {
+      why = e.what();
     }
     row.set("started_utc", utcNowIso8601());
     if (pid < 0) {
       row.set("status", "failed");
       row.set("failure_kind", "error");
-      row.set("reason", std::string("cannot start the run: fork failed: ") + std::strerror(errno));
+      row.set("reason", "cannot start the run: " + why);
       announce(index, 0);
       return;
     }
@@ -187,7 +202,7 @@ class Runner {
         row.set("failure_kind", "timeout");
         row.set("reason", fmt::format("killed after the group's timeout_s ({:.0f} s)",
                                       plan_.runs[slot.row].timeout_s));
-      } else if (g_stop_signal != 0) {
+      } else if (StopSignals::received() != 0) {
         row.set("failure_kind", "interrupted");
         row.set("reason", "the sweep was interrupted (" + detail::signalName(sig) + ")");
       } else {
@@ -199,7 +214,7 @@ class Runner {
       row.set("exit_code", std::to_string(code));
       if (!detail::readCompleteResults(results.string(), &row)) {
         row.set("status", "failed");
-        row.set("failure_kind", g_stop_signal != 0 ? "interrupted" : "exit");
+        row.set("failure_kind", StopSignals::received() != 0 ? "interrupted" : "exit");
         row.set("reason", fmt::format("exit code {} without a complete results file: {}", code,
                                       detail::lastNonEmptyLine(log)));
       }
@@ -257,18 +272,17 @@ class Runner {
 
   void loop(const fs::path& out) {
     std::size_t next = 0;
-    queue_total_ = static_cast<int>(queue_.size());
     bool stop_sent = false;
     auto last_status = Clock::now() - std::chrono::seconds(1);
     while (next < queue_.size() || !running_.empty()) {
-      while (g_stop_signal == 0 && next < queue_.size() &&
+      while (StopSignals::received() == 0 && next < queue_.size() &&
              static_cast<int>(running_.size()) < jobs_) {
         launch(out, queue_[next++]);
         writeIndex(index_path_, rows_);
       }
-      if (g_stop_signal != 0) {
+      if (StopSignals::received() != 0) {
         if (!stop_sent) {
-          for (const auto& [pid, slot] : running_) kill(pid, SIGTERM);
+          for (const auto& [pid, slot] : running_) signalChildGroup(pid, SIGTERM);
           stop_sent = true;
         }
         if (running_.empty()) break;
@@ -289,7 +303,7 @@ class Runner {
         if (timeout > 0 && !slot.timed_out &&
             std::chrono::duration<double>(Clock::now() - slot.start).count() > timeout) {
           slot.timed_out = true;
-          kill(pid, SIGKILL);
+          signalChildGroup(pid, SIGKILL);
         }
       }
       if (Clock::now() - last_status > std::chrono::milliseconds(500) || reaped) {
@@ -304,7 +318,8 @@ class Runner {
   SweepSummary finish() {
     SweepSummary s;
     s.planned = static_cast<int>(rows_.size());
-    s.interrupted = g_stop_signal != 0;
+    s.stop_signal = StopSignals::received();
+    s.interrupted = s.stop_signal != 0;
     s.wall_s = std::chrono::duration<double>(Clock::now() - start_).count();
     s.index_path = index_path_;
     s.redone_other_revision = other_revision_;
@@ -314,26 +329,13 @@ class Runner {
       if (status == "ok") {
         ++s.ok;
       } else if (status == "failed") {
-        (row.get("failure_kind") == "numerical" ? s.failed_numerical : s.failed_process)++;
+        (detail::isFailedResult(row) ? s.failed_numerical : s.failed_process)++;
       } else {
         ++s.not_run;
       }
     }
     writeIndex(index_path_, rows_);
     return s;
-  }
-
-  void installSignalHandlers() {
-    g_stop_signal = 0;
-    struct sigaction action {};
-    action.sa_handler = onStopSignal;
-    sigemptyset(&action.sa_mask);
-    sigaction(SIGINT, &action, &old_int_);
-    sigaction(SIGTERM, &action, &old_term_);
-  }
-  void restoreSignalHandlers() {
-    sigaction(SIGINT, &old_int_, nullptr);
-    sigaction(SIGTERM, &old_term_, nullptr);
   }
 
   const SweepPlan& plan_;
@@ -352,8 +354,6 @@ class Runner {
   double done_weight_ = 0;
   double done_time_ = 0;
   Clock::time_point start_;
-  struct sigaction old_int_ {};
-  struct sigaction old_term_ {};
 };
 
 }  // namespace
@@ -389,7 +389,10 @@ int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& swee
   if (options.backend != "local") {
     throw UsageError("unknown sweep backend '" + options.backend + "' (local or slurm)");
   }
-  if (!options.resume && !options.force && fs::exists(fs::path(options.out_dir) / "index.csv")) {
+  const fs::path out(options.out_dir);
+  // A folder another program wrote is refused whatever the flags, before anything is created.
+  if (fs::exists(out / "index.csv")) detail::readOwnSweepIndex(out);
+  if (!options.resume && !options.force && fs::exists(out / "index.csv")) {
     throw UsageError(fmt::format(
         "{} already holds a sweep: continue it with --resume, or start over with --force",
         options.out_dir));
@@ -412,8 +415,9 @@ int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& swee
   }
   fmt::print(options.out, "  index {}\n", s.index_path);
   if (s.interrupted) {
-    fmt::print(options.out, "  interrupted: continue with --resume\n");
-    return 130;
+    fmt::print(options.out, "  interrupted by {}: continue with --resume\n",
+               detail::signalName(s.stop_signal));
+    return exitCodeForSignal(s.stop_signal);
   }
   // Numerical failures are results (tables show them as x); a run that crashed is an error.
   return s.failed_process > 0 ? 1 : 0;

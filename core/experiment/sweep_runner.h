@@ -12,7 +12,10 @@
 //   <out>/.lock              the folder's lock (sweep_common.h, SweepLock): one sweep at a time
 //
 // Runs start in <out>, so the index's `command` column can be pasted there to repeat one run.
-// They die with the sweep (PR_SET_PDEATHSIG): a killed sweep leaves no orphan run behind.
+// They die with the sweep (core/common/subprocess.h): a killed sweep leaves no orphan run behind.
+// The `frontend = "images"` datasets are tracked first, once each (`marglab datasets track` into
+// <out>/tracks/<dataset slug>.h5, its output in <out>/logs/tracks_<dataset slug>.log); a dataset
+// whose tracking fails fails its runs (failure_kind error) and the others go on.
 // Longest runs (by frames) start first. Scheduling order does not change any result: each run
 // is deterministic for its seed.
 //
@@ -58,12 +61,13 @@ struct SweepOptions {
 struct SweepSummary {
   int planned = 0;
   int ok = 0;
-  int failed_numerical = 0;       // complete results file with status failed
+  int failed_numerical = 0;       // complete results file with status failed (numerical, tracking)
   int failed_process = 0;         // signal / exit without results / timeout / could not start
   int reused = 0;                 // kept by --resume
   int not_run = 0;                // still pending after an interruption
   int redone_other_revision = 0;  // complete, but written by another git revision: run again
   bool interrupted = false;
+  int stop_signal = 0;            // the SIGINT / SIGTERM that interrupted the sweep
   double wall_s = 0;
   std::string index_path;
 };
@@ -75,8 +79,9 @@ SweepSummary runSweep(const SweepPlan& plan, const std::string& sweep_file_text,
 
 // runSweep with the file's text, printing a header and the summary to options.out; returns the exit
 // code of `marglab sweep`: 0 (numerical failures are results), 1 when a run crashed or was
-// killed, 130 when interrupted. With options.backend "slurm" the Slurm backend runs the plan
-// instead (runSlurmSweepAndReport, slurm_backend.h).
+// killed, 128 + the signal when interrupted (130 for SIGINT, 143 for SIGTERM). With
+// options.backend "slurm" the Slurm backend runs the plan instead (runSlurmSweepAndReport,
+// slurm_backend.h).
 int runSweepAndReport(const SweepPlan& plan, const std::string& sweep_file,
                       const SweepOptions& options);
 

@@ -17,6 +17,7 @@
 
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
+#include "core/data/sequence.h"
 #include "core/io/results_file.h"
 
 namespace marglab::experiment {
@@ -314,10 +315,19 @@ StrategyStats readStrategyStats(const std::string& path) {
 // nullopt: not part of the set.
 using ColumnOf = std::function<std::optional<std::string>(const RunRecord&)>;
 
-std::string oursNote(const std::string& paper_machine) {
-  return "Ours: simulated stereo tracks along the real trajectories, `frames` = frames per run "
-         "(`all`: the whole sequence); the paper: real images, whole sequences" +
-         (paper_machine.empty() ? std::string(".") : ", on " + paper_machine + ".");
+// frontends: where the runs' tracks came from (results file attribute "frontend").
+std::string oursNote(const std::string& paper_machine, const std::set<std::string>& frontends) {
+  std::vector<std::string> sources;
+  for (const std::string& f : frontends) {
+    sources.push_back(f == "images"   ? "the image front-end on the real images"
+                      : f == "tracks" ? "track files (--tracks)"
+                                      : "simulated stereo tracks along the real trajectories");
+  }
+  if (sources.empty()) sources.push_back("simulated stereo tracks along the real trajectories");
+  return fmt::format("Ours: {}, `frames` = frames per run (`all`: the whole sequence); the "
+                     "paper: real images, whole sequences{}",
+                     fmt::join(sources, "; "),
+                     paper_machine.empty() ? std::string(".") : ", on " + paper_machine + ".");
 }
 
 class Builder {
@@ -342,7 +352,18 @@ class Builder {
       by_cell_[run->row.get("dataset") + "|" + column].runs.push_back(run);
       datasets_.insert(run->row.get("dataset"));
       modes_[run->row.get("dataset")].insert(run->mode.empty() ? "?" : run->mode);
+      if (!run->frontend.empty()) frontends_[run->row.get("dataset")].insert(run->frontend);
     }
+  }
+
+  // Where the tracks of these datasets' runs came from (results file attribute "frontend").
+  std::set<std::string> frontendsOf(const std::vector<std::string>& datasets) const {
+    std::set<std::string> all;
+    for (const std::string& d : datasets) {
+      const auto it = frontends_.find(d);
+      if (it != frontends_.end()) all.insert(it->second.begin(), it->second.end());
+    }
+    return all;
   }
 
   bool hasVariant(const std::string& variant) const {
@@ -482,7 +503,7 @@ class Builder {
     std::vector<std::string> keys;
     for (const TableRow& r : t.rows) keys.push_back(r.key);
     t.notes.push_back(modeNote(keys));
-    t.notes.push_back(oursNote(ate ? "" : "a 12-thread Xeon W-2133"));
+    t.notes.push_back(oursNote(ate ? "" : "a 12-thread Xeon W-2133", frontendsOf(keys)));
     if (seed_stats && ate) t.notes.push_back(kSeedNote);
     if (any_estimate) {
       t.notes.push_back(
@@ -686,7 +707,7 @@ class Builder {
         "pipeline — beside discard; the paper has no dense column (its OKVIS, VINS-MONO* and "
         "ROVIO are in paper_values.toml).");
     t.notes.push_back(modeNote(datasets));
-    t.notes.push_back(oursNote(""));
+    t.notes.push_back(oursNote("", frontendsOf(datasets)));
     addCommonNotes(&t, paper, isEurocDataset);
     return t;
   }
@@ -750,7 +771,7 @@ class Builder {
         "Paper: the proposed method only (beside our nfr rows), marginalization including "
         "sparsification.");
     t.notes.push_back(modeNote(datasets));
-    t.notes.push_back(oursNote("an Intel i7-6700"));
+    t.notes.push_back(oursNote("an Intel i7-6700", frontendsOf(datasets)));
     addCommonNotes(&t, paper, nullptr, /*ranked=*/false);
     return t;
   }
@@ -835,6 +856,7 @@ class Builder {
   const PaperValues& paper_;
   std::map<std::string, Selection> by_cell_;
   std::set<std::string> datasets_;
+  std::map<std::string, std::set<std::string>> frontends_;  // dataset → where its tracks came from
   std::map<std::string, std::set<std::string>> modes_;       // dataset → modes
   mutable std::map<const RunRecord*, StrategyStats> stats_;  // read on first use
 };
@@ -1014,6 +1036,38 @@ bool fromIndexRow(RunRecord* r) {
   return true;
 }
 
+// The dataset a run's table row is keyed by, "<kind>/<sequence>": the index holds what the sweep
+// file said, which for a user's folder is its path ("/data/euroc/MH_01_easy"), so the kind and
+// sequence the results file records are used; without the file, the folder's layout.
+std::string tableDataset(const std::string& indexed, const RunMetadata* recorded) {
+  if (recorded != nullptr && !recorded->dataset.empty() && !recorded->sequence.empty()) {
+    return recorded->dataset + "/" + recorded->sequence;
+  }
+  if (indexed.empty() || (indexed.front() != '/' && indexed.front() != '.')) return indexed;
+  try {
+    const std::string folder = normalizeDatasetArgument(indexed);
+    return std::string(datasetKindName(sequenceKind(folder))) + "/" +
+           fs::path(folder).filename().string();
+  } catch (const InputError&) {
+    return indexed;  // the folder is gone: the run keeps a row of its own
+  }
+}
+
+}  // namespace
+
+namespace {
+
+void requireSomeTable(const std::vector<TableSet>& sets, const std::vector<std::string>& dirs) {
+  std::set<std::string> why;
+  for (const TableSet& set : sets) {
+    if (!set.tables.empty() || set.claim) return;
+    why.insert(set.skipped.begin(), set.skipped.end());
+  }
+  throw InputError((fs::path(dirs.front()) / "index.csv").string(), 0,
+                   fmt::format("expected runs that make at least one table, found none ({})",
+                               why.empty() ? "no runs" : fmt::format("{}", fmt::join(why, "; "))));
+}
+
 }  // namespace
 
 ResultSet loadResults(const std::vector<std::string>& dirs) {
@@ -1027,7 +1081,9 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
       r.dir = dir;
       r.results_path = (fs::path(dir) / row.get("results")).string();
       r.state = row.get("status") == "failed" ? "failed" : "missing";
-      if (!row.get("results").empty() && fs::is_regular_file(r.results_path)) {
+      const bool has_file = !row.get("results").empty() && fs::is_regular_file(r.results_path);
+      if (!has_file) r.row.set("dataset", tableDataset(row.get("dataset"), nullptr));
+      if (has_file) {
         try {
           const ResultsReader reader(r.results_path);
           const RunInfo& info = reader.info();
@@ -1037,9 +1093,11 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
                                          row.get("variant")));
           }
           const SummaryValues s = reader.summary();
+          r.row.set("dataset", tableDataset(row.get("dataset"), &info.metadata));
           r.state = info.status == "ok" ? "ok" : "failed";
           r.mode = info.metadata.mode;
           r.marg_strategy = info.metadata.marg_strategy;
+          r.frontend = info.metadata.frontend;
           for (const auto& [name, value] : info.metadata.extra) {
             if (name == "gt_source") r.gt_source = value;
           }
@@ -1379,8 +1437,10 @@ std::vector<std::string> writeTables(const TablesRequest& request, std::string* 
   for (const std::string& w : results.warnings) fmt::print(stderr, "warning: {}\n", w);
   const std::string out =
       request.out.empty() ? (fs::path(request.dirs.front()) / "tables").string() : request.out;
+  const std::vector<TableSet> sets = buildTables(results, paper, request.seeds);
+  if (request.require_tables) requireSomeTable(sets, request.dirs);
   std::vector<std::string> written;
-  for (const TableSet& set : buildTables(results, paper, request.seeds)) {
+  for (const TableSet& set : sets) {
     const std::string suffix = set.override_name.empty() ? "" : "__" + set.override_name;
     std::string md =
         set.override_name.empty() ? std::string() : "## Override " + set.override_name + "\n\n";

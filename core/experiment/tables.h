@@ -95,6 +95,7 @@ struct RunRecord {
   std::string mode;           // results file attribute "mode" ("vo" | "vio")
   std::string gt_source;      // results file attribute "gt_source" (may be "")
   std::string marg_strategy;  // results file attribute "marg_strategy" ("" without a file)
+  std::string frontend;       // results file attribute "frontend" ("" without a file)
   double ate_rmse = 0, t_opt_s = 0, t_marg_s = 0, wall_s = 0, duration_s = 0;
   long long n_frames = 0;
   long long failure_frame = -1;
@@ -212,6 +213,9 @@ struct TablesRequest {
   std::string paper_values;  // default defaultPaperValuesPath()
   SeedStats seeds = SeedStats::kAuto;
   bool print = false;
+  // `marglab tables`: runs none of whose tables can be made are an InputError (before anything is
+  // written), not an exit 0 without a table; the notebooks and the report accept them.
+  bool require_tables = false;
 };
 
 // Reads the results of the folders and writes, per override set, tables[__<override>].{md,tex,csv}

@@ -73,6 +73,19 @@ std::optional<StereoImageList> aslImages(const fs::path& mav) {
     list.left.push_back(path);
     list.right.push_back(existing(r->second));
   }
+  // Without a single stereo frame every later step would only say "no frame": say which list.
+  if (list.t_ns.empty() && !left.empty()) {
+    const std::string cam1 = (mav / "cam1" / "data.csv").string();
+    if (right.empty()) {
+      throw InputError(cam1, 0, "lists no images (expected the right camera's frames)");
+    }
+    throw InputError(cam1, 0,
+                     fmt::format("none of its {} timestamps is one of the {} of cam0/data.csv "
+                                 "(expected the stereo frames at the same times; the first: "
+                                 "cam0 {} ns, cam1 {} ns)",
+                                 right.size(), left.size(), left.begin()->first,
+                                 right.begin()->first));
+  }
   return list;
 }
 

@@ -231,7 +231,8 @@ int64_t parseInt(const std::string& token, const std::string& path, int line, co
   char* end = nullptr;
   const long long v = std::strtoll(token.c_str(), &end, 10);
   if (end == token.c_str() || *end != '\0' || errno == ERANGE) {
-    throw InputError(path, line, fmt::format("{}: expected an integer, got \"{}\"", what, token));
+    throw InputError(path, line,
+                     fmt::format("{}: expected an integer, got \"{}\"", what, shortToken(token)));
   }
   return v;
 }
@@ -240,7 +241,8 @@ double parseDouble(const std::string& token, const std::string& path, int line, 
   char* end = nullptr;
   const double v = std::strtod(token.c_str(), &end);
   if (end == token.c_str() || *end != '\0') {
-    throw InputError(path, line, fmt::format("{}: expected a number, got \"{}\"", what, token));
+    throw InputError(path, line,
+                     fmt::format("{}: expected a number, got \"{}\"", what, shortToken(token)));
   }
   return v;
 }
@@ -340,6 +342,52 @@ TrackStream readTrackFile(const std::string& path) {
     return readTracksHdf5(path);
   }
   return readTracksText(path);
+}
+
+namespace {
+
+std::string recordingOf(std::string name) {
+  const std::string suffix = "_images";
+  if (name.size() > suffix.size() &&
+      name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+    name.resize(name.size() - suffix.size());
+  }
+  return name;
+}
+
+}  // namespace
+
+void checkTracksBelongTo(const TrackStream& stream, const std::string& path,
+                         const Sequence& sequence) {
+  const std::string how =
+      "; write the tracks of this sequence with `marglab datasets track` or `datasets simulate`, "
+      "or pass --tracks-any-sequence to run on them anyway";
+  if (stream.frames.empty()) {
+    throw InputError(path, 0,
+                     fmt::format("the track file holds no frames (expected the tracks of {}){}",
+                                 sequence.name, how));
+  }
+  if (!stream.sequence.empty() && recordingOf(stream.sequence) != recordingOf(sequence.name)) {
+    throw InputError(path, 0,
+                     fmt::format("the tracks are of sequence '{}' (recorded in the file), not of "
+                                 "{} (--dataset){}",
+                                 shortToken(stream.sequence), sequence.name, how));
+  }
+  const auto& cam = sequence.cam_t_ns;
+  std::size_t foreign = 0, first_foreign = 0;
+  for (std::size_t i = 0; i < stream.frames.size(); ++i) {
+    if (!std::binary_search(cam.begin(), cam.end(), stream.frames[i].t_ns)) {
+      if (foreign++ == 0) first_foreign = i;
+    }
+  }
+  if (foreign > 0) {
+    throw InputError(
+        path, 0,
+        fmt::format("{} of its {} frames lie at no camera timestamp of {} (the first: frame {}, "
+                    "t_ns {}; the camera timestamps: {}){}",
+                    foreign, stream.frames.size(), sequence.name, first_foreign,
+                    stream.frames[first_foreign].t_ns, sequence.cam_file, how));
+  }
 }
 
 }  // namespace marglab

@@ -35,6 +35,7 @@
 
 #include <string>
 
+#include "core/data/types.h"
 #include "core/sim/tracks.h"
 
 namespace marglab {
@@ -53,5 +54,14 @@ TrackStream readTracksText(const std::string& path);
 void writeTrackFile(const std::string& path, const TrackStream& stream);
 // By content: HDF5 signature → HDF5, else text.
 TrackStream readTrackFile(const std::string& path);
+
+// Whether the tracks read from `path` belong to `sequence` (`run --tracks FILE --dataset SEQ`):
+// the file has frames; the sequence it records, when it records one, is SEQ (a folder "X_images"
+// and the shipped "X" are one recording); every frame lies at one of SEQ's camera timestamps.
+// Tracks of another recording would otherwise be paired with this one's ground truth and IMU and
+// give a plausible-looking, meaningless estimate. Throws InputError naming the file and what was
+// expected.
+void checkTracksBelongTo(const TrackStream& stream, const std::string& path,
+                         const Sequence& sequence);
 
 }  // namespace marglab

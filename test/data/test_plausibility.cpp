@@ -6,6 +6,7 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <sstream>
 
 #include "core/common/error.h"
@@ -149,7 +150,9 @@ TEST(Plausibility, ShippedImuGapIsRefusedByTheLoader) {
       "expected IMU samples at most 0.05 s apart (nominal 200 Hz), found a gap of 9.5");
 }
 
-TEST(Plausibility, StaticTrajectoryAndZeroBaselineAreInputErrors) {
+// A static recording is valid data (issue #32): it loads, and check notes it; a zero baseline is
+// physically impossible and refused.
+TEST(Plausibility, StaticTrajectoryIsANoteAndZeroBaselineAnInputError) {
   TempDir dir;
   const fs::path seq = kittiCopy(dir, 0, [](const std::string& r) { return r; });
   std::string still;
@@ -157,8 +160,12 @@ TEST(Plausibility, StaticTrajectoryAndZeroBaselineAreInputErrors) {
     still += "1 0 0 0 0 1 0 0 0 0 1 0\n";
   }
   writeFile((seq / "poses.txt").string(), still);
-  expectInputError([&] { loadSequence(seq.string()); }, (seq / "poses.txt").string(), 0,
-                   "expected a trajectory that moves at least 1 m (car), found a path of 0 m");
+  const Sequence loaded = loadSequence(seq.string());
+  EXPECT_NE(pathLengthNote(loaded).find("the trajectory moves 0 m"), std::string::npos)
+      << pathLengthNote(loaded);
+  const SequenceCheck check = checkSequence(loaded);
+  EXPECT_NE(std::find(check.notes.begin(), check.notes.end(), pathLengthNote(loaded)),
+            check.notes.end());
 
   fs::remove(seq / "poses.txt");
   const std::string calib = test::readGz((kShipped / "kitti/10/calib.txt").string());
@@ -209,6 +216,46 @@ TEST(ErrorMessages, LongTokensAreCutAndEmptyFilesLeaveNoPrefix) {
   } catch (const InputError& e) {
     EXPECT_LT(std::string(e.what()).size(), 300u);
     EXPECT_NE(std::string(e.what()).find("… (5000000 bytes)"), std::string::npos) << e.what();
+  }
+}
+
+// Minor item of issue #32: a KITTI calib.txt whose P1 has the wrong sign (the cameras swapped,
+// baseline −0.54 m) or absurd intrinsics passed check and ran with 0–7 % stereo matches. P0 and
+// P1 values: fx = [0], cx = [2], tx·fx = [3], fy = [5], cy = [6].
+TEST(Plausibility, ImpossibleKittiCalibrationIsAnInputError) {
+  struct Case {
+    const char* what;
+    const char* camera;
+    int value;
+    const char* text;
+    const char* message;
+  };
+  const std::vector<Case> cases = {
+      {"P1 of the wrong sign", "P1:", 3, "3.798145000000e+02", "expected cam1 to the right of cam0"},
+      {"fx = 1e30", "P0:", 0, "1e30", "cam0: expected fx in [20, 10000] px"},
+      {"fy = 2", "P1:", 5, "2", "cam1: expected fy in [20, 10000] px"},
+      {"principal point far outside", "P0:", 2, "-5e5", "cam0: expected the principal point"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    TempDir dir;
+    const fs::path seq = kittiCopy(dir, 0, [](const std::string& r) { return r; });
+    std::istringstream in(test::readGz((kShipped / "kitti/10/calib.txt").string()));
+    std::string text, row;
+    while (std::getline(in, row)) {
+      if (row.rfind(c.camera, 0) == 0) {
+        std::istringstream fields(row.substr(3));
+        std::vector<std::string> v(12);
+        for (auto& value : v) fields >> value;
+        v[static_cast<std::size_t>(c.value)] = c.text;
+        row = c.camera;
+        for (const auto& value : v) row += " " + value;
+      }
+      text += row + "\n";
+    }
+    writeFile((seq / "calib.txt").string(), text);
+    expectInputError([&] { loadSequence(seq.string()); }, (seq / "calib.txt").string(), 0,
+                     c.message);
   }
 }
 

@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "common/cli_runner.h"
+#include "core/data/sequence.h"
 #include "core/experiment/slurm_backend.h"
 #include "core/experiment/slurm_client.h"
 #include "core/experiment/sweep_common.h"
@@ -181,6 +182,95 @@ args = ["--inject-nan-frame", "12"]
   EXPECT_NE(script.find("#SBATCH --array=0-4%2"), std::string::npos) << script;
   const auto tables = runCli("tables " + quote(dir / "slurm") + " --format csv");
   EXPECT_EQ(tables.exit_code, 0) << tables.output;
+  fs::remove_all(dir);
+}
+
+// Issue #29: a `frontend = "images"` sweep tracks each dataset once, as the local backend does —
+// here in a tracking job the run arrays depend on (before, the runs found no track file).
+TEST(SlurmSweep, ImagesAreTrackedOncePerDatasetInAJobTheRunsDependOn) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("images");
+  std::ofstream(dir / "img.toml") << R"(name = "img"
+[[group]]
+name = "images"
+datasets = ["euroc/V1_01_easy_images"]
+variants = ["ns-qr-sqrt-f64", "sc-sc-sq-f64"]
+frontend = "images"
+frames = 5
+)";
+  const auto local =
+      runCli("sweep " + quote(dir / "img.toml") + " --jobs 2 --out " + quote(dir / "local"));
+  ASSERT_EQ(local.exit_code, 0) << local.output;
+  const fs::path out = dir / "slurm";
+  const auto slurm = runCli("sweep " + quote(dir / "img.toml") +
+                            " --backend slurm --wait --jobs 2 --out " + quote(out));
+  ASSERT_EQ(slurm.exit_code, 0) << slurm.output;
+  EXPECT_NE(slurm.output.find("2 ok, 0 failed numerically, 0 crashed"), std::string::npos)
+      << slurm.output;
+  const std::string track_id = "tracks_euroc-V1_01_easy_images";
+  EXPECT_EQ(scriptIds(out / "slurm" / "array-1.sbatch"), std::set<std::string>{track_id});
+  EXPECT_NE(readText(out / "slurm" / "array-1.sbatch").find("datasets track"), std::string::npos);
+  const std::regex tracking_job(R"(submitted tracking job ([0-9]+) )");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(slurm.output, m, tracking_job)) << slurm.output;
+  EXPECT_NE(readText(out / "slurm" / "array-2.sbatch").find("#SBATCH --dependency=afterok:" +
+                                                           m[1].str() + "\n"),
+            std::string::npos);
+  EXPECT_FALSE(fs::exists(out / "slurm" / "array-3.sbatch"));  // tracked once
+  EXPECT_TRUE(fs::is_regular_file(out / "tracks/euroc-V1_01_easy_images.h5"));
+  EXPECT_NE(readText(out / "logs" / (track_id + ".log")).find("wrote"), std::string::npos);
+  const auto a = readIndex((dir / "local" / "index.csv").string());
+  const auto b = readIndex((out / "index.csv").string());
+  ASSERT_EQ(a.size(), b.size());
+  for (const IndexRow& row : a) {
+    SCOPED_TRACE(row.get("id"));
+    const IndexRow* other = findRow(b, row.get("id"));
+    ASSERT_NE(other, nullptr);
+    EXPECT_EQ(other->get("status"), "ok");
+    EXPECT_EQ(row.get("ate_rmse"), other->get("ate_rmse"));
+  }
+  fs::remove_all(dir);
+}
+
+// A dataset whose tracking job fails: Slurm cancels the runs that depend on it, and the index says
+// why (the tracking failed, its log) instead of "cancelled in Slurm".
+TEST(SlurmSweep, FailedTrackingJobFailsItsRunsSayingWhy) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("badtracks");
+  // A user's ASL folder of 3 frames whose second left image is cut short.
+  const fs::path shipped = fs::path(datasetsRoot()) / "euroc/V1_01_easy_images/mav0";
+  const fs::path mav = dir / "clip/mav0";
+  for (const char* cam : {"cam0", "cam1"}) {
+    fs::create_directories(mav / cam / "data");
+    fs::copy_file(shipped / cam / "sensor.yaml", mav / cam / "sensor.yaml");
+    std::istringstream in(readText(shipped / cam / "data.csv"));
+    std::ofstream csv(mav / cam / "data.csv");
+    std::string line;
+    for (int i = 0; i < 4 && std::getline(in, line); ++i) {
+      csv << line << "\n";
+      if (i > 0) {
+        const std::string file = line.substr(line.find(',') + 1);
+        fs::copy_file(shipped / cam / "data" / file, mav / cam / "data" / file);
+        if (i == 2 && std::string(cam) == "cam0") fs::resize_file(mav / cam / "data" / file, 100);
+      }
+    }
+  }
+  std::ofstream(dir / "bad.toml") << "name = \"bad\"\n[[group]]\nname = \"images\"\ndatasets = [\""
+                                  << (dir / "clip").string()
+                                  << "\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n";
+  const fs::path out = dir / "out";
+  const auto sweep = runCli("sweep " + quote(dir / "bad.toml") + " --backend slurm --wait --out " +
+                            quote(out));
+  EXPECT_EQ(sweep.exit_code, 1) << sweep.output;
+  const auto rows = readIndex((out / "index.csv").string());
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0].get("failure_kind"), "error") << rows[0].get("reason");
+  EXPECT_NE(rows[0].get("reason").find("tracking the images of " + (dir / "clip").string() +
+                                       " failed (exit 1)"),
+            std::string::npos)
+      << rows[0].get("reason");
+  EXPECT_NE(rows[0].get("reason").find("the file ends early"), std::string::npos)
+      << rows[0].get("reason");
   fs::remove_all(dir);
 }
 

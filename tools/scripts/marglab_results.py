@@ -298,11 +298,23 @@ def _index_path(sweep_dir):
     return index
 
 
+def _check_utf8(index):
+    """SchemaError naming the file and the byte when index.csv is not UTF-8 text."""
+    with open(index, "rb") as f:
+        data = f.read()
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise SchemaError("%s: byte %d: expected UTF-8 text (a sweep index), found byte 0x%02x"
+                          % (index, e.start, data[e.start]))
+
+
 def read_index_rows(sweep_dir):
     """index.csv as a list of dicts of strings (no pandas needed), `path` = the results file."""
     index = _index_path(sweep_dir)
     base = os.path.dirname(index)
-    with open(index, newline="") as f:
+    _check_utf8(index)
+    with open(index, newline="", encoding="utf-8") as f:
         rows = list(csv.DictReader(f))
     for row in rows:
         row["path"] = os.path.join(base, row["results"]) if row.get("results") else ""
@@ -313,6 +325,7 @@ def read_index(sweep_dir):
     """index.csv of a sweep as a DataFrame, with `path` = the results file's path (or "")."""
     _need_pandas()
     index = _index_path(sweep_dir)
+    _check_utf8(index)
     sweep_dir = os.path.dirname(index)
     # round_trip: the C++ writers print doubles with 17 digits; pandas' default parser may be off
     # by an ulp.
@@ -347,7 +360,7 @@ def read_sweep(sweep_dir):
     """The sweep's index joined with each run's summary read from its HDF5 file.
 
     The HDF5 values take the schema's names (ate_rmse, t_opt_total_s, ...; the index's copies get
-    the suffix _index). `state` is ok | failed (from the file, or the index when the process died
+    the suffix _index); `readable` says whether the run's results file opened. `state` is ok | failed (from the file, or the index when the process died
     without one) | missing (no complete file, not failed) — as `marglab tables` counts them.
     """
     df = read_index(sweep_dir)
@@ -356,13 +369,24 @@ def read_sweep(sweep_dir):
         values = {}
         if r["path"] and os.path.isfile(r["path"]):
             try:
-                values = run_summary(r["path"])
+                values = dict(run_summary(r["path"]), readable=True)
             except (OSError, KeyError) as e:
                 values = {"state": "missing", "read_error": str(e)}
         else:
             values = {"state": "failed" if r.get("status") == "failed" else "missing"}
         rows.append(values)
     h5 = pd.DataFrame(rows, index=df.index)
+    if "readable" in h5.columns:
+        h5["readable"] = h5["readable"].fillna(False).astype(bool)
+    # Every column of run_summary, also when no file of the sweep could be read.
+    defaults = {"readable": False, "mode": "", "marg_strategy": "discard", "frontend": "",
+                "schema_version": np.nan,
+                "git_sha": "", "marglab_version": "", "h5_failure_frame": -1,
+                "failure_reason": ""}
+    defaults.update({name: np.nan for name in SUMMARY_COLUMNS})
+    for name, value in defaults.items():
+        if name not in h5.columns:
+            h5[name] = value
     overlap = [c for c in h5.columns if c in df.columns]
     df = df.rename(columns={c: c + "_index" for c in overlap})
     return pd.concat([df, h5], axis=1)
@@ -413,7 +437,7 @@ def precision_pairs(sweep):
     _need_pandas()
     keys = ["dataset", "method", "seed", "override"]
     cols = keys + ["id", "state", "ate_rmse", "t_opt_total_s", "t_marg_total_s", "path",
-                   "h5_failure_frame"]
+                   "h5_failure_frame", "readable"]
     a = sweep[sweep["precision"] == "f32"][cols]
     b = sweep[sweep["precision"] == "f64"][cols]
     pairs = a.merge(b, on=keys, suffixes=("_f32", "_f64"))

@@ -397,8 +397,12 @@ def main():
     parser.add_argument("--figures", default="fig1,fig4,fig5,fig6,fig7,sparsify")
     args = parser.parse_args()
     figures = set(args.figures.split(","))
+    try:
+        rows = read_rows(args.dirs)
+    except mr.SchemaError as e:
+        print("plot_paper.py: %s" % e, file=sys.stderr)
+        return 1
     os.makedirs(args.out, exist_ok=True)
-    rows = read_rows(args.dirs)
     written = []
 
     vio = pick_dataset(rows, args.vio_dataset, ("euroc/", "tumvi/"))

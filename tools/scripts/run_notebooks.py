@@ -136,7 +136,21 @@ def main():
     nb = lambda name: os.path.join(os.path.abspath(args.notebooks), name + ".ipynb")
     tasks = [(nb("sweep"), os.path.join(out, "sweep"), {"SWEEP": sweep}, args.timeout),
              (nb("precision"), os.path.join(out, "precision"), {"SWEEP": sweep}, args.timeout)]
-    with_file = index[[bool(p) and os.path.isfile(p) for p in index["path"]]]
+    # A run gets a notebook when its results file opens; one that does not (truncated, a killed
+    # writer's leftover) is skipped with a warning, as tables, plot and report skip it.
+    readable = []
+    for run_id, path in zip(index["id"], index["path"]):
+        if not path or not os.path.isfile(path):
+            readable.append(False)
+            continue
+        try:
+            mr.run_summary(path)
+            readable.append(True)
+        except (OSError, KeyError, ValueError) as e:
+            print("warning: %s: not a complete results file (%s); run %s gets no notebook"
+                  % (path, e, run_id), file=sys.stderr)
+            readable.append(False)
+    with_file = index[readable]
     if args.runs == "all":
         ids = list(with_file["id"])
     elif args.runs == "none":
