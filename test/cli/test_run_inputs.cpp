@@ -324,8 +324,9 @@ TEST_F(RunInputs, OutputPathIsCheckedBeforeTheWork) {
 TEST_F(RunInputs, UnboundedCountsAreUsageErrors) {
   const std::string out = " -o " + quote(dir_ / "x.h5");
   const std::vector<std::pair<std::string, std::string>> cases = {
-      {"massspring --no-plot --reps 1e9", "--reps: 1e9: expected timing repetitions"},
-      {"massspring --no-plot --reps -1", "--reps: -1: expected timing repetitions"},
+      {"massspring --no-plot --reps 1e9",
+       "--reps: 1e9: expected a repetition count, an integer in [0, 1000]"},
+      {"massspring --no-plot --reps -1", "--reps: -1: expected a repetition count"},
       {"massspring --no-plot --iterations 100000000", "--iterations: 100000000: expected"},
       {"datasets track --dataset euroc/V1_01_easy_images --passes 1000000" + out,
        "--passes: 1000000: expected the number of passes, an integer in [1, 100]"},
