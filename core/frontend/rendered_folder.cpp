@@ -58,20 +58,6 @@ double imuRateHz(const Sequence& seq) {
   return 1e9 / static_cast<double>(dt[dt.size() / 2]);
 }
 
-// The spline on a shorter span (the IMU is synthesized over the written ground truth only).
-class SplineWindow : public TrajectoryFunction {
- public:
-  SplineWindow(const TrajectoryFunction& spline, int64_t start_ns, int64_t end_ns)
-      : spline_(spline), start_ns_(start_ns), end_ns_(end_ns) {}
-  int64_t startTimeNs() const override { return start_ns_; }
-  int64_t endTimeNs() const override { return end_ns_; }
-  TrajectorySample evaluate(int64_t t_ns) const override { return spline_.evaluate(t_ns); }
-
- private:
-  const TrajectoryFunction& spline_;
-  int64_t start_ns_, end_ns_;
-};
-
 // Frames: the real camera times inside the trajectory, from start_s after its first pose on.
 std::vector<int64_t> selectFrames(const Sequence& seq, long long frames, double start_s) {
   const int64_t gt0 = seq.gt.t_ns.front(), gt1 = seq.gt.t_ns.back();
@@ -251,7 +237,8 @@ SyntheticImu writeImu(const RenderPlan& plan, const std::vector<int64_t>& gt_t,
   const double rate_hz = imuRateHz(seq);
   ImuSynthOptions options;
   options.gravity_w = gravityWorld(seq.kind);
-  const SplineWindow window(*plan.spline, gt_t.front(), gt_t.back());
+  // The IMU is synthesized over the written ground truth only.
+  const TrajectoryWindow window(*plan.spline, gt_t.front(), gt_t.back());
   SyntheticImu imu = synthesizeImu(window, seq.imu_noise, rate_hz,
                                    SimRandom::subSeed(plan.seed, 0x696d75), options);
   std::string csv =

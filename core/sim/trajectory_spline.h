@@ -81,6 +81,21 @@ class TrajectoryFunction {
   virtual TrajectorySample evaluate(int64_t t_ns) const = 0;
 };
 
+// A window [start_ns, end_ns] of another trajectory: the same samples over a shorter span (so that
+// IMU synthesis covers only the window). Refers to `base`, which must outlive it.
+class TrajectoryWindow : public TrajectoryFunction {
+ public:
+  TrajectoryWindow(const TrajectoryFunction& base, int64_t start_ns, int64_t end_ns)
+      : base_(base), start_ns_(start_ns), end_ns_(end_ns) {}
+  int64_t startTimeNs() const override { return start_ns_; }
+  int64_t endTimeNs() const override { return end_ns_; }
+  TrajectorySample evaluate(int64_t t_ns) const override { return base_.evaluate(t_ns); }
+
+ private:
+  const TrajectoryFunction& base_;
+  int64_t start_ns_, end_ns_;
+};
+
 struct TrajectorySplineOptions {
   double knot_dt_s = 0.05;           // Δ_p of the position spline
   double rotation_knot_dt_s = 0.05;  // Δ_R of the rotation spline

@@ -78,20 +78,6 @@ class SmoothTrajectory : public TrajectoryFunction {
   int64_t end_ns_;
 };
 
-// A window [start, end] of another trajectory (so that IMU synthesis covers only the window).
-class TrajectoryWindow : public TrajectoryFunction {
- public:
-  TrajectoryWindow(const TrajectoryFunction& base, int64_t start_ns, int64_t end_ns)
-      : base_(base), start_ns_(start_ns), end_ns_(end_ns) {}
-  int64_t startTimeNs() const override { return start_ns_; }
-  int64_t endTimeNs() const override { return end_ns_; }
-  TrajectorySample evaluate(int64_t t_ns) const override { return base_.evaluate(t_ns); }
-
- private:
-  const TrajectoryFunction& base_;
-  int64_t start_ns_, end_ns_;
-};
-
 // The true state at t_ns with the given biases.
 template <typename Scalar>
 ImuState<Scalar> trueState(const TrajectoryFunction& traj, int64_t t_ns,
