@@ -117,6 +117,15 @@ PropId createIntermediateGroups() {
   return lcpl;
 }
 
+// Object creation properties of kind (H5P_FILE_CREATE, H5P_GROUP_CREATE, H5P_DATASET_CREATE)
+// without modification times in the object headers: the same content gives the same bytes, so
+// that a file can be compared with cmp and the fuzzers' seeds made from it are the same each run.
+PropId untimedCreation(hid_t kind) {
+  PropId plist(H5Pcreate(kind));
+  H5Pset_obj_track_times(plist.get(), false);
+  return plist;
+}
+
 std::string attrLabel(const std::string& name) { return "attribute '" + name + "'"; }
 
 // Writes n elements of an attribute, replacing an existing one; scalar dataspace if scalar.
@@ -350,7 +359,8 @@ Group Group::openGroup(const std::string& path) const {
 Group Group::group(const std::string& path) const {
   if (exists(path)) return openGroup(path);
   const PropId lcpl = createIntermediateGroups();
-  return Group(check(H5Gcreate2(id(), path.c_str(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT), id(),
+  const PropId gcpl = untimedCreation(H5P_GROUP_CREATE);
+  return Group(check(H5Gcreate2(id(), path.c_str(), lcpl.get(), gcpl.get(), H5P_DEFAULT), id(),
                      path, "cannot create group"));
 }
 
@@ -378,7 +388,7 @@ Dataset Group::createDataset(const std::string& name, hid_t file_type,
   if (exists(name)) fail(id(), name, "already exists");
   std::vector<hsize_t> max_dims = dims;
   std::vector<hsize_t> chunk = dims;
-  const PropId dcpl(H5Pcreate(H5P_DATASET_CREATE));
+  const PropId dcpl = untimedCreation(H5P_DATASET_CREATE);
   if (chunk_rows > 0) {
     max_dims.front() = H5S_UNLIMITED;
     chunk.front() = chunk_rows;
@@ -434,7 +444,8 @@ File File::create(const std::string& path) {
   H5Pset_fclose_degree(fapl.get(), H5F_CLOSE_STRONG);
   constexpr std::size_t kIncrement = 1 << 20;
   H5Pset_fapl_core(fapl.get(), kIncrement, false);
-  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
+  const PropId fcpl = untimedCreation(H5P_FILE_CREATE);
+  const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
   if (file < 0) throw InputError(path, 0, "cannot create (HDF5: " + errorDetail() + ")");
   f.file_ = FileId(file);
   f.id_ = ObjectId(check(H5Gopen2(file, "/", H5P_DEFAULT), file, "/", "cannot open root group"));
