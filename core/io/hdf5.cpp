@@ -111,12 +111,6 @@ SpaceId simpleSpace(const std::vector<hsize_t>& dims, const std::vector<hsize_t>
                                   max_dims.empty() ? nullptr : max_dims.data()));
 }
 
-PropId createIntermediateGroups() {
-  PropId lcpl(H5Pcreate(H5P_LINK_CREATE));
-  H5Pset_create_intermediate_group(lcpl.get(), 1);
-  return lcpl;
-}
-
 // Object creation properties of kind (H5P_FILE_CREATE, H5P_GROUP_CREATE, H5P_DATASET_CREATE)
 // without modification times in the object headers: the same content gives the same bytes, so
 // that a file can be compared with cmp and the fuzzers' seeds made from it are the same each run.
@@ -356,12 +350,22 @@ Group Group::openGroup(const std::string& path) const {
   return Group(check(H5Gopen2(id(), path.c_str(), H5P_DEFAULT), id(), path, "not a group"));
 }
 
+// Each missing group along the path is created here rather than by HDF5's intermediate-group
+// option, which would create them with the default (timed) properties.
 Group Group::group(const std::string& path) const {
   if (exists(path)) return openGroup(path);
-  const PropId lcpl = createIntermediateGroups();
   const PropId gcpl = untimedCreation(H5P_GROUP_CREATE);
-  return Group(check(H5Gcreate2(id(), path.c_str(), lcpl.get(), gcpl.get(), H5P_DEFAULT), id(),
-                     path, "cannot create group"));
+  std::size_t pos = path.find_first_not_of('/');
+  while (pos != std::string::npos) {
+    const std::size_t end = path.find('/', pos);
+    const std::string prefix = path.substr(0, end);
+    if (!exists(prefix)) {
+      ObjectId created(check(H5Gcreate2(id(), prefix.c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT),
+                             id(), prefix, "cannot create group"));
+    }
+    pos = end == std::string::npos ? end : path.find_first_not_of('/', end);
+  }
+  return openGroup(path);
 }
 
 Dataset Group::openDataset(const std::string& path) const {
@@ -402,9 +406,10 @@ Dataset Group::createDataset(const std::string& name, hid_t file_type,
   }
   const SpaceId space = simpleSpace(dims, max_dims);
   check(space.get(), id(), name, "invalid dataspace");
-  const PropId lcpl = createIntermediateGroups();
+  const std::size_t slash = name.find_last_of('/');
+  if (slash != std::string::npos && slash > 0) group(name.substr(0, slash));
   return Dataset(check(
-      H5Dcreate2(id(), name.c_str(), file_type, space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT),
+      H5Dcreate2(id(), name.c_str(), file_type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
       id(), name, "cannot create dataset"));
 }
 
