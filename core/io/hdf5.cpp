@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "core/common/error.h"
+#include "core/io/hdf5_global_heap.h"
 
 namespace marglab::h5 {
 
@@ -461,6 +462,9 @@ File File::openReadOnly(const std::string& path) {
   detail::silenceErrors();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw InputError(path, 0, "no such file");
+  if (const auto stalled = detail::findStalledGlobalHeap(path)) {
+    throw InputError(path, 0, "corrupted HDF5 file (" + *stalled + "; libhdf5 would loop on it)");
+  }
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (file < 0) {
     throw InputError(path, 0, "not an HDF5 file or unreadable (HDF5: " + errorDetail() + ")");

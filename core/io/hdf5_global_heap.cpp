@@ -1,0 +1,74 @@
+#include "core/io/hdf5_global_heap.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <fstream>
+#include <iterator>
+#include <vector>
+
+namespace marglab::h5::detail {
+
+namespace {
+
+std::uint64_t littleEndian(const unsigned char* p, int bytes) {
+  std::uint64_t v = 0;
+  for (int i = bytes - 1; i >= 0; --i) v = (v << 8) | p[i];
+  return v;
+}
+
+// The superblock's "size of lengths" (bytes of an object size): byte 14 of a version 0/1
+// superblock, byte 10 of a version 2/3 one; 8 (libhdf5's default) when the superblock at byte 0
+// is not recognised.
+int sizeOfLengths(const std::vector<unsigned char>& file) {
+  static const unsigned char kSignature[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
+  if (file.size() < 16 || !std::equal(kSignature, kSignature + 8, file.begin())) return 8;
+  const int version = file[8];
+  const int lengths = version <= 1 ? file[14] : file[10];
+  return lengths == 2 || lengths == 4 || lengths == 8 ? lengths : 8;
+}
+
+// The walk libhdf5 makes over the collection [begin, end): the offset of the first object whose
+// step is 0 or wraps, or nullopt.
+std::optional<std::uint64_t> stalledObject(const std::vector<unsigned char>& file,
+                                           std::uint64_t begin, std::uint64_t end, int lengths) {
+  const std::uint64_t header = 8 + static_cast<std::uint64_t>(lengths);
+  for (std::uint64_t p = begin; p < end && end - p >= header;) {
+    const std::uint64_t index = littleEndian(&file[p], 2);
+    const std::uint64_t size = littleEndian(&file[p + 8], lengths);
+    const std::uint64_t padded = (size + 7) & ~std::uint64_t{7};  // wraps to 0 as libhdf5's does
+    const std::uint64_t step = index > 0 ? header + padded : size;
+    // libhdf5 adds the step to a pointer: a step of half the address space or more goes back.
+    if (step == 0 || step >= (std::uint64_t{1} << 62)) return p;
+    p += step;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<std::string> findStalledGlobalHeap(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;  // libhdf5 says why it cannot open the file
+  const std::vector<unsigned char> file((std::istreambuf_iterator<char>(in)),
+                                        std::istreambuf_iterator<char>());
+  const int lengths = sizeOfLengths(file);
+  const std::uint64_t prefix = 8 + static_cast<std::uint64_t>(lengths);  // GCOL, version, size
+  static const unsigned char kGcol[4] = {'G', 'C', 'O', 'L'};
+  for (auto it = std::search(file.begin(), file.end(), kGcol, kGcol + 4); it != file.end();
+       it = std::search(it + 1, file.end(), kGcol, kGcol + 4)) {
+    const auto at = static_cast<std::uint64_t>(it - file.begin());
+    if (file.size() - at < prefix || file[at + 4] != 1) continue;
+    const std::uint64_t size = littleEndian(&file[at + 8], lengths);
+    if (size < prefix || size > file.size() - at) continue;
+    if (const auto object = stalledObject(file, at + prefix, at + size, lengths)) {
+      return "global heap collection at byte " + std::to_string(at) + ": the object at byte " +
+             std::to_string(*object) + " has index " +
+             std::to_string(littleEndian(&file[*object], 2)) + " and size " +
+             std::to_string(littleEndian(&file[*object + 8], lengths)) +
+             ", a step that does not advance";
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace marglab::h5::detail
