@@ -16,10 +16,6 @@ BUILD_DIR="${MARGLAB_SAN_BUILD_DIR:-build-san}"
 JOBS="${MARGLAB_JOBS:-$(nproc)}"
 FUZZ_SECONDS="${MARGLAB_FUZZ_SECONDS:-300}"
 export MARGLAB_FUZZ_RUNS="${MARGLAB_FUZZ_RUNS:-2000}"
-# track_hdf5: 400. Its 515th input from seed 1 hangs inside libhdf5 1.10 (H5Aread of a corrupted
-# variable-length string, fuzz/README.md, an open finding not in marglab's code); CI checks
-# marglab's reader on the inputs before it.
-export MARGLAB_FUZZ_RUNS_track_hdf5="${MARGLAB_FUZZ_RUNS_track_hdf5:-400}"
 # The test modules (test/<module>) built here: the parsers, I/O, data, config, linear algebra and
 # estimator tests. Not cli, frontend, bench, ceres_marg: they run the same library code end to end
 # through the CLI, OpenCV or Ceres, at many times the cost.

@@ -11,6 +11,7 @@
 #include <limits>
 
 #include "common/fault_injection.h"
+#include "core/common/source_dir.h"
 #include "core/io/hdf5.h"
 #include "core/sim/track_io.h"
 #include "data/data_test_utils.h"
@@ -216,6 +217,19 @@ TEST(TrackIo, Hdf5BadInput) {
     file.commit();
     expectInputError([&] { readTrackFile(path); }, path, 0, "/observations/has_right has 1 rows");
   }
+}
+
+// Inputs of fuzz_track_hdf5 kept in fuzz/corpus/track_hdf5/: rejected as input errors, not a
+// hang inside libhdf5 (a global heap object of size 0) or a 14.7 GB buffer (a dataspace claiming
+// more elements than the file stores).
+TEST(TrackIo, Hdf5FuzzFindingsAreInputErrors) {
+  const std::string corpus = std::string(sourceDir()) + "/fuzz/corpus/track_hdf5/";
+  const std::string stalling = corpus + "crash-global-heap-object-of-size-0.h5";
+  expectInputError([&] { readTrackFile(stalling); }, stalling, 0,
+                   "the object at byte 2304 has index 0 and size 0");
+  const std::string too_long = corpus + "crash-shape-beyond-the-stored-bytes.h5";
+  expectInputError([&] { readTrackFile(too_long); }, too_long, 0,
+                   "/observations/track_id: its shape claims more elements than the 611 bytes");
 }
 
 }  // namespace
