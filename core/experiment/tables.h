@@ -43,6 +43,10 @@
 // Runs are grouped by (dataset, marg_strategy) within one variant: one table pair per variant
 // that has dense or nfr runs (ids get `_<variant>` when there are several). Deduplication and
 // seeds as above.
+//
+// One unit per job: paper_values.cpp (loadPaperValues), results_loading.cpp (loadResults),
+// table_builder.cpp (buildTables), table_render.cpp (Markdown / LaTeX / CSV) and tables.cpp
+// (writeTables: the verb's files).
 
 #include <map>
 #include <optional>

@@ -1,0 +1,123 @@
+// The runs of sweep folders for the tables (tables.h, loadResults): from each run's results file,
+// or from its index row when the file is not in the folder.
+
+#include "core/experiment/tables.h"
+
+#include <fmt/core.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "core/common/error.h"
+#include "core/data/sequence.h"
+#include "core/io/results_file.h"
+
+namespace marglab::experiment {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// A run whose results file is not in the folder, from its index row: a committed sweep folder
+// keeps index.csv but not runs/ (regenerated, .gitignore), and the sweep copied the row's summary
+// from the file when the run ended (%.17g: the same doubles). False when the row has no outcome.
+bool fromIndexRow(RunRecord* r) {
+  const IndexRow& row = r->row;
+  const std::string& status = row.get("status");
+  if (status != "ok" && status != "failed") return false;
+  if (status == "ok" && !std::isfinite(row.number("ate_rmse"))) return false;
+  r->state = status;
+  r->mode = row.get("mode");
+  r->ate_rmse = row.number("ate_rmse");
+  r->t_opt_s = row.number("t_opt_total_s");
+  r->t_marg_s = row.number("t_marg_total_s");
+  r->wall_s = row.number("wall_time_s");
+  r->duration_s = row.number("duration_s");
+  const double n_frames = row.number("n_frames"), failure_frame = row.number("failure_frame");
+  r->n_frames = std::isfinite(n_frames) ? static_cast<long long>(n_frames) : 0;
+  r->failure_frame = std::isfinite(failure_frame) ? static_cast<long long>(failure_frame) : -1;
+  return true;
+}
+
+// The dataset a run's table row is keyed by, "<kind>/<sequence>": the index holds what the sweep
+// file said, which for a user's folder is its path ("/data/euroc/MH_01_easy"), so the kind and
+// sequence the results file records are used; without the file, the folder's layout.
+std::string tableDataset(const std::string& indexed, const RunMetadata* recorded) {
+  if (recorded != nullptr && !recorded->dataset.empty() && !recorded->sequence.empty()) {
+    return recorded->dataset + "/" + recorded->sequence;
+  }
+  if (indexed.empty() || (indexed.front() != '/' && indexed.front() != '.')) return indexed;
+  try {
+    const std::string folder = normalizeDatasetArgument(indexed);
+    return std::string(datasetKindName(sequenceKind(folder))) + "/" +
+           fs::path(folder).filename().string();
+  } catch (const InputError&) {
+    return indexed;  // the folder is gone: the run keeps a row of its own
+  }
+}
+
+}  // namespace
+
+ResultSet loadResults(const std::vector<std::string>& dirs) {
+  ResultSet set;
+  for (const std::string& dir : dirs) {
+    const std::string index = (fs::path(dir) / "index.csv").string();
+    int from_index = 0;
+    for (const IndexRow& row : readIndex(index)) {
+      RunRecord r;
+      r.row = row;
+      r.dir = dir;
+      r.results_path = (fs::path(dir) / row.get("results")).string();
+      r.state = row.get("status") == "failed" ? "failed" : "missing";
+      const bool has_file = !row.get("results").empty() && fs::is_regular_file(r.results_path);
+      if (!has_file) r.row.set("dataset", tableDataset(row.get("dataset"), nullptr));
+      if (has_file) {
+        try {
+          const ResultsReader reader(r.results_path);
+          const RunInfo& info = reader.info();
+          if (info.metadata.variant != row.get("variant")) {
+            throw InputError(r.results_path, 0,
+                             fmt::format("variant {} but the index says {}", info.metadata.variant,
+                                         row.get("variant")));
+          }
+          const SummaryValues s = reader.summary();
+          r.row.set("dataset", tableDataset(row.get("dataset"), &info.metadata));
+          r.state = info.status == "ok" ? "ok" : "failed";
+          r.mode = info.metadata.mode;
+          r.marg_strategy = info.metadata.marg_strategy;
+          r.frontend = info.metadata.frontend;
+          for (const auto& [name, value] : info.metadata.extra) {
+            if (name == "gt_source") r.gt_source = value;
+          }
+          r.ate_rmse = s.ate_rmse;
+          r.t_opt_s = s.t_opt_total_s;
+          r.t_marg_s = s.t_marg_total_s;
+          r.wall_s = s.wall_time_s;
+          r.duration_s = s.duration_s;
+          r.n_frames = s.n_frames;
+          r.failure_frame = info.failure_frame;
+        } catch (const InputError& e) {
+          set.warnings.push_back(
+              fmt::format("{}: not a complete results file ({}); counted as "
+                          "not run",
+                          r.results_path, e.what()));
+          r.state = "missing";
+        }
+      } else if (fromIndexRow(&r)) {
+        ++from_index;
+      } else if (row.get("status") == "ok") {
+        set.warnings.push_back(r.results_path + " is listed as ok but neither it nor its index row "
+                               "holds an ATE; counted as not run");
+      }
+      set.runs.push_back(std::move(r));
+    }
+    if (from_index > 0) {
+      set.warnings.push_back(fmt::format(
+          "{}: {} run(s) read from index.csv, their results files are not in the folder", dir,
+          from_index));
+    }
+  }
+  return set;
+}
+
+}  // namespace marglab::experiment
