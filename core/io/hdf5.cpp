@@ -282,14 +282,23 @@ std::vector<hsize_t> Dataset::shape() const {
 
 namespace {
 
-// A corrupted dataspace can claim more elements than the file holds, and a read sizes its buffer
-// from it (fuzz_track_hdf5: 14.7 GB asked by a 40 KB file). The elements' raw bytes must fit in
-// what the file stores for the dataset — times deflate's largest ratio, 1032:1, when filtered.
+// A corrupted file can claim more than it holds, and the read sizes its buffers from the claim
+// (fuzz_track_hdf5: 14.7 GB from a dataspace, 990 MB from a chunk's size in a 42 KB file): the
+// bytes stored for the dataset must fit in the file, and the elements' raw bytes in those —
+// times deflate's largest ratio, 1032:1, when filtered. Returns the number of elements.
 hsize_t storedElements(hid_t dataset, const std::vector<hsize_t>& dims) {
   const TypeId type(check(H5Dget_type(dataset), dataset, "", "cannot get datatype"));
   const PropId dcpl(check(H5Dget_create_plist(dataset), dataset, "", "cannot get properties"));
-  constexpr hsize_t kDeflateMaxRatio = 1032;
+  const FileId file(check(H5Iget_file_id(dataset), dataset, "", "cannot get its file"));
+  hsize_t file_bytes = 0;
+  check(H5Fget_filesize(file.get(), &file_bytes), dataset, "", "cannot get the file's size");
   const hsize_t stored = H5Dget_storage_size(dataset);
+  if (stored > file_bytes) {
+    fail(dataset, "",
+         "the file claims " + std::to_string(stored) + " bytes for it, more than its own " +
+             std::to_string(file_bytes) + " (corrupted file)");
+  }
+  constexpr hsize_t kDeflateMaxRatio = 1032;
   const hsize_t capacity = H5Pget_nfilters(dcpl.get()) > 0 ? stored * kDeflateMaxRatio : stored;
   const hsize_t max_elements = capacity / std::max<std::size_t>(H5Tget_size(type.get()), 1);
   hsize_t n = 1;

@@ -220,8 +220,8 @@ TEST(TrackIo, Hdf5BadInput) {
 }
 
 // Inputs of fuzz_track_hdf5 kept in fuzz/corpus/track_hdf5/: rejected as input errors, not a
-// hang inside libhdf5 (a global heap object of size 0) or a 14.7 GB buffer (a dataspace claiming
-// more elements than the file stores).
+// hang inside libhdf5 (a global heap object of size 0), a 14.7 GB buffer (a dataspace claiming
+// more elements than the file stores) or a 990 MB one (a chunk larger than the file).
 TEST(TrackIo, Hdf5FuzzFindingsAreInputErrors) {
   const std::string corpus = std::string(sourceDir()) + "/fuzz/corpus/track_hdf5/";
   const std::string stalling = corpus + "crash-global-heap-object-of-size-0.h5";
@@ -230,6 +230,10 @@ TEST(TrackIo, Hdf5FuzzFindingsAreInputErrors) {
   const std::string too_long = corpus + "crash-shape-beyond-the-stored-bytes.h5";
   expectInputError([&] { readTrackFile(too_long); }, too_long, 0,
                    "/observations/track_id: its shape claims more elements than the 611 bytes");
+  const std::string big_chunk = corpus + "crash-chunk-larger-than-the-file.h5";
+  expectInputError([&] { readTrackFile(big_chunk); }, big_chunk, 0,
+                   "/observations/has_right: the file claims 989855852 bytes for it, more than "
+                   "its own 41920");
 }
 
 }  // namespace
