@@ -244,20 +244,56 @@ class Parser {
                                   dataset));
   }
 
+  // One [[group]]: its keys in the order they are checked, then its runs (datasets × variants ×
+  // seeds × overrides) appended to the plan.
   void parseGroup(const toml::table& group, SweepPlan* plan) {
-    const int line = lineOf(group);
+    GroupSpec g;
+    g.line = lineOf(group);
     checkKeys(group,
               {"name", "datasets", "variants", "seeds", "frames", "timeout_s", "args", "frontend",
                "config_file", "config", "override"},
               "a [[group]]");
-    const std::string group_name = requiredString(group, "name", "a [[group]]", line);
-    if (!validName(group_name)) {
+    g.name = requiredString(group, "name", "a [[group]]", g.line);
+    if (!validName(g.name)) {
       throw error(*group.get("name"), "group name must use only letters, digits, '_', '-', '.'");
     }
-    std::vector<std::string> datasets;
-    for (const toml::node* node : nonEmptyArray(group, "datasets", "a [[group]]", line)) {
-      datasets.push_back(resolveDataset(*node));
+    for (const toml::node* node : nonEmptyArray(group, "datasets", "a [[group]]", g.line)) {
+      g.datasets.push_back(resolveDataset(*node));
     }
+    g.variants = parseVariants(group, g.line);
+    g.seeds = parseSeeds(group, g.line);
+    g.frames = parseFrames(group);
+    g.timeout_s = parseTimeout(group);
+    g.args = runArgs(group);
+    g.frontend = parseFrontend(group, g.args);
+    g.config = parseConfigFile(group);
+    mergeInto(g.config, configTable(group));
+    g.overrides = parseOverrides(group);
+    checkRunCount(g, *plan);
+    addRuns(g, overrideConfigs(g), plan);
+  }
+
+  struct Override {
+    std::string name;
+    std::vector<std::string> args;
+    toml::table config;
+    int line = 0;
+  };
+
+  struct GroupSpec {
+    std::string name;
+    int line = 0;
+    std::vector<std::string> datasets, variants;
+    std::vector<std::uint64_t> seeds;
+    int frames = 0;
+    double timeout_s = 0;
+    std::vector<std::string> args;
+    std::string frontend;
+    toml::table config;  // config_file merged with [group.config]
+    std::vector<Override> overrides;  // one without name when the group has none
+  };
+
+  std::vector<std::string> parseVariants(const toml::table& group, int line) const {
     std::vector<std::string> variants;
     for (const toml::node* node : nonEmptyArray(group, "variants", "a [[group]]", line)) {
       if (!node->is_string()) throw error(*node, "variants must hold strings");
@@ -271,163 +307,182 @@ class Parser {
         throw error(*node, e.what());
       }
     }
-    std::vector<std::uint64_t> seeds{1};
-    if (group.get("seeds") != nullptr) {
-      seeds.clear();
-      std::set<std::int64_t> listed;  // linear in the number of seeds, not quadratic
-      for (const toml::node* node : nonEmptyArray(group, "seeds", "a [[group]]", line)) {
-        const auto seed = node->value<std::int64_t>();
-        if (!node->is_integer() || !seed || *seed < 0) {
-          throw error(*node, "seeds must be non-negative integers");
-        }
-        if (!listed.insert(*seed).second) {
-          throw error(*node, fmt::format("seed {} is listed twice", *seed));
-        }
-        seeds.push_back(static_cast<std::uint64_t>(*seed));
-      }
-    }
-    int frames = 0;
-    if (const toml::node* node = group.get("frames")) {
-      const auto v = node->value<std::int64_t>();
-      if (!node->is_integer() || !v || *v < 0 || *v > 100000000) {
-        throw error(*node, "frames must be an integer >= 0 (0: the whole sequence)");
-      }
-      frames = static_cast<int>(*v);
-    }
-    double timeout_s = 0;
-    if (const toml::node* node = group.get("timeout_s")) {
-      const auto v = node->value<double>();
-      if (!v || *v < 0) throw error(*node, "timeout_s must be a number >= 0 (0: no limit)");
-      timeout_s = *v;
-    }
-    const std::vector<std::string> group_args = runArgs(group);
-    std::string frontend;
-    if (const toml::node* node = group.get("frontend")) {
-      const auto v = node->value<std::string>();
-      if (!v || (*v != "images" && *v != "simulated" && *v != "auto")) {
-        throw error(*node, "frontend must be \"images\", \"simulated\" or \"auto\"");
-      }
-      frontend = *v;
-      for (const std::string& arg : group_args) {
-        const std::string option = arg.substr(0, arg.find('='));
-        if (option == "--frontend" || option == "--tracks") {
-          throw error(*node, "frontend is set here: args must not hold " + option + " too");
-        }
-      }
-    }
+    return variants;
+  }
 
-    toml::table group_config;
-    if (const toml::node* node = group.get("config_file")) {
-      if (!node->is_string()) throw error(*node, "config_file must be a string");
-      fs::path path(**node->as_string());
-      if (path.is_relative()) path = fs::path(base_dir_) / path;
-      if (!fs::is_regular_file(path)) {
-        throw error(*node, "config_file " + path.string() + " does not exist");
+  std::vector<std::uint64_t> parseSeeds(const toml::table& group, int line) const {
+    if (group.get("seeds") == nullptr) return {1};
+    std::vector<std::uint64_t> seeds;
+    std::set<std::int64_t> listed;  // linear in the number of seeds, not quadratic
+    for (const toml::node* node : nonEmptyArray(group, "seeds", "a [[group]]", line)) {
+      const auto seed = node->value<std::int64_t>();
+      if (!node->is_integer() || !seed || *seed < 0) {
+        throw error(*node, "seeds must be non-negative integers");
       }
-      EstimatorConfig probe;
-      probe.loadToml(path.string());  // its own errors name its own lines
-      try {
-        group_config = toml::parse_file(path.string());
-      } catch (const toml::parse_error& e) {
-        throw InputError(path.string(), lineOf0(e.source()), std::string(e.description()));
+      if (!listed.insert(*seed).second) {
+        throw error(*node, fmt::format("seed {} is listed twice", *seed));
+      }
+      seeds.push_back(static_cast<std::uint64_t>(*seed));
+    }
+    return seeds;
+  }
+
+  int parseFrames(const toml::table& group) const {
+    const toml::node* node = group.get("frames");
+    if (node == nullptr) return 0;
+    const auto v = node->value<std::int64_t>();
+    if (!node->is_integer() || !v || *v < 0 || *v > 100000000) {
+      throw error(*node, "frames must be an integer >= 0 (0: the whole sequence)");
+    }
+    return static_cast<int>(*v);
+  }
+
+  double parseTimeout(const toml::table& group) const {
+    const toml::node* node = group.get("timeout_s");
+    if (node == nullptr) return 0;
+    const auto v = node->value<double>();
+    if (!v || *v < 0) throw error(*node, "timeout_s must be a number >= 0 (0: no limit)");
+    return *v;
+  }
+
+  std::string parseFrontend(const toml::table& group, const std::vector<std::string>& args) const {
+    const toml::node* node = group.get("frontend");
+    if (node == nullptr) return "";
+    const auto v = node->value<std::string>();
+    if (!v || (*v != "images" && *v != "simulated" && *v != "auto")) {
+      throw error(*node, "frontend must be \"images\", \"simulated\" or \"auto\"");
+    }
+    for (const std::string& arg : args) {
+      const std::string option = arg.substr(0, arg.find('='));
+      if (option == "--frontend" || option == "--tracks") {
+        throw error(*node, "frontend is set here: args must not hold " + option + " too");
       }
     }
-    mergeInto(group_config, configTable(group));
+    return *v;
+  }
 
-    struct Override {
-      std::string name;
-      std::vector<std::string> args;
-      toml::table config;
-      int line = 0;
-    };
+  toml::table parseConfigFile(const toml::table& group) const {
+    const toml::node* node = group.get("config_file");
+    if (node == nullptr) return {};
+    if (!node->is_string()) throw error(*node, "config_file must be a string");
+    fs::path path(**node->as_string());
+    if (path.is_relative()) path = fs::path(base_dir_) / path;
+    if (!fs::is_regular_file(path)) {
+      throw error(*node, "config_file " + path.string() + " does not exist");
+    }
+    EstimatorConfig probe;
+    probe.loadToml(path.string());  // its own errors name its own lines
+    try {
+      return toml::parse_file(path.string());
+    } catch (const toml::parse_error& e) {
+      throw InputError(path.string(), lineOf0(e.source()), std::string(e.description()));
+    }
+  }
+
+  std::vector<Override> parseOverrides(const toml::table& group) const {
+    const toml::node* node = group.get("override");
+    if (node == nullptr) return {Override{}};
+    const toml::array* array = node->as_array();
+    if (array == nullptr || !array->is_array_of_tables() || array->empty()) {
+      throw error(*node, "override must be an array of tables ([[group.override]])");
+    }
     std::vector<Override> overrides;
-    if (const toml::node* node = group.get("override")) {
-      const toml::array* array = node->as_array();
-      if (array == nullptr || !array->is_array_of_tables() || array->empty()) {
-        throw error(*node, "override must be an array of tables ([[group.override]])");
+    for (const toml::node& item : *array) {
+      const toml::table& table = *item.as_table();
+      checkKeys(table, {"name", "args", "config"}, "a [[group.override]]");
+      Override o;
+      o.line = lineOf(table);
+      o.name = requiredString(table, "name", "a [[group.override]]", o.line);
+      if (!validName(o.name)) {
+        throw error(*table.get("name"),
+                    "override name must use only letters, digits, '_', '-', '.'");
       }
-      for (const toml::node& item : *array) {
-        const toml::table& table = *item.as_table();
-        checkKeys(table, {"name", "args", "config"}, "a [[group.override]]");
-        Override o;
-        o.line = lineOf(table);
-        o.name = requiredString(table, "name", "a [[group.override]]", o.line);
-        if (!validName(o.name)) {
-          throw error(*table.get("name"),
-                      "override name must use only letters, digits, '_', '-', '.'");
+      for (const Override& other : overrides) {
+        if (other.name == o.name) {
+          throw error(*table.get("name"), "duplicate override name '" + o.name + "'");
         }
-        for (const Override& other : overrides) {
-          if (other.name == o.name) {
-            throw error(*table.get("name"), "duplicate override name '" + o.name + "'");
-          }
-        }
-        o.args = runArgs(table);
-        o.config = configTable(table);
-        overrides.push_back(std::move(o));
       }
-    } else {
-      overrides.push_back({});
+      o.args = runArgs(table);
+      o.config = configTable(table);
+      overrides.push_back(std::move(o));
     }
+    return overrides;
+  }
 
-    const double planned = static_cast<double>(plan->runs.size()) +
-                           static_cast<double>(datasets.size()) * variants.size() * seeds.size() *
-                               overrides.size();
+  void checkRunCount(const GroupSpec& g, const SweepPlan& plan) const {
+    const double planned = static_cast<double>(plan.runs.size()) +
+                           static_cast<double>(g.datasets.size()) * g.variants.size() *
+                               g.seeds.size() * g.overrides.size();
     if (planned > kMaxSweepRuns) {
-      throw InputError(name_, line,
+      throw InputError(name_, g.line,
                        fmt::format("group '{}' brings the sweep to {:.0f} runs; a sweep holds at "
                                    "most {} (split it into several sweeps)",
-                                   group_name, planned, kMaxSweepRuns));
+                                   g.name, planned, kMaxSweepRuns));
     }
-    // The merged config of each override, checked once (not once per run).
-    std::vector<std::string> override_config;
-    for (const Override& o : overrides) {
-      toml::table config = group_config;
+  }
+
+  // The merged config of each override, checked once (not once per run).
+  std::vector<std::string> overrideConfigs(const GroupSpec& g) const {
+    std::vector<std::string> configs;
+    for (const Override& o : g.overrides) {
+      toml::table config = g.config;
       mergeInto(config, o.config);
-      override_config.push_back(toTomlText(config));
-      checkMergedConfig(override_config.back(), o.name.empty() ? line : o.line,
-                        o.name.empty() ? fmt::format("group '{}'", group_name)
-                                       : fmt::format("group '{}', override '{}'", group_name,
-                                                     o.name));
+      configs.push_back(toTomlText(config));
+      checkMergedConfig(configs.back(), o.name.empty() ? g.line : o.line,
+                        o.name.empty()
+                            ? fmt::format("group '{}'", g.name)
+                            : fmt::format("group '{}', override '{}'", g.name, o.name));
     }
-    for (const std::string& dataset : datasets) {
-      for (const std::string& variant : variants) {
-        for (const std::uint64_t seed : seeds) {
-          for (std::size_t k = 0; k < overrides.size(); ++k) {
-            const Override& o = overrides[k];
-            PlannedRun run;
-            run.group = group_name;
-            run.dataset = dataset;
-            run.variant = variant;
-            run.seed = seed;
-            run.frames = frames;
-            run.timeout_s = timeout_s;
-            run.override_name = o.name;
-            run.frontend = frontend;
-            run.extra_args = group_args;
-            run.extra_args.insert(run.extra_args.end(), o.args.begin(), o.args.end());
-            run.config_toml = override_config[k];
-            run.line = line;
-            run.id = fmt::format("{}__{}__{}__s{}", group_name, slug(dataset), variant, seed);
-            if (!o.name.empty()) run.id += "__" + o.name;
-            if (options_.check_run) {
-              const std::string problem = options_.check_run(run);
-              if (!problem.empty()) {
-                throw InputError(name_, o.name.empty() ? line : o.line,
-                                 fmt::format("run {}: {}", run.id, problem));
-              }
-            }
-            const auto [earlier, fresh] = planned_ids_.emplace(run.id, line);
-            if (!fresh) {
-              throw InputError(name_, line,
-                               fmt::format("run {} is planned twice (lines {} and {}): a "
-                                           "dataset, variant or seed is listed twice",
-                                           run.id, earlier->second, line));
-            }
-            plan->runs.push_back(std::move(run));
+    return configs;
+  }
+
+  void addRuns(const GroupSpec& g, const std::vector<std::string>& override_config,
+               SweepPlan* plan) {
+    for (const std::string& dataset : g.datasets) {
+      for (const std::string& variant : g.variants) {
+        for (const std::uint64_t seed : g.seeds) {
+          for (std::size_t k = 0; k < g.overrides.size(); ++k) {
+            plan->runs.push_back(
+                plannedRun(g, dataset, variant, seed, g.overrides[k], override_config[k]));
           }
         }
       }
     }
+  }
+
+  // One run of the group, checked (options_.check_run) and its id unique in the sweep.
+  PlannedRun plannedRun(const GroupSpec& g, const std::string& dataset, const std::string& variant,
+                        std::uint64_t seed, const Override& o, const std::string& config_toml) {
+    PlannedRun run;
+    run.group = g.name;
+    run.dataset = dataset;
+    run.variant = variant;
+    run.seed = seed;
+    run.frames = g.frames;
+    run.timeout_s = g.timeout_s;
+    run.override_name = o.name;
+    run.frontend = g.frontend;
+    run.extra_args = g.args;
+    run.extra_args.insert(run.extra_args.end(), o.args.begin(), o.args.end());
+    run.config_toml = config_toml;
+    run.line = g.line;
+    run.id = fmt::format("{}__{}__{}__s{}", g.name, slug(dataset), variant, seed);
+    if (!o.name.empty()) run.id += "__" + o.name;
+    if (options_.check_run) {
+      const std::string problem = options_.check_run(run);
+      if (!problem.empty()) {
+        throw InputError(name_, o.name.empty() ? g.line : o.line,
+                         fmt::format("run {}: {}", run.id, problem));
+      }
+    }
+    const auto [earlier, fresh] = planned_ids_.emplace(run.id, g.line);
+    if (!fresh) {
+      throw InputError(name_, g.line,
+                       fmt::format("run {} is planned twice (lines {} and {}): a "
+                                   "dataset, variant or seed is listed twice",
+                                   run.id, earlier->second, g.line));
+    }
+    return run;
   }
 
   std::string name_;
