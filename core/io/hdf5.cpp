@@ -497,8 +497,8 @@ File File::openReadOnly(const std::string& path) {
   detail::silenceErrors();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw InputError(path, 0, "no such file");
-  if (const auto stalled = detail::findStalledGlobalHeap(path)) {
-    throw InputError(path, 0, "corrupted HDF5 file (" + *stalled + "; libhdf5 would loop on it)");
+  if (const auto bad = detail::findBadGlobalHeap(path)) {
+    throw InputError(path, 0, "corrupted HDF5 file (" + *bad + ")");
   }
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (file < 0) {

@@ -28,9 +28,14 @@ int sizeOfLengths(const std::vector<unsigned char>& file) {
 }
 
 // The walk libhdf5 makes over the collection [begin, end): the offset of the first object whose
-// step is 0 or wraps, or nullopt.
-std::optional<std::uint64_t> stalledObject(const std::vector<unsigned char>& file,
-                                           std::uint64_t begin, std::uint64_t end, int lengths) {
+// step is 0 or wraps (the walk never ends) or whose bytes run past the end (H5HG_read copies
+// them from beyond the collection), with which of the two; nullopt when every object is inside.
+struct BadObject {
+  std::uint64_t at;
+  const char* why;
+};
+std::optional<BadObject> badObject(const std::vector<unsigned char>& file, std::uint64_t begin,
+                                   std::uint64_t end, int lengths) {
   const std::uint64_t header = 8 + static_cast<std::uint64_t>(lengths);
   for (std::uint64_t p = begin; p < end && end - p >= header;) {
     const std::uint64_t index = littleEndian(&file[p], 2);
@@ -38,7 +43,9 @@ std::optional<std::uint64_t> stalledObject(const std::vector<unsigned char>& fil
     const std::uint64_t padded = (size + 7) & ~std::uint64_t{7};  // wraps to 0 as libhdf5's does
     const std::uint64_t step = index > 0 ? header + padded : size;
     // libhdf5 adds the step to a pointer: a step of half the address space or more goes back.
-    if (step == 0 || step >= (std::uint64_t{1} << 62)) return p;
+    if (step == 0 || step >= (std::uint64_t{1} << 62)) return BadObject{p, "does not advance"};
+    const std::uint64_t bytes = index > 0 ? header + size : size;
+    if (size > end - p || bytes > end - p) return BadObject{p, "runs past the collection's end"};
     p += step;
   }
   return std::nullopt;
@@ -46,7 +53,7 @@ std::optional<std::uint64_t> stalledObject(const std::vector<unsigned char>& fil
 
 }  // namespace
 
-std::optional<std::string> findStalledGlobalHeap(const std::string& path) {
+std::optional<std::string> findBadGlobalHeap(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return std::nullopt;  // libhdf5 says why it cannot open the file
   const std::vector<unsigned char> file((std::istreambuf_iterator<char>(in)),
@@ -60,12 +67,12 @@ std::optional<std::string> findStalledGlobalHeap(const std::string& path) {
     if (file.size() - at < prefix || file[at + 4] != 1) continue;
     const std::uint64_t size = littleEndian(&file[at + 8], lengths);
     if (size < prefix || size > file.size() - at) continue;
-    if (const auto object = stalledObject(file, at + prefix, at + size, lengths)) {
+    if (const auto object = badObject(file, at + prefix, at + size, lengths)) {
       return "global heap collection at byte " + std::to_string(at) + ": the object at byte " +
-             std::to_string(*object) + " has index " +
-             std::to_string(littleEndian(&file[*object], 2)) + " and size " +
-             std::to_string(littleEndian(&file[*object + 8], lengths)) +
-             ", a step that does not advance";
+             std::to_string(object->at) + " has index " +
+             std::to_string(littleEndian(&file[object->at], 2)) + " and size " +
+             std::to_string(littleEndian(&file[object->at + 8], lengths)) + ", which " +
+             object->why;
     }
   }
   return std::nullopt;

@@ -220,13 +220,18 @@ TEST(TrackIo, Hdf5BadInput) {
 }
 
 // Inputs of fuzz_track_hdf5 kept in fuzz/corpus/track_hdf5/: rejected as input errors, not a
-// hang inside libhdf5 (a global heap object of size 0), a 14.7 GB buffer (a dataspace claiming
+// hang inside libhdf5 (a global heap object of size 0), an out-of-bounds read in it (an object
+// running past its collection), a 14.7 GB buffer (a dataspace claiming
 // more elements than the file stores) or a 990 MB one (a chunk larger than the file).
 TEST(TrackIo, Hdf5FuzzFindingsAreInputErrors) {
   const std::string corpus = std::string(sourceDir()) + "/fuzz/corpus/track_hdf5/";
   const std::string stalling = corpus + "crash-global-heap-object-of-size-0.h5";
   expectInputError([&] { readTrackFile(stalling); }, stalling, 0,
                    "the object at byte 2304 has index 0 and size 0");
+  const std::string past_end = corpus + "crash-global-heap-object-past-its-end.h5";
+  expectInputError([&] { readTrackFile(past_end); }, past_end, 0,
+                   "the object at byte 2096 has index 2 and size 2424855, which runs past the "
+                   "collection's end");
   const std::string too_long = corpus + "crash-shape-beyond-the-stored-bytes.h5";
   expectInputError([&] { readTrackFile(too_long); }, too_long, 0,
                    "/observations/track_id: its shape claims more elements than the 611 bytes");
