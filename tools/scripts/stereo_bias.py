@@ -29,6 +29,11 @@ Method.
      e = c + s · d_motion separates an additive disparity offset c [px] (a front-end bias, or a
      yaw of the rectified right camera) from a relative error s (a baseline error: b_true =
      b_calib (1 + s)); then b_eff = b (1 + s) and the disparity offset is c.
+  --orientation visual (a check on the ground truth's rotations and headings, which step 1
+  trusts): two-view motion stereo instead, frame k with the first frame j ≥ --min-motion metres
+  on; rotation and translation direction from the left tracks alone (essential matrix, OpenCV
+  USAC_ACCURATE, 0.3 px), only the distance ‖c_j − c_k‖ from the ground truth; points triangulated
+  (≤ 0.5 px in both views) with σ(f b / z) ≈ (f b / z) (0.15 px / f) / parallax ≤ --max-sigma.
   Implied scale error of the stereo depths: median over the observations of −e / (u0 − u1) (the
   relative depth error, what the VO's trajectory length inherits, to first order).
 
@@ -179,6 +184,51 @@ def measure(tracks, T_c_w, centres, calib, args):
     return np.array(rows).reshape(-1, 7), used
 
 
+def measure_visual(tracks, T_w_c, centres, calib, args):
+    """measure()'s rows from two-view motion stereo with the images' own relative orientation."""
+    import cv2  # only this mode needs OpenCV's Python bindings
+    f, cx, cy, b = calib
+    by_frame = {}
+    for tid, obs in tracks.items():
+        for k, u0, v0, u1, v1 in obs:
+            by_frame.setdefault(k, {})[tid] = (u0, v0, u1, v1)
+    rows, pairs = [], 0
+    for k in sorted(by_frame):
+        far = [j for j in sorted(by_frame) if j > k and
+               np.linalg.norm(centres[j] - centres[k]) >= args.min_motion]
+        if not far:
+            break
+        j = far[0]
+        ids = [i for i in by_frame[k] if i in by_frame[j]]
+        if len(ids) < 30:
+            continue
+        q_k = np.array([[(by_frame[k][i][0] - cx) / f, (by_frame[k][i][1] - cy) / f] for i in ids])
+        q_j = np.array([[(by_frame[j][i][0] - cx) / f, (by_frame[j][i][1] - cy) / f] for i in ids])
+        E, mask = cv2.findEssentialMat(q_k, q_j, np.eye(3), method=cv2.USAC_ACCURATE,
+                                       prob=0.9999, threshold=0.3 / f)
+        if E is None or E.shape != (3, 3):
+            continue
+        _, R, t, mask = cv2.recoverPose(E, q_k, q_j, np.eye(3), mask=mask)
+        t = t.ravel() * np.linalg.norm(centres[j] - centres[k])
+        X = cv2.triangulatePoints(np.hstack([np.eye(3), np.zeros((3, 1))]),
+                                  np.hstack([R, t[:, None]]), q_k.T, q_j.T)
+        pairs += 1
+        for i, x, inlier, a, c in zip(ids, (X[:3] / X[3]).T, mask.ravel(), q_k, q_j):
+            u0, v0, u1, v1 = by_frame[k][i]
+            x_j = R @ x + t
+            if not inlier or math.isnan(u1) or x[2] <= 1 or x_j[2] <= 1:
+                continue
+            if f * max(np.hypot(*(x[:2] / x[2] - a)), np.hypot(*(x_j[:2] / x_j[2] - c))) > 0.5:
+                continue
+            parallax = math.acos(min(1.0, float(x @ (R.T @ x_j)) / np.linalg.norm(x) /
+                                     np.linalg.norm(x_j)))
+            d = f * b / x[2]
+            sigma = d * (0.15 / f) / max(parallax, 1e-9)
+            if sigma <= args.max_sigma:
+                rows.append((u0, v0, u0 - u1, d, sigma, x[2], v1 - v0))
+    return np.array(rows).reshape(-1, 7), pairs
+
+
 def fit_offset_scale(d_motion, e, w):
     """Weighted LSQ e = c + s d_motion; (c, s, σ_c, σ_s) with the residuals' scatter."""
     A = np.stack([np.ones_like(d_motion), d_motion], axis=1) * np.sqrt(w)[:, None]
@@ -217,10 +267,12 @@ def report(rows, used, n_tracks, calib, args):
            "dataset `%s`, tracks `%s`" % (args.dataset, args.tracks), "",
            "calibration: f = %.4f px, cx = %.4f, cy = %.4f, b = %.6f m (f b = %.3f px m)" % (
                f, cx, cy, b, f * b),
-           "settings: min_frames %d, min_motion %.2f m, max_rms %.2f px, max_sigma %.2f px" % (
-               args.min_frames, args.min_motion, args.max_rms, args.max_sigma), "",
-           "tracks: %d in the file, %d triangulated from motion; %d stereo observations used" % (
-               n_tracks, used, len(rows)), "",
+           "settings: orientation %s, min_frames %d, min_motion %.2f m, max_rms %.2f px, "
+           "max_sigma %.2f px" % (args.orientation, args.min_frames, args.min_motion, args.max_rms,
+                                  args.max_sigma), "",
+           "tracks: %d in the file, %d %s; %d stereo observations used" % (
+               n_tracks, used, "triangulated from motion" if args.orientation == "gt" else
+               "frame pairs (visual orientation)", len(rows)), "",
            "e = (u0 − u1) − f b / z_motion  [px]", "",
            "| statistic | value |", "|---|---:|",
            "| mean e | %+.4f px (s.e. %.4f) |" % (np.mean(e), np.std(e) / math.sqrt(len(e))),
@@ -243,6 +295,9 @@ def main():
     ap.add_argument("--dataset", required=True, help="KITTI folder (see the module docstring)")
     ap.add_argument("--tracks", required=True, help="text track file of `marglab datasets track`")
     ap.add_argument("-o", "--output", help="write the markdown report here (else stdout)")
+    ap.add_argument("--orientation", choices=["gt", "visual"], default="gt",
+                    help="poses of the motion stereo: ground truth, or the images' essential "
+                         "matrix with the ground truth's distance only")
     ap.add_argument("--min-frames", type=int, default=4)
     ap.add_argument("--min-motion", type=float, default=2.0, help="camera travel [m] in a track")
     ap.add_argument("--max-rms", type=float, default=0.5, help="left reprojection RMS [px]")
@@ -261,7 +316,10 @@ def main():
     T_c_w = [np.linalg.inv(T) for T in T_w_c]
     centres = np.array([T[:3, 3] for T in T_w_c])
     tracks = read_tracks(args.tracks, t_ns)
-    rows, used = measure(tracks, T_c_w, centres, calib, args)
+    if args.orientation == "gt":
+        rows, used = measure(tracks, T_c_w, centres, calib, args)
+    else:
+        rows, used = measure_visual(tracks, T_w_c, centres, calib, args)
     if len(rows) < 10:
         fail("%s: only %d usable stereo observations (too little motion or too few long tracks)"
              % (args.tracks, len(rows)))
