@@ -50,9 +50,11 @@ def phase_rows(dataset, stereo):
         if (min(a0, a1, b0, b1) < HALF or max(a0, a1) + HALF > left.shape[1]
                 or max(b0, b1) + HALF > left.shape[0]):
             continue
-        (sx, sy), response = cv2.phaseCorrelate(left[b0 - HALF:b0 + HALF, a0 - HALF:a0 + HALF],
-                                                right[b1 - HALF:b1 + HALF, a1 - HALF:a1 + HALF],
-                                                window)
+        # Contiguous copies: on views into the image, cv2.phaseCorrelate (OpenCV 4.6) gave
+        # results that depended on the previous calls.
+        patch0 = np.ascontiguousarray(left[b0 - HALF:b0 + HALF, a0 - HALF:a0 + HALF])
+        patch1 = np.ascontiguousarray(right[b1 - HALF:b1 + HALF, a1 - HALF:a1 + HALF])
+        (sx, sy), response = cv2.phaseCorrelate(patch0, patch1, window)
         if response >= 0.3:
             rows.append((u0, v0, u0 - u1, v1 - v0, a0 - (a1 + sx), b1 + sy - b0))
     return np.array(rows).reshape(-1, 6)
