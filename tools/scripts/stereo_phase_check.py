@@ -12,7 +12,7 @@ the window), a matcher built on another principle would disagree with it. For ev
 the 32×32 patches around the rounded left and right keypoints (Hann window) are phase-correlated
 (cv2.phaseCorrelate, peak response ≥ 0.3); the printed numbers are the median differences LK −
 phase correlation of the disparity, and both matchers' vertical offsets v1 − v0 by image column
-and row (a vertical offset in rectified images is the rectification's, not a matcher's: rendered
+and row, and as a map over the image (a vertical offset in rectified images is the rectification's, not a matcher's: rendered
 frames give 0.000 px with LK). Needs numpy and OpenCV's Python bindings.
 """
 import argparse
@@ -60,6 +60,19 @@ def phase_rows(dataset, stereo):
     return np.array(rows).reshape(-1, 6)
 
 
+def offset_map(r, col):
+    """Median of r[:, col] (a vertical offset) over a 6×6 grid of the image, as text."""
+    u_edges, v_edges = (0, 200, 400, 600, 800, 1000, 1300), (0, 60, 120, 180, 240, 300, 400)
+    lines = ["v0 \\ u0   " + " ".join("%4d–%-4d" % e for e in zip(u_edges[:-1], u_edges[1:]))]
+    for v_lo, v_hi in zip(v_edges[:-1], v_edges[1:]):
+        cells = []
+        for u_lo, u_hi in zip(u_edges[:-1], u_edges[1:]):
+            m = (r[:, 0] >= u_lo) & (r[:, 0] < u_hi) & (r[:, 1] >= v_lo) & (r[:, 1] < v_hi)
+            cells.append("%+9.2f" % np.median(r[m, col]) if m.sum() >= 10 else "       --")
+        lines.append("%3d–%-3d    " % (v_lo, v_hi) + " ".join(cells))
+    return "\n".join(lines)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--dataset", required=True)
@@ -80,6 +93,8 @@ def main():
                 print("%s %4d–%-4d n %5d: v1 − v0 LK %+.3f, PC %+.3f; disparity LK − PC %+.3f" % (
                     name, lo, hi, m.sum(), np.median(r[m, 3]), np.median(r[m, 5]),
                     np.median(r[m, 2] - r[m, 4])))
+    for col, name in ((3, "LK"), (5, "phase correlation")):
+        print("\nmedian v1 − v0 [px], %s (≥ 10 matches a cell):\n%s" % (name, offset_map(r, col)))
 
 
 if __name__ == "__main__":
