@@ -51,7 +51,7 @@ import numpy as np
 
 
 def fail(msg):
-    print("stereo_bias.py: " + msg, file=sys.stderr)
+    print(os.path.basename(sys.argv[0]) + ": " + msg, file=sys.stderr)
     sys.exit(1)
 
 
@@ -100,8 +100,9 @@ def read_lines(path, count):
         return [numbers(path, i, line, count) for i, line in enumerate(f, 1) if line.strip()]
 
 
-def read_tracks(path, t_ns_of_frame):
-    """{track_id: [(frame, u0, v0, u1, v1), ...]} (u1, v1 nan without a match)."""
+def read_tracks(path, t_ns_of_frame, frames=None):
+    """{track_id: [(frame, u0, v0, u1, v1), ...]} (u1, v1 nan without a match); only the
+    observations of frames [first, last] when frames = (first, last)."""
     frame_of = {t: k for k, t in enumerate(t_ns_of_frame)}
     tracks = {}
     if not os.path.isfile(path):
@@ -121,6 +122,8 @@ def read_tracks(path, t_ns_of_frame):
             k = frame_of.get(t)
             if k is None:
                 fail("%s:%d: t_ns %d is not a frame time of times.txt" % (path, i, t))
+            if frames and not frames[0] <= k <= frames[1]:
+                continue
             tracks.setdefault(tid, []).append((k, u0, v0, u1, v1))
     return tracks
 
@@ -264,7 +267,8 @@ def report(rows, used, n_tracks, calib, args):
     c, s, sc, ss = fit_offset_scale(rows[:, 3], e, w)
     rel = -e / rows[:, 2]
     out = ["# Stereo disparity vs motion stereo", "",
-           "dataset `%s`, tracks `%s`" % (args.dataset, args.tracks), "",
+           "dataset `%s`, tracks `%s`, frames %s" % (args.dataset, args.tracks,
+                                                      args.frames or "all"), "",
            "calibration: f = %.4f px, cx = %.4f, cy = %.4f, b = %.6f m (f b = %.3f px m)" % (
                f, cx, cy, b, f * b),
            "settings: orientation %s, min_frames %d, min_motion %.2f m, max_rms %.2f px, "
@@ -298,6 +302,9 @@ def main():
     ap.add_argument("--orientation", choices=["gt", "visual"], default="gt",
                     help="poses of the motion stereo: ground truth, or the images' essential "
                          "matrix with the ground truth's distance only")
+    ap.add_argument("--frames", help="FIRST:LAST, only these frames' observations (0-based, "
+                                      "inclusive), e.g. to measure on half of a clip and test "
+                                      "the correction on the other half")
     ap.add_argument("--min-frames", type=int, default=4)
     ap.add_argument("--min-motion", type=float, default=2.0, help="camera travel [m] in a track")
     ap.add_argument("--max-rms", type=float, default=0.5, help="left reprojection RMS [px]")
@@ -315,7 +322,15 @@ def main():
     T_w_c = [np.vstack([np.array(p).reshape(3, 4), [0, 0, 0, 1]]) for p in poses[:len(t_ns)]]
     T_c_w = [np.linalg.inv(T) for T in T_w_c]
     centres = np.array([T[:3, 3] for T in T_w_c])
-    tracks = read_tracks(args.tracks, t_ns)
+    frames = None
+    if args.frames:
+        try:
+            frames = tuple(int(x) for x in args.frames.split(":"))
+        except ValueError:
+            frames = ()
+        if len(frames) != 2 or not 0 <= frames[0] <= frames[1]:
+            fail("--frames %r: expected FIRST:LAST with 0 <= FIRST <= LAST" % args.frames)
+    tracks = read_tracks(args.tracks, t_ns, frames)
     if args.orientation == "gt":
         rows, used = measure(tracks, T_c_w, centres, calib, args)
     else:
