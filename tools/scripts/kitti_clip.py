@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A KITTI folder of some frames of another, optionally with the right camera's principal point moved.
+"""A KITTI folder of some frames of another, optionally with the right camera's cx moved.
 
 Usage: kitti_clip.py --dataset DIR --frames FIRST:LAST [--right-cx-shift PX] -o OUT
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""End-to-end drift of a run's trajectory against KITTI poses: final position error / distance driven.
+"""End-to-end drift of a run against KITTI poses: final position error / distance driven.
 
 Usage: kitti_drift.py RUN.tum POSES.txt
 

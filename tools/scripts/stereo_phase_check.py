@@ -12,8 +12,9 @@ the window), a matcher built on another principle would disagree with it. For ev
 the 32×32 patches around the rounded left and right keypoints (Hann window) are phase-correlated
 (cv2.phaseCorrelate, peak response ≥ 0.3); the printed numbers are the median differences LK −
 phase correlation of the disparity, and both matchers' vertical offsets v1 − v0 by image column
-and row, and as a map over the image (a vertical offset in rectified images is the rectification's, not a matcher's: rendered
-frames give 0.000 px with LK). Needs numpy and OpenCV's Python bindings.
+and row, and as a map over the image (a vertical offset in rectified images is the
+rectification's, not a matcher's: rendered frames give 0.000 px with LK). Needs numpy and
+OpenCV's Python bindings.
 """
 import argparse
 import math
