@@ -12,6 +12,9 @@
 // more than kOutlierPx away from the true motion of its sprite (or the point left the view); a
 // wrong step the checks let through corrupts the track, whose later pixels are not scored (they
 // count as the surviving outlier instead).
+// Disparity error. For a scored observation with a right match: (u0 − u1) − (ū0 − ū1) in the
+// pinhole image, ū the true pixels — signed, since a disparity bias δ scales every stereo depth by
+// d / (d + δ) and with it a VO trajectory (results/real_kitti06/README.md).
 // Continued share. Per frame k ≥ 1, n_tracked(k) / n_features(k − 1) (issue #29's measure), its
 // median over the frames.
 
@@ -49,6 +52,7 @@ struct TrackTruth {
 
 struct Measured {
   std::vector<double> track_error, stereo_error;  // [px] in the pinhole image
+  std::vector<double> disparity_error;  // [px] signed, pinhole image (header)
   std::vector<double> raw_error;  // [px] left tracking error in the raw image (where LK works)
   std::vector<double> continued;  // per frame k ≥ 1: n_tracked(k) / n_features(k − 1)
   int wrong_forward = 0, wrong_removed = 0, surviving_outliers = 0, associated = 0;
@@ -99,13 +103,14 @@ inline void score(const CameraModel<double>& cam0, const CameraModel<double>& ca
     const auto c0 = image.centre0.find(t->second.landmark);
     if (c0 == image.centre0.end()) continue;  // left the view: scored by the forward check
     m->raw_error.push_back((raw_left[i] - (c0->second + t->second.offset)).norm());
-    Eigen::Vector2d expected;
-    ASSERT_TRUE(cam0.undistortPixel(c0->second + t->second.offset, &expected));
-    m->track_error.push_back((obs.uv0 - expected).norm());
+    Eigen::Vector2d expected0, expected1;
+    ASSERT_TRUE(cam0.undistortPixel(c0->second + t->second.offset, &expected0));
+    m->track_error.push_back((obs.uv0 - expected0).norm());
     const auto c1 = image.centre1.find(t->second.landmark);
     if (obs.has_right && c1 != image.centre1.end() &&
-        cam1.undistortPixel(c1->second + t->second.offset, &expected)) {
-      m->stereo_error.push_back((obs.uv1 - expected).norm());
+        cam1.undistortPixel(c1->second + t->second.offset, &expected1)) {
+      m->stereo_error.push_back((obs.uv1 - expected1).norm());
+      m->disparity_error.push_back((obs.uv0.x() - obs.uv1.x()) - (expected0.x() - expected1.x()));
     }
   }
 }
@@ -148,11 +153,12 @@ inline Measured trackRendered(const std::string& label, const RenderedScene& sce
   }
   std::printf(
       "%s: %zu tracked observations, error median %.4f px, p95 %.4f px (raw image: median %.4f "
-      "px, p95 %.4f px); stereo median %.4f px (%zu); continued median %.1f %%; wrong forward "
+      "px, p95 %.4f px); stereo median %.4f px (%zu), disparity error median %+.4f px; continued median %.1f %%; wrong forward "
       "steps %d, removed %.1f %%; %d associated, %d outliers survived\n",
       label.c_str(), m.track_error.size(), percentile(m.track_error, 0.5),
       percentile(m.track_error, 0.95), percentile(m.raw_error, 0.5), percentile(m.raw_error, 0.95),
-      percentile(m.stereo_error, 0.5), m.stereo_error.size(), 100.0 * percentile(m.continued, 0.5),
+      percentile(m.stereo_error, 0.5), m.stereo_error.size(), percentile(m.disparity_error, 0.5),
+      100.0 * percentile(m.continued, 0.5),
       m.wrong_forward, 100.0 * m.wrong_removed / std::max(m.wrong_forward, 1), m.associated,
       m.surviving_outliers);
   return m;

@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "core/frontend/rendered_folder.h"
 #include "frontend/rendered_world.h"
 
@@ -73,6 +75,18 @@ TEST(RenderedFamilies, Kitti00DrivingMeetsTargets) {
   expectP95(kitti());
   expectContinued(kitti());
   expectOutliersRemoved(kitti());
+}
+
+// The front-end's stereo disparities carry no bias of their own: on the real KITTI 06 frames they
+// are ~0.22 px below motion stereo (results/real_kitti06/README.md), a ~1 % longer trajectory, and
+// that is the frames' rectification, not the tracker — which this checks against the true pixels.
+// Bound: 0.02 px, a tenth of that bias (0.1 % of depth at 20 m); the median of ~2200 matches
+// whose error is ~0.02 px is known to ~0.001 px (measured: −0.0004 px), so the bound tests a bias,
+// not the noise; shifting every right keypoint by 0.05 px makes it fail.
+TEST(RenderedFamilies, Kitti00StereoDisparityUnbiased) {
+  const test::Measured& m = kitti();
+  ASSERT_GT(m.disparity_error.size(), 1000u);
+  EXPECT_LE(std::abs(test::percentile(m.disparity_error, 0.5)), 0.02);
 }
 
 }  // namespace
