@@ -2,8 +2,9 @@
 """Builds the committed text seed corpus of the fuzzers (fuzz/corpus/<target>/) from the shipped
 data: the first lines of each dataset file kind, the calibration files, the experiments' sweep
 files and the configs inside them. Run from anywhere; rewrites fuzz/corpus/ (except the crash
-regression inputs, fuzz/corpus/*/crash-*, which stay). The binary seeds (HDF5 tracks, captured
-windows) are made at test time by scripts/run_sanitizers.sh instead of being committed.
+regression inputs, fuzz/corpus/*/crash-*, which stay). The binary seeds are not made here:
+fuzz_track_hdf5's are committed track files (fuzz/README.md says how they were made), the captured
+windows are decompressed from datasets/windows by fuzz/run_fuzzers.sh.
 
 The harnesses that serve several parsers read the parser from the first byte (fuzz_dataset_text:
 byte % 6, fuzz_calib: byte % 4); the digits '0'..'5' select parser 0..5 since ord('0') = 48.

@@ -28,19 +28,11 @@ export ASAN_OPTIONS="${ASAN_OPTIONS:-halt_on_error=1:abort_on_error=1:detect_lea
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}"
 export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$(pwd)/fuzz/lsan.supp}"
 
-# The binary seeds, made here rather than committed: HDF5 track files written by the front-end
-# on the shipped real images (2 and 3 frames, stereo and mono matches; a few KB each, so that the
-# fuzzer's input length stays small — a simulated file carries the whole world's landmarks, 0.3 to
-# 1.3 MB) and two shipped windows, decompressed.
+# The shipped windows, decompressed: the binary seeds of fuzz_window. (fuzz_track_hdf5's seeds are
+# committed in fuzz/corpus/track_hdf5: made at run time, they changed with every change of the
+# front-end, and so did the fuzzing path — fuzz/README.md.)
 make_seeds() {
-  mkdir -p "$OUT/seeds/track_hdf5" "$OUT/seeds/window"
-  if [[ " ${TARGETS[*]} " == *" track_hdf5 "* && ! -s "$OUT/seeds/track_hdf5/tracked3.h5" ]]; then
-    local cli="$BUILD_DIR/bin/marglab"
-    for n in 2 3; do
-      "$cli" datasets track --dataset euroc/V1_01_easy_images --frames "$n" \
-        -o "$OUT/seeds/track_hdf5/tracked$n.h5" >/dev/null
-    done
-  fi
+  mkdir -p "$OUT/seeds/window"
   for w in kitti-00_ns-qr-sqrt-f32_000100 euroc-MH_01_easy_ns-qr-sqrt-f32_000600; do
     [ -s "$OUT/seeds/window/$w.win" ] || gzip -dc "datasets/windows/$w.win.gz" >"$OUT/seeds/window/$w.win"
   done
