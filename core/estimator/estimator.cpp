@@ -110,7 +110,7 @@ std::optional<SE3<double>> SlidingWindowEstimator<Scalar>::predictPose(int64_t t
     return has_previous_pose_ ? (last_pose_ * previous_pose_.inverse()) * last_pose_ : last_pose_;
   }
   const int64_t newest = window_.frames.rbegin()->first;
-  const ImuState<double> s_i = window_.stateOf(newest, false).template cast<double>();
+  const ImuState<double> s_i = window_.stateOf(newest, StateAt::kCurrent).template cast<double>();
   const ImuSetup& imu = *window_.imu();
   const ImuPreintegration<double> pre = preintegrate<double>(
       imu.imu, s_i.t_ns, t_ns, s_i.b_g, s_i.b_a,
@@ -165,7 +165,7 @@ int SlidingWindowEstimator<Scalar>::addFrame(int64_t id, const TrackFrame& track
     window_.frames[id] = frame;
     addImuLink(previous, id);
     const ImuState<Scalar> s_j = predictState<Scalar>(
-        window_.stateOf(previous, false), window_.imu_links.at(previous).factor.preintegration(),
+        window_.stateOf(previous, StateAt::kCurrent), window_.imu_links.at(previous).factor.preintegration(),
         window_.imu()->g_w.template cast<Scalar>());
     Frame& added = window_.frames.at(id);
     added.T_w_i = s_j.T_w_i;
@@ -252,7 +252,7 @@ template <typename Scalar>
 void SlidingWindowEstimator<Scalar>::addImuLink(int64_t from, int64_t to) {
   // Preintegrated in double (measurement preprocessing, like the pixel measurements), then used in
   // the estimator's precision.
-  const ImuState<Scalar> s_i = window_.stateOf(from, false);
+  const ImuState<Scalar> s_i = window_.stateOf(from, StateAt::kCurrent);
   auto link = window_.makeImuLink(from, to, s_i.b_g.template cast<double>(),
                                   s_i.b_a.template cast<double>());
   window_.imu_links.erase(from);

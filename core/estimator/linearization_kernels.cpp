@@ -91,7 +91,7 @@ void LandmarkLinearization<Scalar, Block>::linearize(const Window<Scalar>& windo
   for (const auto& [id, frame] : window.frames) system_.insert(id);
   column_of_.clear();
   n_ = window.windowColumns(&column_of_);
-  const typename Window<Scalar>::RelativePoses rel = window.relativePoses(true);
+  const typename Window<Scalar>::RelativePoses rel = window.relativePoses(WithJacobians::kYes);
   linearizeLandmarks(window, rel);
   addFixedTerms(window, rel);
 }

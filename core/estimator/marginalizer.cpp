@@ -51,12 +51,12 @@ void gatherDirectRows(const Window<Scalar>& w, const MargPlan& plan,
   }
   for (const auto& [track, frame] : plan.kept_landmark_obs) {
     RowBlock<Scalar> rows;
-    if (w.landmarkRows(track, {frame}, rel, false, &rows)) p->direct.push_back(std::move(rows));
+    if (w.landmarkRows(track, {frame}, rel, NfrRows::kExclude, &rows)) p->direct.push_back(std::move(rows));
   }
   for (const VarKey& var : plan.vars) {
     RowBlock<Scalar> rows;
     if (var.block == StateBlock::kLandmark &&
-        w.landmarkRows(var.frame_id, system_frames, rel, true, &rows)) {
+        w.landmarkRows(var.frame_id, system_frames, rel, NfrRows::kInclude, &rows)) {
       p->direct.push_back(std::move(rows));
     }
   }
@@ -115,7 +115,7 @@ MargProblem<Scalar> gatherProblem(const Window<Scalar>& w, const MargPlan& plan,
     if (plan.drop_obs_frames.count(id) == 0) system_frames.insert(id);
   }
   MargProblem<Scalar> p;
-  const typename Window<Scalar>::RelativePoses rel = w.relativePoses(true);
+  const typename Window<Scalar>::RelativePoses rel = w.relativePoses(WithJacobians::kYes);
   gatherLandmarks(w, plan, system_frames, rel, &p);
   gatherDirectRows(w, plan, system_frames, rel, &p);
   layoutColumns(w, plan, prior, storage, &p);

@@ -44,12 +44,13 @@ typename Window<Scalar>::SE3S Window<Scalar>::jacobianPoseOf(int64_t frame_id) c
 }
 
 template <typename Scalar>
-ImuState<Scalar> Window<Scalar>::stateOf(int64_t frame_id, bool at_linearization_point) const {
+ImuState<Scalar> Window<Scalar>::stateOf(int64_t frame_id, StateAt at) const {
   const Frame& frame = frames.at(frame_id);
   ImuState<Scalar> s;
   s.t_ns = frame.t_ns;
-  s.T_w_i = at_linearization_point ? jacobianPoseOf(frame_id) : frame.T_w_i;
-  const Vec9S& sb = at_linearization_point && frame.speed_bias_linearized ? frame.speed_bias_lin
+  const bool first = at == StateAt::kFirstEstimate;
+  s.T_w_i = first ? jacobianPoseOf(frame_id) : frame.T_w_i;
+  const Vec9S& sb = first && frame.speed_bias_linearized ? frame.speed_bias_lin
                                                                           : frame.speed_bias;
   s.v_w = sb.template head<3>();
   s.b_g = sb.template segment<3>(3);
@@ -120,7 +121,9 @@ size_t Window<Scalar>::RelativePoses::index(int64_t host, int64_t target, int ca
 }
 
 template <typename Scalar>
-typename Window<Scalar>::RelativePoses Window<Scalar>::relativePoses(bool with_jacobians) const {
+typename Window<Scalar>::RelativePoses Window<Scalar>::relativePoses(
+    WithJacobians jacobians) const {
+  const bool with_jacobians = jacobians == WithJacobians::kYes;
   RelativePoses rel;
   for (const auto& [id, frame] : frames) rel.ids.push_back(id);
   const size_t size = rel.ids.size() * rel.ids.size() * 2;
@@ -235,8 +238,8 @@ RowBlock<Scalar> Window<Scalar>::linearizeNfr(const NfrFactor& f, int64_t track_
 
 template <typename Scalar>
 Scalar Window<Scalar>::linkCost(int64_t from, const ImuLink& link) const {
-  const ImuState<Scalar> s_i = stateOf(from, false);
-  const ImuState<Scalar> s_j = stateOf(link.to, false);
+  const ImuState<Scalar> s_i = stateOf(from, StateAt::kCurrent);
+  const ImuState<Scalar> s_j = stateOf(link.to, StateAt::kCurrent);
   return Scalar(0.5) *
          (link.factor.whitenedResidual(s_i, s_j).squaredNorm() +
           biasRandomWalkResidual<Scalar>(s_i, s_j, link.dt_s, imu_->noise).squaredNorm());
@@ -244,7 +247,7 @@ Scalar Window<Scalar>::linkCost(int64_t from, const ImuLink& link) const {
 
 template <typename Scalar>
 Scalar Window<Scalar>::totalCost() const {
-  const RelativePoses rel = relativePoses(false);
+  const RelativePoses rel = relativePoses(WithJacobians::kNo);
   std::vector<const Landmark*> lms;
   lms.reserve(landmarks.size());
   for (const auto& [id, lm] : landmarks) lms.push_back(&lm);
@@ -264,10 +267,10 @@ Scalar Window<Scalar>::totalCost() const {
 
 template <typename Scalar>
 bool Window<Scalar>::landmarkRows(int64_t track_id, const std::set<int64_t>& system_frames,
-                                  const RelativePoses& rel, bool with_nfr,
+                                  const RelativePoses& rel, NfrRows nfr,
                                   RowBlock<Scalar>* out) const {
   LandmarkJacobians<Scalar> lin;
-  if (!linearizeLandmark(track_id, landmarks.at(track_id), system_frames, rel, &lin, with_nfr, 1)) {
+  if (!linearizeLandmark(track_id, landmarks.at(track_id), system_frames, rel, &lin, nfr, 1)) {
     return false;
   }
   out->vars.clear();
@@ -288,7 +291,7 @@ std::vector<RowBlock<Scalar>> Window<Scalar>::directRows(const std::set<int64_t>
   std::vector<RowBlock<Scalar>> out;
   for (int64_t track : priorLandmarks()) {
     RowBlock<Scalar> rows;
-    if (landmarkRows(track, system_frames, rel, true, &rows)) out.push_back(std::move(rows));
+    if (landmarkRows(track, system_frames, rel, NfrRows::kInclude, &rows)) out.push_back(std::move(rows));
   }
   for (const NfrFactor& f : nfr_states) out.push_back(linearizeNfr(f, -1, nullptr));
   return out;
@@ -299,8 +302,10 @@ LinkLinearized<Scalar> Window<Scalar>::linearizeLink(int64_t from, const ImuLink
   LinkLinearized<Scalar> out;
   out.from = from;
   out.to = link.to;
-  const ImuState<Scalar> s_i = stateOf(from, false), s_j = stateOf(link.to, false);
-  const ImuState<Scalar> s_i_jac = stateOf(from, true), s_j_jac = stateOf(link.to, true);
+  const ImuState<Scalar> s_i = stateOf(from, StateAt::kCurrent);
+  const ImuState<Scalar> s_j = stateOf(link.to, StateAt::kCurrent);
+  const ImuState<Scalar> s_i_jac = stateOf(from, StateAt::kFirstEstimate);
+  const ImuState<Scalar> s_j_jac = stateOf(link.to, StateAt::kFirstEstimate);
   typename ImuFactor<Scalar>::Jacobian J_imu;
   Mat<Scalar, 6, 30> J_rw;
   link.factor.whitenedResidual(s_i_jac, s_j_jac, &J_imu);

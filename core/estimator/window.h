@@ -84,6 +84,14 @@ struct MargPlan {
   }
 };
 
+// Where a frame's state is read: its current estimate, or its first estimate (the linearization
+// point of the factors that reached the prior, FEJ).
+enum class StateAt { kCurrent, kFirstEstimate };
+// Relative poses with or without the first-estimate poses the Jacobians are taken at.
+enum class WithJacobians { kNo, kYes };
+// A landmark's rows with or without the recovered (nfr) factors on it.
+enum class NfrRows { kExclude, kInclude };
+
 template <typename Scalar>
 class Window {
  public:
@@ -191,7 +199,7 @@ class Window {
   SE3S poseOf(int64_t frame_id) const { return frames.at(frame_id).T_w_i; }
   Vec9S speedBiasOf(int64_t frame_id) const { return frames.at(frame_id).speed_bias; }
   SE3S jacobianPoseOf(int64_t frame_id) const;
-  ImuState<Scalar> stateOf(int64_t frame_id, bool at_linearization_point) const;
+  ImuState<Scalar> stateOf(int64_t frame_id, StateAt at) const;
   std::vector<int64_t> keyframeIds() const;
   std::vector<int64_t> stateIds() const;  // frames with a speed-bias block (VIO)
 
@@ -203,21 +211,21 @@ class Window {
   VecX<Scalar> priorDelta(const MargPrior<Scalar>& prior) const;
 
   // Costs at the current state.
-  RelativePoses relativePoses(bool with_jacobians) const;
+  RelativePoses relativePoses(WithJacobians jacobians) const;
   Scalar landmarkCost(const Landmark& lm, const RelativePoses& rel) const;
   Scalar linkCost(int64_t from, const ImuLink& link) const;
   Scalar nfrCost(const NfrFactor& f, const Landmark* lm) const;
   Scalar totalCost() const;
 
   // One landmark's rows over the frames in system_frames (its pose–landmark factors after the
-  // observations when with_nfr). False when it has fewer than min_rows rows.
+  // observations with NfrRows::kInclude). False when it has fewer than min_rows rows.
   bool linearizeLandmark(int64_t track_id, const Landmark& lm,
                          const std::set<int64_t>& system_frames, const RelativePoses& rel,
-                         LandmarkJacobians<Scalar>* out, bool with_nfr = true,
+                         LandmarkJacobians<Scalar>* out, NfrRows nfr = NfrRows::kInclude,
                          int min_rows = 3) const;
   // The same rows with the landmark as a variable of the system; false when it has none.
   bool landmarkRows(int64_t track_id, const std::set<int64_t>& system_frames,
-                    const RelativePoses& rel, bool with_nfr, RowBlock<Scalar>* out) const;
+                    const RelativePoses& rel, NfrRows nfr, RowBlock<Scalar>* out) const;
   // The rows the reduced system takes as they are: prior landmarks and recovered state factors.
   std::vector<RowBlock<Scalar>> directRows(const std::set<int64_t>& system_frames,
                                            const RelativePoses& rel) const;

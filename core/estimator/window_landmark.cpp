@@ -52,7 +52,7 @@ template <typename Scalar>
 bool Window<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm,
                                        const std::set<int64_t>& system_frames,
                                        const RelativePoses& rel, LandmarkJacobians<Scalar>* out,
-                                       bool with_nfr, int min_rows) const {
+                                       NfrRows nfr, int min_rows) const {
   // Scratch reused across calls (no allocation per landmark once warm); one per thread.
   thread_local std::vector<ReprojectionRows<Scalar>> rows;
   thread_local std::vector<PoseLandmarkRows<Scalar>> extra;
@@ -62,7 +62,7 @@ bool Window<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm,
   observationRows(lm, system_frames, rel, &rows, &out->cost);
   Eigen::Index m = 2 * static_cast<Eigen::Index>(rows.size());
   for (const NfrFactor& f : lm.nfr) {
-    if (!with_nfr || system_frames.count(f.frame) == 0) continue;
+    if (nfr == NfrRows::kExclude || system_frames.count(f.frame) == 0) continue;
     RowBlock<Scalar> block = linearizeNfr(f, track_id, &lm);
     out->cost += Scalar(0.5) * block.r.squaredNorm();
     m += block.r.size();
@@ -78,7 +78,7 @@ bool Window<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm,
                                            const RelativePoses&,                                 \
                                            std::vector<ReprojectionRows<S>>*, S*) const;         \
   template bool Window<S>::linearizeLandmark(int64_t, const Landmark&, const std::set<int64_t>&, \
-                                             const RelativePoses&, LandmarkJacobians<S>*, bool,  \
+                                             const RelativePoses&, LandmarkJacobians<S>*, NfrRows, \
                                              int) const;
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
