@@ -10,6 +10,7 @@
 #include <string>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 
 namespace marglab {
 namespace {
@@ -17,16 +18,8 @@ namespace {
 namespace fs = std::filesystem;
 using test::runCli;
 
-class ConfigValuesCliTest : public ::testing::Test {
+class ConfigValuesCliTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_cfgval_" + std::to_string(getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   std::string config(const std::string& text) const {
     const std::string file = path("cfg.toml");
@@ -41,7 +34,6 @@ class ConfigValuesCliTest : public ::testing::Test {
     EXPECT_EQ(result.output.find("FAILED"), std::string::npos) << result.output;
     return result;
   }
-  fs::path dir_;
 };
 
 bool contains(const std::string& text, const std::string& part) {

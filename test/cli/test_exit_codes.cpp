@@ -10,6 +10,7 @@
 #include <string>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 
 namespace marglab {
 namespace {
@@ -18,16 +19,8 @@ namespace fs = std::filesystem;
 using test::CliResult;
 using test::runCli;
 
-// A fresh folder per test, removed at the end.
-class ExitCodes : public ::testing::Test {
+class ExitCodes : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("marglab_exit_" + std::to_string(getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
   void TearDown() override {
     std::error_code ec;
     fs::permissions(dir_, fs::perms::owner_all, fs::perm_options::add, ec);
@@ -44,7 +37,6 @@ class ExitCodes : public ::testing::Test {
     fs::create_directories(dir_ / name);
     return quoted(name);
   }
-  fs::path dir_;
 };
 
 void expectExit(const std::string& args, int code, const std::string& fragment = "") {

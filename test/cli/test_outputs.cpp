@@ -19,6 +19,7 @@
 
 #include "common/cli_runner.h"
 #include "common/fault_injection.h"
+#include "common/temp_dir.h"
 #include "core/data/sequence.h"
 
 namespace marglab {
@@ -28,18 +29,9 @@ namespace fs = std::filesystem;
 using test::readText;
 using test::runCli;
 
-class OutputsCliTest : public ::testing::Test {
+class OutputsCliTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_outputs_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string q(const fs::path& p) const { return "'" + p.string() + "'"; }
-  fs::path dir_;
 };
 
 std::vector<std::string> listing(const fs::path& dir) {

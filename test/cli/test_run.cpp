@@ -9,6 +9,7 @@
 #include <fstream>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 #include "core/common/source_dir.h"
 #include "core/io/results_file.h"
 #include "core/linalg/isa.h"
@@ -19,18 +20,9 @@ namespace {
 namespace fs = std::filesystem;
 using test::runCli;
 
-class RunCliTest : public ::testing::Test {
+class RunCliTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_run_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-            "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  fs::path dir_;
 };
 
 TEST_F(RunCliTest, WritesAResultsFileThatFollowsTheSchema) {

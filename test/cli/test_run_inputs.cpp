@@ -14,6 +14,7 @@
 #include <string>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 #include "core/data/sequence.h"
 #include "core/frontend/image_file.h"
 
@@ -25,16 +26,8 @@ using test::quote;
 using test::readText;
 using test::runCli;
 
-class RunInputs : public ::testing::Test {
+class RunInputs : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_run_inputs_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
 
   // Runs `run ARGS -o out.h5` and expects exit `code`, every fragment in the output and no
   // results file.
@@ -71,7 +64,6 @@ class RunInputs : public ::testing::Test {
     ASSERT_EQ(test::runShell("zcat " + quote(gz) + cut + " > " + quote(out)).exit_code, 0);
   }
 
-  fs::path dir_;
 };
 
 // Defect 5: `run --tracks k10.h5 --dataset kitti/05` reported status ok, ATE 5.44 m.

@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 #include "core/common/subprocess.h"
 
 namespace marglab {
@@ -24,17 +25,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class Subprocess : public ::testing::Test {
+class Subprocess : public test::TempDirTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("marglab_subprocess_" + std::to_string(getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     // A sleep whose command line no other process on the machine has: what pgrep looks for
     // (60 s: what a failing test leaves behind ends by itself).
     marker_ = "60." + std::to_string(getpid());
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   // Forks a parent that runs `script` through runChild and exits with the helper's exit code,
   // or 128 + the stop signal that ended it.
@@ -68,7 +65,6 @@ class Subprocess : public ::testing::Test {
            (dir_ / "ready").string() + "'; " + (tail.empty() ? "sleep " + marker_ + "; :" : tail);
   }
 
-  fs::path dir_;
   std::string marker_;
 };
 

@@ -1,6 +1,6 @@
 #pragma once
-// Helpers of the data-loader tests: a per-test temporary folder, fixture writers (plain and gzip)
-// and an InputError matcher that checks the file, the line and the message text.
+// Helpers of the data-loader tests: the per-test temporary folder (common/temp_dir.h), fixture
+// writers (plain and gzip) and an InputError matcher that checks the file, the line and the text.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -10,32 +10,12 @@
 #include <fstream>
 #include <string>
 
+#include "common/temp_dir.h"
 #include "core/common/error.h"
 
 namespace marglab::test {
 
 namespace fs = std::filesystem;
-
-// A fresh folder per test, removed at the end.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / (std::string("marglab_data_") + std::to_string(getpid()) +
-                                         "_" + info->test_suite_name() + "_" + info->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 inline std::string writeFile(const std::string& path, const std::string& text) {
   fs::create_directories(fs::path(path).parent_path());

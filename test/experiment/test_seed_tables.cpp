@@ -8,13 +8,13 @@
 
 #include <fmt/core.h>
 
-#include <unistd.h>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 #include "core/experiment/sweep_common.h"
 #include "core/experiment/sweep_index.h"
 #include "core/experiment/tables.h"
@@ -40,16 +40,11 @@ double sampleStdOf(const std::vector<double>& v) {
   return std::sqrt(s / static_cast<double>(v.size() - 1));
 }
 
-class SeedTables : public ::testing::Test {
+class SeedTables : public test::TempDirTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_seed_tables_" + std::to_string(getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
     fs::create_directories(dir_ / "sweep" / "runs");
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   // A run with a trajectory error that depends on the salt; its index row. Returns the ATE the
   // results file holds (/summary ate_rmse).
@@ -128,7 +123,6 @@ class SeedTables : public ::testing::Test {
     return out;
   }
 
-  fs::path dir_;
   std::vector<IndexRow> rows_;
 };
 

@@ -8,7 +8,6 @@
 
 #include <fmt/core.h>
 
-#include <unistd.h>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +15,7 @@
 #include <sstream>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 #include "core/experiment/sweep_index.h"
 #include "core/experiment/tables.h"
 #include "core/io/results_file.h"
@@ -106,16 +106,11 @@ Expected writeRun(const std::string& path, const std::string& dataset, const std
   return e;
 }
 
-class StrategyTables : public ::testing::Test {
+class StrategyTables : public test::TempDirTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_strategy_tables_" + std::to_string(getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
     fs::create_directories(dir_ / "sweep" / "runs");
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   // Writes the run and its index row (the strategy is also the override, as in
   // experiments/sparsify_euroc.toml).
@@ -153,7 +148,6 @@ class StrategyTables : public ::testing::Test {
     return dir_ / "tables";
   }
 
-  fs::path dir_;
   std::vector<IndexRow> rows_;
   std::map<std::string, Expected> expected_;  // dataset:strategy
 };

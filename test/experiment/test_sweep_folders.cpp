@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
 #include "core/common/subprocess.h"
@@ -36,16 +37,8 @@ using test::runShell;
 
 const fs::path kImages = fs::path(sourceDir()) / "datasets/euroc/V1_01_easy_images";
 
-class SweepFolders : public ::testing::Test {
+class SweepFolders : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_sweep_folders_" + std::to_string(getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
 
   fs::path write(const std::string& name, const std::string& text) const {
     std::ofstream(dir_ / name) << text;
@@ -59,7 +52,6 @@ class SweepFolders : public ::testing::Test {
                  "variants = [\"ns-qr-sqrt-f64\"]\nframes = 5\n");
   }
 
-  fs::path dir_;
 };
 
 // Defect 1: `marglab sweep experiments/real_images.toml` from the repository root failed: the

@@ -20,6 +20,7 @@
 
 #include "common/cli_runner.h"
 #include "common/fault_injection.h"
+#include "common/temp_dir.h"
 #include "core/common/error.h"
 #include "core/experiment/sweep_common.h"
 #include "core/experiment/sweep_index.h"
@@ -32,16 +33,8 @@ using test::readText;
 using test::runCli;
 using test::startCli;
 
-class SweepLockTest : public ::testing::Test {
+class SweepLockTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_sweep_lock_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string q(const fs::path& p) const { return "'" + p.string() + "'"; }
   // One run of KITTI 10 reading its tracks from `tracks` (a FIFO blocks it until written).
   fs::path writeSweep(const fs::path& tracks) const {
@@ -51,7 +44,6 @@ class SweepLockTest : public ::testing::Test {
                         << "frames = 10\nargs = [\"--tracks\", \"" << tracks.string() << "\"]\n";
     return file;
   }
-  fs::path dir_;
 };
 
 std::string hostName() {

@@ -7,12 +7,12 @@
 
 #include <gtest/gtest.h>
 
-#include <unistd.h>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 #include "core/data/sequence.h"
 #include "core/io/results_file.h"
 
@@ -24,16 +24,8 @@ using test::runCli;
 
 constexpr const char* kImages = "euroc/V1_01_easy_images";
 
-class FrontendCli : public ::testing::Test {
+class FrontendCli : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_frontend_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
   // A user's ASL folder <dir>/<name>/mav0 with the first n shipped frames; timestamps shifted by
@@ -65,7 +57,6 @@ class FrontendCli : public ::testing::Test {
     std::getline(in, line);
     return (folder / "mav0/cam0/data" / line.substr(line.find(',') + 1)).string();
   }
-  fs::path dir_;
 };
 
 TEST_F(FrontendCli, ShortRealImageRunPassesTheChecker) {

@@ -6,12 +6,12 @@
 
 #include <gtest/gtest.h>
 
-#include <unistd.h>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/temp_dir.h"
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
 #include "core/frontend/image_file.h"
@@ -26,13 +26,8 @@ bool samePixels(const cv::Mat& a, const cv::Mat& b) {
          (a.empty() || cv::norm(a, b, cv::NORM_INF) == 0);
 }
 
-class ImageFile : public ::testing::Test {
+class ImageFile : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("marglab_image_file_" + std::to_string(::getpid()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
 
   // Writes `image` with imgcodecs and checks that both decoders read back the same pixels.
   void expectSameAsImread(const std::string& name, const cv::Mat& image,
@@ -53,7 +48,6 @@ class ImageFile : public ::testing::Test {
     return image;
   }
 
-  fs::path dir_;
 };
 
 TEST_F(ImageFile, ShippedEurocFramesDecodeAsImread) {

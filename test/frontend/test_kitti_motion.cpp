@@ -15,6 +15,7 @@
 #include <fstream>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 #include "core/data/sequence.h"
 #include "core/frontend/image_file.h"
 #include "core/io/results_file.h"
@@ -27,20 +28,11 @@ using test::runCli;
 
 constexpr const char* kKitti06 = "kitti/06_images";
 
-class KittiMotion : public ::testing::Test {
+class KittiMotion : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_kitti_motion_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   static fs::path shipped() { return fs::path(datasetsRoot()) / kKitti06; }
 
-  fs::path dir_;
 };
 
 double median(std::vector<double> v) {

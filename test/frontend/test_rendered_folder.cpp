@@ -19,6 +19,7 @@
 #include <string>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 #include "core/data/parsers.h"
 #include "core/data/sequence.h"
 #include "core/frontend/image_file.h"
@@ -43,16 +44,8 @@ constexpr Family kTumvi{"tumvi/room1", 10.0};
 constexpr Family kKitti{"kitti/00", 0.0};
 constexpr int kFrames = 30;
 
-class RenderedFolder : public ::testing::Test {
+class RenderedFolder : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_render_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
 
   // Renders the family's folder through the CLI; returns its path.
   fs::path render(const Family& family, int frames) const {
@@ -76,7 +69,6 @@ class RenderedFolder : public ::testing::Test {
   }
 
   void roundTrip(const Family& family) const;
-  fs::path dir_;
 };
 
 // rotation_tolerance > 0: the loader re-orthonormalizes a rotation it reads (through a quaternion),

@@ -4,8 +4,8 @@
 
 #include <gtest/gtest.h>
 
-#include <unistd.h>
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 
 #include <cstdint>
 #include <cstring>
@@ -24,20 +24,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A fresh directory per test, removed afterwards.
-class Hdf5Test : public ::testing::Test {
+class Hdf5Test : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::string name = std::string(info->test_suite_name()) + "_" + info->name();
-    for (char& c : name) {
-      if (c == '/') c = '_';
-    }
-    dir_ = fs::temp_directory_path() / ("marglab_io_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string file(const std::string& name) const { return (dir_ / name).string(); }
   std::vector<std::string> listing() const {
     std::vector<std::string> names;
@@ -46,7 +34,6 @@ class Hdf5Test : public ::testing::Test {
     }
     return names;
   }
-  fs::path dir_;
 };
 
 // The message of the InputError thrown by f (fails the test if none is thrown).

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "common/cli_runner.h"
+#include "common/temp_dir.h"
 #include "common/fault_injection.h"
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
@@ -31,16 +32,8 @@ namespace {
 namespace fs = std::filesystem;
 using test::readText;
 
-class AtomicOutputTest : public ::testing::Test {
+class AtomicOutputTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("marglab_atomic_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string file(const std::string& name) const { return (dir_ / name).string(); }
   std::vector<std::string> listing(const fs::path& dir) const {
     std::vector<std::string> names;
@@ -50,7 +43,6 @@ class AtomicOutputTest : public ::testing::Test {
     std::sort(names.begin(), names.end());
     return names;
   }
-  fs::path dir_;
 };
 
 template <typename F>

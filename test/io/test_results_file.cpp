@@ -2,6 +2,7 @@
 // failed-run round trip, the independent h5py/numpy check (tools/scripts/check_results.py), and the
 // `marglab eigdump` CLI on the written file.
 
+#include "common/temp_dir.h"
 #include "core/common/source_dir.h"
 #include "core/io/results_file.h"
 
@@ -145,22 +146,13 @@ SmallRun writeSmallRun(const std::string& path, RunStatus status = RunStatus::kO
   return run;
 }
 
-class ResultsFileTest : public ::testing::Test {
+class ResultsFileTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("marglab_results_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string file(const std::string& name) const { return (dir_ / name).string(); }
   std::size_t entries() const {
     return static_cast<std::size_t>(
         std::distance(fs::directory_iterator(dir_), fs::directory_iterator()));
   }
-  fs::path dir_;
 };
 
 template <typename A, typename B>
