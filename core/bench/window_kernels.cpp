@@ -1,6 +1,7 @@
 #include "core/bench/window_kernels.h"
 
 #include "core/common/scalar.h"
+#include "core/estimator/estimator_probe.h"
 #include "core/estimator/system_blocks.h"
 
 namespace marglab {
@@ -17,7 +18,7 @@ struct WindowKernels<Scalar>::State {
   State(const WindowSnapshot& w, const Variant& v)
       : est(Est::fromSnapshot(w, v)),
         est_once(Est::fromSnapshot(w, v, oneIteration(w.config))),
-        lin(est.makeVariantLinearization()),
+        lin(EstimatorProbe<Scalar>::variantLinearization(est)),
         lambda(static_cast<Scalar>(w.config.lambda_init)) {}
   static EstimatorConfig oneIteration(EstimatorConfig config) {
     config.lm_max_iterations = 1;
@@ -62,14 +63,14 @@ template <typename Scalar>
 Status WindowKernels<Scalar>::optimizeOnce() {
   typename State::Est copy = s_->est_once;
   FrameResult result;
-  return copy.optimizeWindow(&result);
+  return EstimatorProbe<Scalar>::optimize(copy, &result);
 }
 
 template <typename Scalar>
 Status WindowKernels<Scalar>::optimizeFull(int* iterations, double* cost_final) {
   typename State::Est copy = s_->est;
   FrameResult result;
-  Status st = copy.optimizeWindow(&result);
+  Status st = EstimatorProbe<Scalar>::optimize(copy, &result);
   *iterations = result.lm_iterations;
   if (cost_final) *cost_final = result.cost_final;
   return st;
@@ -79,10 +80,11 @@ template <typename Scalar>
 Status WindowKernels<Scalar>::marginalize(MargMethod method) {
   const auto& est = s_->est;
   MargPlan plan;
-  if (const auto state_plan = est.planStateMarginalization(true)) plan = *state_plan;
+  using Probe = EstimatorProbe<Scalar>;
+  if (const auto state_plan = Probe::planStateMarginalization(est, true)) plan = *state_plan;
   const std::vector<int64_t> kfs = est.keyframeIds();
   if (!kfs.empty()) {
-    const MargPlan kf = est.planKeyframeMarginalization(kfs.front());
+    const MargPlan kf = Probe::planKeyframeMarginalization(est, kfs.front());
     plan.vars.insert(kf.vars.begin(), kf.vars.end());
     plan.landmarks = kf.landmarks;
   }

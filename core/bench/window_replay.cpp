@@ -4,6 +4,7 @@
 
 #include <cstring>
 
+#include "core/estimator/estimator_probe.h"
 namespace marglab {
 namespace {
 
@@ -12,9 +13,10 @@ ReplayResult replayAs(const WindowSnapshot& window, const Variant& variant,
                       const std::optional<EstimatorConfig>& config) {
   auto estimator = SlidingWindowEstimator<Scalar>::fromSnapshot(window, variant, config);
   ReplayResult out;
-  out.result.status = estimator.optimizeWindow(&out.result);
+  using Probe = EstimatorProbe<Scalar>;
+  out.result.status = Probe::optimize(estimator, &out.result);
   WindowSnapshot after;
-  estimator.recordStep(out.result, &after);
+  Probe::recordStep(estimator, out.result, &after);
   out.step = std::move(after.after);
   return out;
 }

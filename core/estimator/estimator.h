@@ -100,6 +100,9 @@ struct FrameResult {
 };
 
 template <typename Scalar>
+class EstimatorProbe;
+
+template <typename Scalar>
 class SlidingWindowEstimator {
  public:
   using SE3S = SE3<Scalar>;
@@ -145,9 +148,12 @@ class SlidingWindowEstimator {
   // `config` replaces the captured one when given. Throws InputError on an inconsistent window.
   static SlidingWindowEstimator fromSnapshot(const WindowSnapshot& window, const Variant& variant,
                                              const std::optional<EstimatorConfig>& config = {});
-  // One optimize() of the window as processFrame() runs it (LM iterations until a stop rule).
-  Status optimizeWindow(FrameResult* result) { return optimize(result); }
-  // Fills window->after from the current state (after optimizeWindow()).
+ private:
+  // The window replay of `marglab bench` and the equivalence tests reach the members below
+  // through EstimatorProbe (estimator_probe.h) only.
+  friend class EstimatorProbe<Scalar>;
+
+  // Fills window->after from the current state (after optimize()).
   void recordStep(const FrameResult& result, WindowSnapshot* window) const;
   // The linearization optimize() runs (the variant's elimination and precision).
   std::unique_ptr<Linearization<Scalar>> makeVariantLinearization() const;
@@ -165,7 +171,6 @@ class SlidingWindowEstimator {
   // storage for qr, Hessian for sc), in double (equivalence tests: qr vs sc).
   Status trialMarginalization(const MargPlan& plan, MargMethod method, MatXd* H_m) const;
 
- private:
   // The states changed by one LM step, to undo it.
   struct StepBackup {
     std::map<int64_t, Frame> frames;

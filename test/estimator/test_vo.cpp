@@ -9,6 +9,7 @@
 
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
+#include "core/estimator/estimator_probe.h"
 #include "core/pipeline/run.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
@@ -167,9 +168,10 @@ TEST(VoEquivalence, NullspaceAndSchurGiveTheSameStep) {
                                     rigFromCalib(scenario.calib), scenario.truth(0));
   for (int i = 0; i < 30; ++i) ASSERT_TRUE(ns.processFrame(scenario.stream.frames[i]).status.ok());
   // Same window, linearized once, eliminated both ways (the variant only switches elimination).
+  using Probe = EstimatorProbe<double>;
   VecXd step_ns, step_sc;
-  ASSERT_TRUE(ns.computeStep(OptElimination::kNullspace, 1e-4, &step_ns).ok());
-  ASSERT_TRUE(ns.computeStep(OptElimination::kSchur, 1e-4, &step_sc).ok());
+  ASSERT_TRUE(Probe::computeStep(ns, OptElimination::kNullspace, 1e-4, &step_ns).ok());
+  ASSERT_TRUE(Probe::computeStep(ns, OptElimination::kSchur, 1e-4, &step_sc).ok());
   ASSERT_GT(step_ns.norm(), 0);
   EXPECT_LT((step_ns - step_sc).norm() / step_ns.norm(), 1e-8);
 }
@@ -181,10 +183,12 @@ TEST(VoEquivalence, QrAndSchurMarginalizationGiveTheSamePriorHessian) {
   for (int i = 0; i < 30; ++i) {
     ASSERT_TRUE(estimator.processFrame(scenario.stream.frames[i]).status.ok());
   }
-  const MargPlan plan = estimator.planKeyframeMarginalization(estimator.keyframeIds().front());
+  using Probe = EstimatorProbe<double>;
+  const MargPlan plan =
+      Probe::planKeyframeMarginalization(estimator, estimator.keyframeIds().front());
   MatXd H_qr, H_sc;
-  ASSERT_TRUE(estimator.trialMarginalization(plan, MargMethod::kQr, &H_qr).ok());
-  ASSERT_TRUE(estimator.trialMarginalization(plan, MargMethod::kSchur, &H_sc).ok());
+  ASSERT_TRUE(Probe::trialMarginalization(estimator, plan, MargMethod::kQr, &H_qr).ok());
+  ASSERT_TRUE(Probe::trialMarginalization(estimator, plan, MargMethod::kSchur, &H_sc).ok());
   ASSERT_GT(H_qr.norm(), 0);
   EXPECT_LT((H_qr - H_sc).norm() / H_qr.norm(), 1e-8);
 }
