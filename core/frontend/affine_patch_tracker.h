@@ -21,9 +21,9 @@
 // predicted scale) is what makes the coarse levels' shift right. Level 0 estimates all six
 // (PatchWarp::kAffine) or again the shift under the given A (kShift: the patch compared after a
 // known zoom, which the front-end uses — in a diagnostic run on KITTI 06 it recovered 733 of 4041
-// failed tracks where the free affine recovered 499: six parameters from an 11×11 patch slide along edges).
-// Each level iterates until ‖Δt‖ < 0.01 px (coarse levels 0.1 px: they only bring the next level
-// within reach) or max_iterations; converged: a last step < 0.05 px at level 0. Failed: H
+// failed tracks where the free affine recovered 499: six parameters from an 11×11 patch slide along
+// edges). Each level iterates until ‖Δt‖ < 0.01 px (coarse levels 0.1 px: they only bring the next
+// level within reach) or max_iterations; converged: a last step < 0.05 px at level 0. Failed: H
 // singular, A degenerate (det ≤ 0.25 or ≥ 4: more than 2× scaling) or the patch leaves the image.
 // The converged result carries the zero-mean NCC of the template and the warped patch (the
 // appearance check of optical_flow.h step 2, after the warp instead of a plain shift).

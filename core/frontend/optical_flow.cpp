@@ -167,7 +167,9 @@ std::vector<cv::Point2f> StereoFrontend::Impl::predictLeft(const FramePrediction
   std::vector<std::pair<cv::Point2f, double>> with_depth;
   for (std::size_t i = 0; i < prev_points.size(); ++i) {
     const auto point = prev_depth_points.find(prev_ids[i]);
-    if (point != prev_depth_points.end()) with_depth.emplace_back(prev_points[i], point->second.z());
+    if (point != prev_depth_points.end()) {
+      with_depth.emplace_back(prev_points[i], point->second.z());
+    }
   }
   for (std::size_t i = 0; i < prev_points.size(); ++i) {
     const int64_t id = prev_ids[i];

@@ -5,8 +5,8 @@
 
 #include <gtest/gtest.h>
 
-#include <cmath>
 #include <Eigen/Dense>
+#include <cmath>
 #include <opencv2/imgproc.hpp>
 
 #include "core/frontend/affine_patch_tracker.h"
@@ -22,8 +22,8 @@ double texture(double u, double v) {
 
 // I_to(y) = gain · texture(A⁻¹ (y − x_to) + x_from): the warp W(u) = x_to + A u maps the patch
 // around x_from onto it exactly.
-cv::Mat render(const Eigen::Matrix2d& A, const Eigen::Vector2d& x_from,
-               const Eigen::Vector2d& x_to, double gain) {
+cv::Mat render(const Eigen::Matrix2d& A, const Eigen::Vector2d& x_from, const Eigen::Vector2d& x_to,
+               double gain) {
   cv::Mat image(200, 240, CV_8U);
   const Eigen::Matrix2d A_inv = A.inverse();
   for (int v = 0; v < image.rows; ++v) {
@@ -54,9 +54,8 @@ TEST(AffinePatchTracker, RecoversKnownZoomRotationAndShift) {
   start.x = x_to + Eigen::Vector2d(2.0, -1.5);  // a prediction a few pixels off
   start.A = 1.2 * Eigen::Matrix2d::Identity();  // the predicted zoom, roughly
   AffinePatch result;
-  ASSERT_TRUE(trackAffinePatch(pyramid(from, 2), pyramid(to, 2), x_from, start,
-                               PatchWarp::kAffine, 7, 2, 30,
-                               &result));
+  ASSERT_TRUE(trackAffinePatch(pyramid(from, 2), pyramid(to, 2), x_from, start, PatchWarp::kAffine,
+                               7, 2, 30, &result));
   EXPECT_LT((result.x - x_to).norm(), 0.05);
   EXPECT_LT((result.A - A).cwiseAbs().maxCoeff(), 0.02);
   EXPECT_GT(result.ncc, 0.99);
@@ -85,8 +84,8 @@ TEST(AffinePatchTracker, IdentityWarpStaysPut) {
   AffinePatch start;
   start.x = x;
   AffinePatch result;
-  ASSERT_TRUE(trackAffinePatch(pyramid(image, 1), pyramid(image, 1), x, start, PatchWarp::kAffine, 5, 1, 10,
-                               &result));
+  ASSERT_TRUE(trackAffinePatch(pyramid(image, 1), pyramid(image, 1), x, start, PatchWarp::kAffine,
+                               5, 1, 10, &result));
   EXPECT_LT((result.x - x).norm(), 1e-6);
   EXPECT_LT((result.A - Eigen::Matrix2d::Identity()).norm(), 1e-6);
   EXPECT_NEAR(result.ncc, 1.0, 1e-9);
@@ -107,8 +106,8 @@ TEST(AffinePatchTracker, PatchLeavingTheImageFails) {
   AffinePatch start;
   start.x = Eigen::Vector2d(2, 100);  // the radius-5 patch reaches past the left edge
   AffinePatch result;
-  EXPECT_FALSE(trackAffinePatch(pyramid(image, 1), pyramid(image, 1), x, start,
-                                PatchWarp::kShift, 5, 1, 10, &result));
+  EXPECT_FALSE(trackAffinePatch(pyramid(image, 1), pyramid(image, 1), x, start, PatchWarp::kShift,
+                                5, 1, 10, &result));
 }
 
 }  // namespace

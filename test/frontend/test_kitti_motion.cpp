@@ -17,6 +17,8 @@
 #include "common/cli_runner.h"
 #include "core/data/sequence.h"
 #include "core/frontend/image_file.h"
+#include "core/frontend/image_folder.h"
+#include "core/frontend/optical_flow.h"
 #include "core/io/results_file.h"
 
 namespace marglab {
@@ -105,6 +107,32 @@ TEST_F(KittiMotion, RealFramesRunWithTheirTracksHeld) {
   EXPECT_GE(run.continued, 0.68);
   EXPECT_LE(run.ate, 0.19);
   EXPECT_LE(run.drift, 0.014);
+}
+
+// KITTI's detection margin (frontend_options.h): the first frame's keypoints, all new, keep
+// detect_margin_px = 150 from the left and right edges; with 0 the sides get keypoints too.
+TEST_F(KittiMotion, NewKeypointsKeepTheDetectionMargin) {
+  const ImageSequence images = loadImageSequence(kKitti06);
+  ASSERT_TRUE(images.images.has_value());
+  const int width = images.sequence.calib.cam0.width;
+  const cv::Mat left = readGreyImage(images.images->left[0], width, 0);
+  const cv::Mat right = readGreyImage(images.images->right[0], width, 0);
+  auto sideKeypoints = [&](const FrontendOptions& options, int margin) {
+    StereoFrontend frontend(images.sequence.calib, options, "test");
+    frontend.process(images.images->t_ns[0], left, right);
+    int n = 0;
+    for (const Eigen::Vector2d& p : frontend.lastRawLeft()) {
+      n += p.x() < margin || p.x() > width - 1 - margin;
+    }
+    EXPECT_GT(frontend.lastRawLeft().size(), 200u);
+    return n;
+  };
+  const FrontendOptions kitti = defaultFrontendOptions(images.sequence);
+  ASSERT_EQ(kitti.detect_margin_px, 150);
+  EXPECT_EQ(sideKeypoints(kitti, 150), 0);
+  FrontendOptions no_margin = kitti;
+  no_margin.detect_margin_px = 0;
+  EXPECT_GT(sideKeypoints(no_margin, 150), 20);
 }
 
 // Issue #29's targets on these frames. MISSED, so disabled (run with
