@@ -133,6 +133,8 @@ void frontendBindings(FrontendOptions& f, AddDouble D, AddInt I, std::vector<Bin
   D(s, "min_eigen", &f.min_eigen, atLeast(0));
   I(s, "corner_block_px", &f.corner_block_px, between(2, 31));
   I(s, "border_px", &f.border_px, between(0, 10000));
+  I(s, "detect_margin_px", &f.detect_margin_px,
+    orSentinel(between(0, 10000), -1, "dataset default"));
   Binding guesses{s, "disparity_guesses_px"};
   guesses.list = &f.disparity_guesses_px;
   guesses.rule = between(0, 10000);

@@ -20,7 +20,7 @@
 //   [frontend]      the image front-end's settings (core/frontend/frontend_options.h): grid_cell_px,
 //                   pyramid_levels (−1: dataset default), max_iterations, window_px, fb_max_px,
 //                   epipolar_max, ncc_min, ransac_px, min_eigen, corner_block_px, border_px,
-//                   disparity_guesses_px (a list; []: dataset default), prediction
+//                   detect_margin_px (−1: dataset default), disparity_guesses_px (a list; []: dataset default), prediction
 //                   ("estimator"|"tracker"|"none")
 //   [failure]       max_position_error_m (−1: dataset default), min_tracked_observations,
 //                   max_tracking_loss_frames (the tracking-failure rule, core/pipeline/run.h)

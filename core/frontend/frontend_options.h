@@ -11,7 +11,13 @@
 //                      level's pixels once more, as Basalt's KITTI config does);
 //   disparity_guesses_px  stereo starts for points without a predicted depth: EuRoC / TUM-VI
 //                      0 12 30 55 85 120 (near points at 0.5 m: f b / z ≈ 100 px), KITTI
-//                      0 10 25 45 70 (f b = 380 px·m: 70 px is a point 5.4 m away).
+//                      0 10 25 45 70 (f b = 380 px·m: 70 px is a point 5.4 m away);
+//   detect_margin_px   EuRoC / TUM-VI 0, KITTI 150: driving forward, points flow out of the sides
+//                      of the wide image at 20–80 px per frame; of the keypoints detected in the
+//                      outer 200 px of KITTI 06 only ~10 % were tracked into the next frame (a
+//                      quarter predicted out of view, most of the rest failing the round trip),
+//                      so new keypoints there cost a detection and a stereo match and mostly end
+//                      after one frame. Tracks that reach the band go on until they leave.
 // The resolved values are what a run records (the results file's config_toml).
 
 #include <string>
@@ -48,6 +54,8 @@ struct FrontendOptions {
   double min_eigen = 3e-3;  // Shi–Tomasi λ_min at half resolution (OpenCV units: gradients / 255)
   int corner_block_px = 3;
   int border_px = 8;  // keypoints closer to the image edge are dropped
+  int detect_margin_px = -1;  // −1: dataset default; no new keypoints this close to the left/right
+                              // edges (tracks go on there)
   std::vector<double> disparity_guesses_px;  // empty: dataset default
   MotionPredictionSource prediction = MotionPredictionSource::kTracker;
 };

@@ -13,6 +13,7 @@
 #include <unordered_map>
 
 #include "core/common/error.h"
+#include "core/frontend/affine_patch_tracker.h"
 #include "core/frontend/image_file.h"
 #include "core/geometry/so3.h"
 
@@ -114,7 +115,14 @@ struct StereoFrontend::Impl {
 
   std::optional<FramePrediction> ownPrediction(int64_t t_ns) const;
   std::vector<cv::Point2f> predictLeft(const FramePrediction* prediction,
-                                       std::vector<bool>* predicted_out) const;
+                                       std::vector<bool>* predicted_out,
+                                       std::vector<double>* scale) const;
+  void retrackScaled(const std::vector<cv::Mat>& from, const std::vector<cv::Mat>& to,
+                     const std::vector<cv::Point2f>& start, const std::vector<double>& scale,
+                     const std::vector<bool>& in_view, std::vector<cv::Point2f>* tracked,
+                     std::vector<bool>* ok) const;
+  std::optional<double> neighbourDepth(
+      const cv::Point2f& p, const std::vector<std::pair<cv::Point2f, double>>& with_depth) const;
   bool patchesAgree(const cv::Mat& from, const cv::Point2f& a, const cv::Mat& to,
                     const cv::Point2f& b) const;
   std::vector<bool> trackForwardBackward(const std::vector<cv::Mat>& from,
@@ -149,20 +157,39 @@ std::optional<FramePrediction> StereoFrontend::Impl::ownPrediction(int64_t t_ns)
 // The LK starts of the previous keypoints (step 1); predicted_out[i] false marks a point predicted
 // outside the image (its track ends).
 std::vector<cv::Point2f> StereoFrontend::Impl::predictLeft(const FramePrediction* prediction,
-                                                           std::vector<bool>* predicted_out) const {
+                                                           std::vector<bool>* predicted_out,
+                                                           std::vector<double>* scale) const {
   std::vector<cv::Point2f> start = prev_points;
   predicted_out->assign(prev_points.size(), true);
+  scale->assign(prev_points.size(), 1.0);
   if (prediction == nullptr) return start;
   const SE3<double>& T = prediction->T_new_prev;
+  std::vector<std::pair<cv::Point2f, double>> with_depth;
+  for (std::size_t i = 0; i < prev_points.size(); ++i) {
+    const auto point = prev_depth_points.find(prev_ids[i]);
+    if (point != prev_depth_points.end()) {
+      with_depth.emplace_back(prev_points[i], point->second.z());
+    }
+  }
   for (std::size_t i = 0; i < prev_points.size(); ++i) {
     const int64_t id = prev_ids[i];
-    std::optional<cv::Point2f> guess;
+    std::optional<Eigen::Vector3d> p_prev;
     auto window_point = prediction->p_prev.find(id);
     auto stereo_point = prev_depth_points.find(id);
     if (window_point != prediction->p_prev.end()) {
-      guess = project(cam0, T * window_point->second);
+      p_prev = window_point->second;
     } else if (stereo_point != prev_depth_points.end()) {
-      guess = project(cam0, T * stereo_point->second);
+      p_prev = stereo_point->second;
+    } else if (const auto z = neighbourDepth(prev_points[i], with_depth)) {
+      const Eigen::Vector3d b = bearingOf(cam0, prev_uv[i]);
+      p_prev = *z / b.z() * b;
+    }
+    std::optional<cv::Point2f> guess;
+    if (p_prev) {
+      // A patch at depth z appears z_prev / z_new times larger after the motion.
+      const Eigen::Vector3d p_new = T * *p_prev;
+      guess = project(cam0, p_new);
+      if (guess) (*scale)[i] = p_prev->z() / p_new.z();
     } else {
       guess = project(cam0, T.rotationMatrix() * bearingOf(cam0, prev_uv[i]));
     }
@@ -173,6 +200,24 @@ std::vector<cv::Point2f> StereoFrontend::Impl::predictLeft(const FramePrediction
     start[i] = *guess;
   }
   return start;
+}
+
+// The depth z of the keypoint nearest to p among `with_depth` (previous keypoints with a stereo
+// point), if one lies within two grid cells: a surface is mostly continuous, and a neighbour's
+// depth puts the start within a few pixels where infinity is tens of pixels off for near points.
+std::optional<double> StereoFrontend::Impl::neighbourDepth(
+    const cv::Point2f& p, const std::vector<std::pair<cv::Point2f, double>>& with_depth) const {
+  const float radius = 2.0F * static_cast<float>(options.grid_cell_px);
+  float best = radius * radius;
+  std::optional<double> z;
+  for (const auto& [q, z_q] : with_depth) {
+    const cv::Point2f d = q - p;
+    if (d.dot(d) < best) {
+      best = d.dot(d);
+      z = z_q;
+    }
+  }
+  return z;
 }
 
 // Step 2's patch check on the finest level.
@@ -218,6 +263,49 @@ std::vector<bool> StereoFrontend::Impl::trackForwardBackward(const std::vector<c
             patchesAgree(from[0], points[i], to[0], (*tracked)[i]);
   }
   return ok;
+}
+
+// Step 2b on the tracks predicted in view that failed step 2: the patch tracker of
+// affine_patch_tracker.h from the prediction with the patch zoomed by the predicted scale (the
+// shift estimated, the zoom held), then back from its result with the inverse zoom; the track
+// continues if the round trip returns within fb_max_px and the zoomed patches agree (ncc_min).
+// The inverse-compositional steps are cheap (the template's Hessian is fixed) but converge in more
+// of them than Bouguet's LK: 3 max_iterations per level.
+void StereoFrontend::Impl::retrackScaled(const std::vector<cv::Mat>& from,
+                                         const std::vector<cv::Mat>& to,
+                                         const std::vector<cv::Point2f>& start,
+                                         const std::vector<double>& scale,
+                                         const std::vector<bool>& in_view,
+                                         std::vector<cv::Point2f>* tracked,
+                                         std::vector<bool>* ok) const {
+  const int levels = std::min(3, options.pyramid_levels);
+  std::vector<cv::Mat> from_levels, to_levels;  // element 2l of the pyramids is level l
+  for (int l = 0; l < levels; ++l) {
+    from_levels.push_back(from[static_cast<std::size_t>(2 * l)]);
+    to_levels.push_back(to[static_cast<std::size_t>(2 * l)]);
+  }
+  const int radius = options.window_px / 2;
+  for (std::size_t i = 0; i < start.size(); ++i) {
+    if ((*ok)[i] || !in_view[i]) continue;
+    const Eigen::Vector2d x_prev(prev_points[i].x, prev_points[i].y);
+    AffinePatch forward{Eigen::Vector2d(start[i].x, start[i].y),
+                        scale[i] * Eigen::Matrix2d::Identity()};
+    if (!trackAffinePatch(from_levels, to_levels, x_prev, forward, PatchWarp::kShift, radius,
+                          levels, 3 * options.max_iterations, &forward) ||
+        forward.ncc < options.ncc_min || !inside(toPoint(forward.x))) {
+      continue;
+    }
+    // The backward start mirrors the forward one's offset from the prediction (as in step 2).
+    AffinePatch back{forward.x - (Eigen::Vector2d(start[i].x, start[i].y) - x_prev),
+                     forward.A.inverse()};
+    if (!trackAffinePatch(to_levels, from_levels, forward.x, back, PatchWarp::kShift, radius,
+                          levels, 3 * options.max_iterations, &back) ||
+        (back.x - x_prev).norm() > options.fb_max_px) {
+      continue;
+    }
+    (*tracked)[i] = toPoint(forward.x);
+    (*ok)[i] = true;
+  }
 }
 
 // Step 3 on the tracks that passed step 2 (survivors: indices into prev_*; uv_new their new
@@ -288,7 +376,8 @@ void StereoFrontend::Impl::detect(const std::vector<cv::Mat>& pyramid,
   const int scale = pyramid.size() > 2 ? 2 : 1;
   const cv::Mat& image = pyramid[scale == 2 ? 2 : 0];
   const int b = options.border_px, pad = options.corner_block_px;
-  const cv::Rect valid(b, b, width - 2 * b, height - 2 * b);
+  const int side = std::max(b, options.detect_margin_px);
+  const cv::Rect valid(side, b, width - 2 * side, height - 2 * b);
   cv::Mat response;
   for (int j = 0; j < ny; ++j) {
     for (int i = 0; i < nx; ++i) {
@@ -496,11 +585,15 @@ TrackFrame StereoFrontend::process(int64_t t_ns, const cv::Mat& left, const cv::
   };
   if (!m.prev_points.empty()) {
     std::vector<bool> in_view;
-    std::vector<cv::Point2f> tracked = m.predictLeft(prediction, &in_view);
+    std::vector<double> scale;
+    const std::vector<cv::Point2f> start = m.predictLeft(prediction, &in_view, &scale);
+    std::vector<cv::Point2f> tracked = start;
     std::vector<bool> lk_ok;
-    const std::vector<bool> ok =
-        m.trackForwardBackward(m.prev_pyramid, pyramid0, m.prev_points, &tracked, &lk_ok,
-                               m.options.pyramid_levels);
+    std::vector<bool> ok = m.trackForwardBackward(m.prev_pyramid, pyramid0, m.prev_points,
+                                                  &tracked, &lk_ok, m.options.pyramid_levels);
+    if (prediction != nullptr) {
+      m.retrackScaled(m.prev_pyramid, pyramid0, start, scale, in_view, &tracked, &ok);
+    }
     std::vector<std::size_t> survivors;
     std::vector<Eigen::Vector2d> uv_new;
     for (std::size_t i = 0; i < ok.size(); ++i) {

@@ -130,6 +130,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadValue{"LevelsNine", "[frontend]\npyramid_levels = 9\n",
                  "frontend.pyramid_levels = 9: expected -1 (dataset default) or an integer in [1, "
                  "8]"},
+        BadValue{"MarginNegative", "[frontend]\ndetect_margin_px = -2\n",
+                 "frontend.detect_margin_px = -2: expected -1 (dataset default) or an integer in "
+                 "[0, 10000]"},
         BadValue{"WindowThree", "[frontend]\nwindow_px = 3\n",
                  "frontend.window_px = 3: expected an integer in [5, 101]"},
         BadValue{"FbNan", "[frontend]\nfb_max_px = nan\n",
@@ -168,6 +171,8 @@ TEST(ConfigValidation, FrontendKeysRoundTripAndResolvePerDataset) {
   EXPECT_EQ(kitti.pyramid_levels, 4);
   EXPECT_EQ(euroc.grid_cell_px, 50);
   EXPECT_EQ(euroc.pyramid_levels, 3);
+  EXPECT_EQ(kitti.detect_margin_px, 150);
+  EXPECT_EQ(euroc.detect_margin_px, 0);
   EXPECT_FALSE(kitti.disparity_guesses_px.empty());
   // A configured value is kept, not replaced by the dataset's.
   FrontendOptions configured;
