@@ -464,15 +464,15 @@ std::vector<ConfigProblem> EstimatorConfig::problems() const {
                    {keys.begin(), keys.end()}});
   }
   if (nfr_rigid_deflation &&
-      (marg_strategy != MargStrategy::kNfr || nfr_topology == SparsifyTopology::kJointStates)) {
+      (marg_strategy != MargStrategy::kNfr || nfr_topology != SparsifyTopology::kPaper)) {
     const std::initializer_list<const char*> keys = {"marginalization.nfr_rigid_deflation",
                                                      "marginalization.strategy",
                                                      "marginalization.nfr_topology"};
     out.push_back({pick("marginalization.nfr_rigid_deflation", keys),
                    fmt::format("marginalization.nfr_rigid_deflation = true with strategy = \"{}\" "
                                "and nfr_topology = \"{}\": expected strategy \"nfr\" with "
-                               "nfr_topology \"paper\" or \"relative-pose\" (the deflation acts "
-                               "on nfr's unary pose and velocity factors)",
+                               "nfr_topology \"paper\" (the deflation acts on unary factors on "
+                               "every pose of the blanket)",
                                toString(marg_strategy), toString(nfr_topology)),
                    {keys.begin(), keys.end()}});
   }

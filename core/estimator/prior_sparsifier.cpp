@@ -290,7 +290,7 @@ void sparsifyPrior(Window<Scalar>& w, SparsifyTopology topology, bool rigid_defl
   const bool joint = topology == SparsifyTopology::kJointStates;
   // The dense prior's information along the rigid motions, before the regularization below.
   MatXd G_d;
-  if (rigid_deflation && !joint) {
+  if (rigid_deflation && topology == SparsifyTopology::kPaper) {
     const auto E = dirs.leftCols<kGaugeRandom>();
     G_d = E.transpose() * Lambda_t.template cast<double>() * E;
   }

@@ -29,10 +29,12 @@
 // every variable at once: a unary topology counts the uncertainty all blanket states share once per
 // state, so Λ_s can exceed Λ_t along the rigid motions while falling below it elsewhere.
 //
-// Rigid deflation (option nfr_rigid_deflation, topologies paper and relative-pose): the unary pose
-// and velocity factors lose their information in excess of Λ_t's along x … yaw (the first six
-// directions above), and only that, as core/sparsify/rigid_deflation.h derives; they then enter
-// the window as one joint factor (Window::NfrJointFactor). info_sparse, nnz_sparse and kld describe
+// Rigid deflation (option nfr_rigid_deflation, topology paper): the unary pose and velocity factors
+// lose their information in excess of Λ_t's along x … yaw (the first six directions above), and
+// only that, as core/sparsify/rigid_deflation.h derives; they then enter the window as one joint
+// factor (Window::NfrJointFactor). Not for relative-pose: with one unary pose factor its Λ_s, like
+// Λ_t, has next to nothing (~ the regularization ε) along the translations, so there is no excess
+// to resolve from rounding. info_sparse, nnz_sparse and kld describe
 // the deflated factors. A deflation that fails (non-finite input) keeps the dense prior, with the
 // reason.
 
@@ -71,7 +73,7 @@ template <typename Scalar>
 MatX<Scalar> describeBlanket(const Window<Scalar>& window, SparsifyEvent* event);
 
 // Strategy nfr: replaces the window's prior by recovered factors, deflated along the rigid motions
-// when rigid_deflation (not for joint-states, which has no unary factors); keeps it dense when the
+// when rigid_deflation (topology paper; the config refuses the others); keeps it dense when the
 // recovery fails (event->fallback_reason).
 template <typename Scalar>
 void sparsifyPrior(Window<Scalar>& window, SparsifyTopology topology, bool rigid_deflation,

@@ -40,8 +40,11 @@ RigidDeflation rigidDeflation(const Eigen::MatrixXd& B, const Eigen::MatrixXd& G
   const Eigen::MatrixXd G_d_sym = G_d.selfadjointView<Eigen::Lower>();
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig_m(W.transpose() * G_d_sym * W);
   const Eigen::VectorXd& mu = eig_m.eigenvalues();
-  Eigen::Index d = 0;  // ascending: the deflated directions come first
-  while (d < mu.size() && mu(d) < 1) ++d;
+  // An excess within rounding of M (its μ_j carry errors of a few k ε) is not one: equal
+  // information stays as unary factors. Ascending: the deflated directions come first.
+  const double excess_min = 100 * NumericTraits<double>::pinvRelativeTolerance(static_cast<int>(k));
+  Eigen::Index d = 0;
+  while (d < mu.size() && mu(d) < 1 - excess_min) ++d;
   if (d == 0) return out;
   out.mu = mu.head(d).cwiseMax(0.0);
   out.Q = B * W * eig_m.eigenvectors().leftCols(d);

@@ -35,6 +35,7 @@
 // projector onto μ_j < 1), with equality for D = diag((1 − μ_j)₊). So
 //   Λ_s' = Λ_s − Σ_{μ_j < 1} (1 − μ_j) (Λ_s f_j)(Λ_s f_j)ᵀ:
 // along each f_j with μ_j < 1 the information drops to Λ_d's, μ_j; everything else keeps its own.
+// (An excess 1 − μ_j below 100 k ε is taken as rounding of M, not deflated.)
 // When every μ_j ≤ 1 (the measured case: Λ_s is 2.1–2.7× Λ_d along the rigid motions)
 // EᵀΛ_s'E = G_d, so every rigid direction carries exactly the dense prior's information; when
 // every μ_j ≥ 1 nothing changes; in between a direction mixing deflated and kept f_j ends between
