@@ -88,13 +88,17 @@ def gt_orientations(run):
 
 
 def information_ratios(run):
-    """Median over the events of εᵀΛ_sε / εᵀΛ_tε per gauge direction ({} without /sparsify)."""
+    """Median over the events of εᵀΛ_sε / εᵀΛ_tε per gauge direction, and the mean KLD of the
+    recovered events ({} without /sparsify)."""
     sp = run.sparsify
     if len(sp) == 0 or "info_dense_x" not in sp:
         return {}
-    return {d: float(np.median(np.asarray(sp["info_sparse_" + d], dtype=float) /
-                               np.asarray(sp["info_dense_" + d], dtype=float)))
-            for d in mr.DEM_DIRECTIONS}
+    out = {d: float(np.median(np.asarray(sp["info_sparse_" + d], dtype=float) /
+                              np.asarray(sp["info_dense_" + d], dtype=float)))
+           for d in mr.DEM_DIRECTIONS}
+    kld = np.asarray(sp["kld"], dtype=float)[np.asarray(sp["recovered"], dtype=bool)]
+    out["kld"] = float(np.mean(kld)) if kld.size else float("nan")
+    return out
 
 
 def load(sweep):
@@ -211,13 +215,14 @@ def summary_lines(runs, comparisons):
 
 def information_lines(runs, overrides):
     """Mean over the runs of each run's median information ratio, per direction."""
-    lines = ["| strategy | runs | " + " | ".join(mr.DEM_DIRECTIONS) + " |",
-             "|---|---:|" + "---:|" * len(mr.DEM_DIRECTIONS)]
+    lines = ["| strategy | runs | " + " | ".join(mr.DEM_DIRECTIONS) + " | KLD per event [nats] |",
+             "|---|---:|" + "---:|" * (len(mr.DEM_DIRECTIONS) + 1)]
     for o in overrides:
         sel = [r["info"] for k, r in sorted(runs.items()) if k[0] == o and r["info"]]
         if sel:
             lines.append(f"| {o} | {len(sel)} | " + " | ".join(
-                f"{statistics.fmean(i[d] for i in sel):.3f}" for d in mr.DEM_DIRECTIONS) + " |")
+                f"{statistics.fmean(i[d] for i in sel):.3f}" for d in mr.DEM_DIRECTIONS + ["kld"])
+                + " |")
     return lines
 
 
@@ -302,7 +307,8 @@ def main():
         lines += summary_lines(runs, comparisons)
         lines += ["", "Information of the recovered factors relative to the dense prior along the "
                   "gauge directions (/sparsify info_sparse / info_dense: median over a run's "
-                  "events, mean over the runs).", ""]
+                  "events, mean over the runs), and the KLD to the dense prior (/sparsify kld: "
+                  "mean over a run's events, mean over the runs).", ""]
         lines += information_lines(runs, ["nfr", "nfr_deflated"])
         lines += ["", "## nfr against discard", ""]
     lines += comparison_lines(ps, "discard", "nfr")
