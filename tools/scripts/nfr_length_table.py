@@ -294,7 +294,7 @@ def main():
     for folder in sys.argv[1:]:
         runs.update(load(folder))
     ps = pairs(runs)
-    names = ", ".join(f"`{os.path.normpath(f)}`" for f in sys.argv[1:])
+    names = ", ".join(f"`{os.path.basename(os.path.normpath(f))}`" for f in sys.argv[1:])
     lines = ["# nfr against discard by run length (issue #19, section 3)", "",
              f"Sweep {names}: {len(ps)} (sequence, seed) "
              "pairs where both runs completed. ATE RMSE of the first N frames of each run, "
