@@ -30,9 +30,9 @@
 // threshold (NumericTraits<double>::pinvRelativeTolerance(6) · s_max; along the others Λ_s has no
 // information to remove), M = WᵀG_dW = P diag(μ) Pᵀ. The f_j = E W p_j are Λ_s-orthonormal and
 // Λ_d-orthogonal with f_jᵀΛ_d f_j = μ_j, the ratio dense / sparse along them. In these coordinates
-// the constraints read X ⪯ I and X ⪯ diag(μ); the deflation D = I − X must be ⪰ 0 and ⪰ I − diag(μ),
-// and tr D ≥ Σ_j (1 − μ_j)₊ for every such D (tr D ≥ tr D P₊ ≥ tr (I − diag μ) P₊ with P₊ the
-// projector onto μ_j < 1), with equality for D = diag((1 − μ_j)₊). So
+// the constraints read X ⪯ I and X ⪯ diag(μ): the deflation D = I − X is ⪰ 0 and
+// ⪰ I − diag(μ). Every such D has tr D ≥ Σ_j (1 − μ_j)₊ (tr D ≥ tr D P₊ ≥ tr (I − diag μ) P₊,
+// P₊ the projector onto μ_j < 1), with equality for D = diag((1 − μ_j)₊). So
 //   Λ_s' = Λ_s − Σ_{μ_j < 1} (1 − μ_j) (Λ_s f_j)(Λ_s f_j)ᵀ:
 // along each f_j with μ_j < 1 the information drops to Λ_d's, μ_j; everything else keeps its own.
 // (An excess 1 − μ_j below 100 k ε is taken as rounding of M, not deflated.)
@@ -66,8 +66,8 @@
 namespace marglab {
 
 struct RigidDeflation {
-  Eigen::MatrixXd A;  // m × m; the identity when no direction is deflated
-  Eigen::MatrixXd Q;  // m × d: the q_j of the deflated directions
+  Eigen::MatrixXd A;   // m × m; the identity when no direction is deflated
+  Eigen::MatrixXd Q;   // m × d: the q_j of the deflated directions
   Eigen::VectorXd mu;  // their μ_j ∈ [0, 1), clamped at 0 against rounding
   Status status;
   int deflated() const { return static_cast<int>(mu.size()); }

@@ -41,9 +41,9 @@ MatXd symmetricSqrt(const MatXd& S) {
 
 // A sparsified prior over n columns: m unary rows, an invariant part of rank n − 6 − 2.
 struct Problem {
-  MatXd E;           // n × 6, unit columns
-  MatXd J_u;         // m × n
-  MatXd Lambda_s;    // J_uᵀJ_u + Λ_inv
+  MatXd E;         // n × 6, unit columns
+  MatXd J_u;       // m × n
+  MatXd Lambda_s;  // J_uᵀJ_u + Λ_inv
   MatXd G_s() const { return E.transpose() * Lambda_s * E; }
   MatXd B() const { return J_u * E; }
 };
@@ -52,8 +52,8 @@ Problem makeProblem(std::mt19937_64& rng, int n, int m) {
   Problem p;
   p.E = gaussian(rng, n, kRigid).colwise().normalized();
   p.J_u = gaussian(rng, m, n);
-  const MatXd P_perp = MatXd::Identity(n, n) - p.E * (p.E.transpose() * p.E).inverse() *
-                                                    p.E.transpose();
+  const MatXd P_perp =
+      MatXd::Identity(n, n) - p.E * (p.E.transpose() * p.E).inverse() * p.E.transpose();
   const MatXd H_inv = gaussian(rng, n - kRigid - 2, n) * P_perp;  // H_inv E = 0
   p.Lambda_s = p.J_u.transpose() * p.J_u + H_inv.transpose() * H_inv;
   return p;
@@ -71,9 +71,8 @@ MatXd randomOrthogonal(std::mt19937_64& rng, int d) {
 }
 
 MatXd deflated(const Problem& p, const RigidDeflation& d) {
-  return p.Lambda_s + p.J_u.transpose() * (d.A.transpose() * d.A -
-                                           MatXd::Identity(d.A.rows(), d.A.cols())) *
-                          p.J_u;
+  return p.Lambda_s + p.J_u.transpose() *
+                          (d.A.transpose() * d.A - MatXd::Identity(d.A.rows(), d.A.cols())) * p.J_u;
 }
 
 double info(const MatXd& Lambda, const VecXd& e) { return e.dot(Lambda * e); }
