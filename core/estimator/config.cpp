@@ -191,6 +191,8 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
                         "\"discard\", \"dense\" or \"nfr\""));
   list.push_back(choice("marginalization", "nfr_topology", &c.nfr_topology, parseSparsifyTopology,
                         "\"paper\", \"joint-states\" or \"relative-pose\""));
+  list.push_back(
+      {"marginalization", "nfr_rigid_deflation", nullptr, nullptr, &c.nfr_rigid_deflation});
   frontendBindings(c.frontend, D, I, &list);
   D("failure", "max_position_error_m", &c.max_position_error_m,
     orSentinel(above(0), -1, "dataset default"));
@@ -461,6 +463,19 @@ std::vector<ConfigProblem> EstimatorConfig::problems() const {
                                "counts as dependent when its remaining norm is at most the "
                                "threshold times its norm, so 1 or more drops every column)",
                                qr_threshold),
+                   {keys.begin(), keys.end()}});
+  }
+  if (nfr_rigid_deflation &&
+      (marg_strategy != MargStrategy::kNfr || nfr_topology != SparsifyTopology::kPaper)) {
+    const std::initializer_list<const char*> keys = {"marginalization.nfr_rigid_deflation",
+                                                     "marginalization.strategy",
+                                                     "marginalization.nfr_topology"};
+    out.push_back({pick("marginalization.nfr_rigid_deflation", keys),
+                   fmt::format("marginalization.nfr_rigid_deflation = true with strategy = \"{}\" "
+                               "and nfr_topology = \"{}\": expected strategy \"nfr\" with "
+                               "nfr_topology \"paper\" (the deflation acts on unary factors on "
+                               "every pose of the blanket)",
+                               toString(marg_strategy), toString(nfr_topology)),
                    {keys.begin(), keys.end()}});
   }
   return out;

@@ -16,7 +16,10 @@
 //   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
 //                   scalar type), strategy ("discard"|"dense"|"nfr", keyframe marginalization of
 //                   VIO; see MargStrategy), nfr_topology ("paper"|"joint-states"|"relative-pose",
-//                   see SparsifyTopology)
+//                   see SparsifyTopology), nfr_rigid_deflation (true: nfr's unary factors lose
+//                   their information in excess of the dense prior's along the window's rigid
+//                   motions, core/sparsify/rigid_deflation.h; needs strategy "nfr" and
+//                   nfr_topology "paper")
 //   [frontend]      the image front-end's settings (core/frontend/frontend_options.h): grid_cell_px,
 //                   pyramid_levels (−1: dataset default), max_iterations, window_px, fb_max_px,
 //                   epipolar_max, ncc_min, ransac_px, min_eigen, corner_block_px, border_px,
@@ -32,11 +35,12 @@
 //
 // Validation (docs/design.md §9): every key has a range; a value outside it, a non-finite number
 // or a violated relation between keys (lambda_min ≤ lambda_init ≤ lambda_max; a relative
-// qr_threshold below 1) is an input error, never a numerical failure of the estimator. loadToml
-// checks each value it reads against its key's range (integers before they are narrowed, so 1e12
-// is an error and never wraps); validate() checks the whole effective config after the command
-// line has been applied. Messages name the key, the value, the allowed range and where the value
-// came from (FILE:LINE of a TOML file, or the command-line option).
+// qr_threshold below 1; nfr_rigid_deflation only with strategy nfr, topology paper) is an
+// input error, never a numerical failure of the estimator. loadToml checks each value it reads
+// against its key's range (integers before they are narrowed, so 1e12 is an error and never
+// wraps); validate() checks the whole effective config after the command line has been applied.
+// Messages name the key, the value, the allowed range and where the value came from (FILE:LINE of
+// a TOML file, or the command-line option).
 
 #include <cstdint>
 #include <map>
@@ -149,6 +153,7 @@ struct EstimatorConfig {
   double qr_threshold = -1;
   MargStrategy marg_strategy = MargStrategy::kDiscard;
   SparsifyTopology nfr_topology = SparsifyTopology::kPaper;
+  bool nfr_rigid_deflation = false;
   // frontend
   FrontendOptions frontend;
   // failure

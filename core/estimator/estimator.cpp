@@ -516,7 +516,7 @@ Status SlidingWindowEstimator<Scalar>::marginalizePlan(const MargPlan& plan, boo
     SparsifyEvent event;
     event.t_schur_s = result->t_marg_s;
     if (config_.marg_strategy == MargStrategy::kNfr) {
-      sparsifyPrior(window_, config_.nfr_topology, &event);
+      sparsifyPrior(window_, config_.nfr_topology, config_.nfr_rigid_deflation, &event);
       result->t_marg_s += event.t_recovery_s + event.t_insert_s;
     } else {
       describeBlanket(window_, &event);

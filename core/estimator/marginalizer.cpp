@@ -63,6 +63,9 @@ void gatherDirectRows(const Window<Scalar>& w, const MargPlan& plan,
   for (const auto& f : w.nfr_states) {
     if (f.touches(plan.vars)) p->direct.push_back(w.linearizeNfr(f, -1, nullptr));
   }
+  for (const auto& f : w.nfr_joint) {
+    if (f.touches(plan.vars)) p->direct.push_back(w.linearizeNfrJoint(f));
+  }
   const std::set<int64_t> eliminated(plan.landmarks.begin(), plan.landmarks.end());
   for (const auto& [id, lm] : w.landmarks) {
     if (eliminated.count(id) != 0 || plan.vars.count({id, StateBlock::kLandmark}) != 0) continue;

@@ -7,6 +7,7 @@
 
 #include "core/common/scalar.h"
 #include "core/sparsify/nfr.h"
+#include "core/sparsify/rigid_deflation.h"
 
 namespace marglab {
 namespace {
@@ -119,17 +120,96 @@ std::optional<JointFactor<Scalar>> jointStateFactor(const MargPrior<Scalar>& pri
   return joint;
 }
 
+// The unary pose and velocity factors, deflated along the rigid motions
+// (core/sparsify/rigid_deflation.h): which of sp.factors, and the matrix A that mixes them.
+struct RigidDeflationOfEvent {
+  std::vector<size_t> members;
+  RigidDeflation deflation;
+};
+
+// J_u: the whitened Jacobians at x⁰ of the unary pose and velocity factors over the blanket's n
+// columns (at z = h(x⁰) the ⊟ Jacobians are the identity, so factor i's rows are W_i S_i);
+// *members: their indices in sp.factors.
+template <typename Scalar>
+MatXd unaryJacobian(const BlanketVars<Scalar>& b, const Sparsification<Scalar>& sp, int n,
+                    std::vector<size_t>* members) {
+  Eigen::Index m = 0;
+  for (size_t i = 0; i < sp.factors.size(); ++i) {
+    const RecoveredFactor<Scalar>& f = sp.factors[i];
+    const BlanketKind kind = b.x[static_cast<size_t>(f.spec.var)].kind;
+    if (f.spec.kind != NfrFactorKind::kUnary ||
+        (kind != BlanketKind::kPose && kind != BlanketKind::kVelocity)) {
+      continue;
+    }
+    members->push_back(i);
+    m += f.sqrt_information.rows();
+  }
+  MatXd J_u = MatXd::Zero(m, n);
+  m = 0;
+  for (const size_t i : *members) {
+    const MatX<Scalar>& W = sp.factors[i].sqrt_information;
+    J_u.block(m, b.x[static_cast<size_t>(sp.factors[i].spec.var)].offset, W.rows(), W.cols()) =
+        W.template cast<double>();
+    m += W.rows();
+  }
+  return J_u;
+}
+
+// The deflation of one event; *Lambda_s (double) and *kld updated to the deflated factors:
+// Λ_s' = Λ_s − Σ (1 − μ_j) g_j g_jᵀ, g_j = J_uᵀq_j, and the KLD's change
+// ½ (⟨Λ_s' − Λ_s, Σ_t⟩ − Σ log μ_j) with Σ_t from the regularized Λ_t the recovery used.
+template <typename Scalar>
+RigidDeflationOfEvent deflateRigid(const BlanketVars<Scalar>& b, const Sparsification<Scalar>& sp,
+                                   const GaugeDirections& dirs, const MatXd& G_d,
+                                   const MatX<Scalar>& Lambda_t, MatXd* Lambda_s, double* kld) {
+  RigidDeflationOfEvent out;
+  const MatXd J_u = unaryJacobian(b, sp, static_cast<int>(Lambda_t.rows()), &out.members);
+  out.deflation = rigidDeflation(J_u * dirs.leftCols<kGaugeRandom>(), G_d);
+  const RigidDeflation& d = out.deflation;
+  if (!d.status.ok() || d.deflated() == 0) return out;
+  const MatXd g = J_u.transpose() * d.Q;
+  const VecXd removed = VecXd::Ones(d.deflated()) - d.mu;
+  *Lambda_s -= g * removed.asDiagonal() * g.transpose();
+  const MatXd Sigma_g = Eigen::LLT<MatXd>(Lambda_t.template cast<double>()).solve(g);
+  const double trace_change = -(g.cwiseProduct(Sigma_g).colwise().sum().transpose())
+                                   .cwiseProduct(removed)
+                                   .sum();
+  *kld += 0.5 * (trace_change - d.logDetChange());
+  return out;
+}
+
+template <typename Scalar>
+typename Window<Scalar>::NfrFactor windowFactor(const BlanketVars<Scalar>& b,
+                                                const RecoveredFactor<Scalar>& recovered) {
+  typename Window<Scalar>::NfrFactor f;
+  f.factor = recovered;
+  f.factor.spec.var = 0;
+  f.kind = b.x[static_cast<size_t>(recovered.spec.var)].kind;
+  f.frame = b.var_of[static_cast<size_t>(recovered.spec.var)].frame_id;
+  return f;
+}
+
 // The recovered factors into the window: pose–landmark ones to their landmark, unary and
-// relative-pose ones to the factor list (not with the joint factor, which replaces them).
+// relative-pose ones to the factor list (not with the joint factor, which replaces them), the
+// deflated ones as one joint factor.
 template <typename Scalar>
 void insertFactors(Window<Scalar>& w, const BlanketVars<Scalar>& b,
-                   const Sparsification<Scalar>& sp, bool joint) {
-  for (const RecoveredFactor<Scalar>& recovered : sp.factors) {
-    typename Window<Scalar>::NfrFactor f;
-    f.factor = recovered;
-    f.factor.spec.var = 0;
-    f.kind = b.x[static_cast<size_t>(recovered.spec.var)].kind;
-    f.frame = b.var_of[static_cast<size_t>(recovered.spec.var)].frame_id;
+                   const Sparsification<Scalar>& sp, bool joint,
+                   const RigidDeflationOfEvent* rigid) {
+  std::vector<bool> in_joint(sp.factors.size(), false);
+  if (rigid != nullptr) {
+    typename Window<Scalar>::NfrJointFactor deflated;
+    for (const size_t i : rigid->members) {
+      in_joint[i] = true;
+      deflated.members.push_back(windowFactor(b, sp.factors[i]));
+    }
+    deflated.A = rigid->deflation.A.template cast<Scalar>();
+    w.nfr_joint.push_back(std::move(deflated));
+  }
+  for (size_t i = 0; i < sp.factors.size(); ++i) {
+    if (in_joint[i]) continue;
+    const RecoveredFactor<Scalar>& recovered = sp.factors[i];
+    typename Window<Scalar>::NfrFactor f = windowFactor(b, recovered);
     if (recovered.spec.kind == NfrFactorKind::kRelativePose) {
       f.factor.spec.pose_b = 1;
       f.frame_b = b.var_of[static_cast<size_t>(recovered.spec.pose_b)].frame_id;
@@ -203,8 +283,17 @@ MatX<Scalar> describeBlanket(const Window<Scalar>& w, SparsifyEvent* event) {
 }
 
 template <typename Scalar>
-void sparsifyPrior(Window<Scalar>& w, SparsifyTopology topology, SparsifyEvent* event) {
+void sparsifyPrior(Window<Scalar>& w, SparsifyTopology topology, bool rigid_deflation,
+                   SparsifyEvent* event) {
   MatX<Scalar> Lambda_t = describeBlanket(w, event);
+  const GaugeDirections dirs = blanketDirections(w.prior);
+  const bool joint = topology == SparsifyTopology::kJointStates;
+  // The dense prior's information along the rigid motions, before the regularization below.
+  MatXd G_d;
+  if (rigid_deflation && topology == SparsifyTopology::kPaper) {
+    const auto E = dirs.leftCols<kGaugeRandom>();
+    G_d = E.transpose() * Lambda_t.template cast<double>() * E;
+  }
   Lambda_t.diagonal().array() +=
       Scalar(10) * NumericTraits<Scalar>::pinvRelativeTolerance(static_cast<int>(Lambda_t.rows())) *
       Lambda_t.trace();
@@ -227,7 +316,6 @@ void sparsifyPrior(Window<Scalar>& w, SparsifyTopology topology, SparsifyEvent* 
   if (!sp.status.ok()) return fallback(sp.status.toString());
   Scalar kld = sp.kld;
   MatX<Scalar> Lambda_s = sp.Lambda_s;
-  const bool joint = topology == SparsifyTopology::kJointStates;
   std::optional<JointFactor<Scalar>> joint_factor;
   if (joint) {
     joint_factor = jointStateFactor(w.prior, Lambda_t, b, sp, &kld, &Lambda_s);
@@ -235,23 +323,30 @@ void sparsifyPrior(Window<Scalar>& w, SparsifyTopology topology, SparsifyEvent* 
       return fallback("the joint state factor's information is not positive definite");
     }
   }
+  MatXd Lambda_s_d = Lambda_s.template cast<double>();
+  double kld_d = static_cast<double>(kld);
+  std::optional<RigidDeflationOfEvent> rigid;
+  if (G_d.size() != 0) {
+    rigid = deflateRigid(b, sp, dirs, G_d, Lambda_t, &Lambda_s_d, &kld_d);
+    if (!rigid->deflation.status.ok()) return fallback(rigid->deflation.status.toString());
+    if (rigid->deflation.deflated() == 0) rigid.reset();
+  }
   event->t_recovery_s = secondsSince(t0);
-  const Vec7d info_sparse =
-      directionInformation(Lambda_s.template cast<double>(), blanketDirections(w.prior));
+  const Vec7d info_sparse = directionInformation(Lambda_s_d, dirs);
 
   const auto t1 = Clock::now();
-  insertFactors(w, b, sp, joint);
+  insertFactors(w, b, sp, joint, rigid ? &*rigid : nullptr);
   replacePrior(w, joint_factor ? &*joint_factor : nullptr);
   event->t_insert_s = secondsSince(t1);
   event->recovered = true;
-  event->kld = static_cast<double>(kld);
+  event->kld = kld_d;
   event->info_sparse = info_sparse;
-  event->nnz_sparse = (Lambda_s.array() != Scalar(0)).count();
+  event->nnz_sparse = (Lambda_s_d.array() != 0.0).count();
 }
 
 #define MARGLAB_INST(S)                                                  \
   template MatX<S> describeBlanket<S>(const Window<S>&, SparsifyEvent*); \
-  template void sparsifyPrior<S>(Window<S>&, SparsifyTopology, SparsifyEvent*);
+  template void sparsifyPrior<S>(Window<S>&, SparsifyTopology, bool, SparsifyEvent*);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

@@ -28,6 +28,15 @@
 // marginal covariances of the factors' variables, not the information along a direction that moves
 // every variable at once: a unary topology counts the uncertainty all blanket states share once per
 // state, so Λ_s can exceed Λ_t along the rigid motions while falling below it elsewhere.
+//
+// Rigid deflation (option nfr_rigid_deflation, topology paper): the unary pose and velocity factors
+// lose their information in excess of Λ_t's along x … yaw (the first six directions above), and
+// only that, as core/sparsify/rigid_deflation.h derives; they then enter the window as one joint
+// factor (Window::NfrJointFactor). Not for relative-pose: with one unary pose factor its Λ_s, like
+// Λ_t, has next to nothing (~ the regularization ε) along the translations, so there is no excess
+// to resolve from rounding. info_sparse, nnz_sparse and kld describe
+// the deflated factors. A deflation that fails (non-finite input) keeps the dense prior, with the
+// reason.
 
 #include <cstdint>
 #include <limits>
@@ -63,9 +72,11 @@ struct SparsifyEvent {
 template <typename Scalar>
 MatX<Scalar> describeBlanket(const Window<Scalar>& window, SparsifyEvent* event);
 
-// Strategy nfr: replaces the window's prior by recovered factors; keeps it dense when the recovery
-// fails (event->fallback_reason).
+// Strategy nfr: replaces the window's prior by recovered factors, deflated along the rigid motions
+// when rigid_deflation (topology paper; the config refuses the others); keeps it dense when the
+// recovery fails (event->fallback_reason).
 template <typename Scalar>
-void sparsifyPrior(Window<Scalar>& window, SparsifyTopology topology, SparsifyEvent* event);
+void sparsifyPrior(Window<Scalar>& window, SparsifyTopology topology, bool rigid_deflation,
+                   SparsifyEvent* event);
 
 }  // namespace marglab

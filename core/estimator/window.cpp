@@ -237,6 +237,50 @@ RowBlock<Scalar> Window<Scalar>::linearizeNfr(const NfrFactor& f, int64_t track_
 }
 
 template <typename Scalar>
+Scalar Window<Scalar>::nfrJointCost(const NfrJointFactor& f) const {
+  std::vector<VecX<Scalar>> e;
+  Eigen::Index m = 0;
+  for (const NfrFactor& member : f.members) {
+    e.push_back(member.factor.whitenedResidual(nfrBlanket(member, nullptr, false)));
+    m += e.back().size();
+  }
+  VecX<Scalar> stacked(m);
+  m = 0;
+  for (const VecX<Scalar>& e_i : e) {
+    stacked.segment(m, e_i.size()) = e_i;
+    m += e_i.size();
+  }
+  return Scalar(0.5) * (f.A * stacked).squaredNorm();
+}
+
+template <typename Scalar>
+RowBlock<Scalar> Window<Scalar>::linearizeNfrJoint(const NfrJointFactor& f) const {
+  std::vector<RowBlock<Scalar>> rows;
+  Eigen::Index m = 0, cols = 0;
+  for (const NfrFactor& member : f.members) {
+    rows.push_back(linearizeNfr(member, -1, nullptr));
+    m += rows.back().r.size();
+    cols += rows.back().J.cols();
+  }
+  // The members' rows block-diagonal over their (distinct) variables, then mixed by A.
+  VecX<Scalar> r(m);
+  MatX<Scalar> J = MatX<Scalar>::Zero(m, cols);
+  RowBlock<Scalar> out;
+  m = 0;
+  cols = 0;
+  for (const RowBlock<Scalar>& block : rows) {
+    r.segment(m, block.r.size()) = block.r;
+    J.block(m, cols, block.J.rows(), block.J.cols()) = block.J;
+    out.vars.push_back({block.vars.front().first, static_cast<int>(cols)});
+    m += block.r.size();
+    cols += block.J.cols();
+  }
+  out.r = f.A * r;
+  out.J = f.A * J;
+  return out;
+}
+
+template <typename Scalar>
 Scalar Window<Scalar>::linkCost(int64_t from, const ImuLink& link) const {
   const ImuState<Scalar> s_i = stateOf(from, StateAt::kCurrent);
   const ImuState<Scalar> s_j = stateOf(link.to, StateAt::kCurrent);
@@ -261,6 +305,7 @@ Scalar Window<Scalar>::totalCost() const {
   for (const Scalar c : chunk_cost) cost += c;
   for (const auto& [from, link] : imu_links) cost += linkCost(from, link);
   for (const NfrFactor& f : nfr_states) cost += nfrCost(f, nullptr);
+  for (const NfrJointFactor& f : nfr_joint) cost += nfrJointCost(f);
   if (!prior.empty()) cost += prior.cost(priorDelta(prior));
   return cost;
 }
@@ -294,6 +339,7 @@ std::vector<RowBlock<Scalar>> Window<Scalar>::directRows(const std::set<int64_t>
     if (landmarkRows(track, system_frames, rel, NfrRows::kInclude, &rows)) out.push_back(std::move(rows));
   }
   for (const NfrFactor& f : nfr_states) out.push_back(linearizeNfr(f, -1, nullptr));
+  for (const NfrJointFactor& f : nfr_joint) out.push_back(linearizeNfrJoint(f));
   return out;
 }
 
@@ -336,6 +382,9 @@ void Window<Scalar>::dropMarginalizedFactors(const MargPlan& plan) {
   // Recovered factors on marginalized variables are in the prior now.
   auto in_plan = [&plan](const NfrFactor& f) { return f.touches(plan.vars); };
   nfr_states.erase(std::remove_if(nfr_states.begin(), nfr_states.end(), in_plan), nfr_states.end());
+  nfr_joint.erase(std::remove_if(nfr_joint.begin(), nfr_joint.end(),
+                                 [&plan](const NfrJointFactor& f) { return f.touches(plan.vars); }),
+                  nfr_joint.end());
   for (auto& [id, lm] : landmarks) {
     lm.nfr.erase(std::remove_if(lm.nfr.begin(), lm.nfr.end(), in_plan), lm.nfr.end());
   }

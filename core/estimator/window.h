@@ -16,6 +16,7 @@
 // Columns. The reduced system orders its variables as frames by id, pose then speed-bias, then the
 // landmarks of a dense prior (they are not eliminated per landmark: the prior couples them).
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <map>
@@ -136,6 +137,17 @@ class Window {
              (relativePose() && vars.count({frame_b, StateBlock::kPose}) != 0);
     }
   };
+  // The unary pose and velocity factors of one nfr event with rigid deflation
+  // (core/sparsify/rigid_deflation.h), kept together as ½‖A [e_1; …; e_k]‖², e_i their whitened
+  // residuals. A couples them: a marginalization that takes one of their variables takes all.
+  struct NfrJointFactor {
+    std::vector<NfrFactor> members;
+    MatX<Scalar> A;
+    bool touches(const std::set<VarKey>& vars) const {
+      return std::any_of(members.begin(), members.end(),
+                         [&vars](const NfrFactor& f) { return f.touches(vars); });
+    }
+  };
   struct Landmark {
     int64_t host = -1;  // < 0: a world point (strategies dense / nfr)
     Vec3S param;        // (u, v, ρ) in the host's cam0, or p_w
@@ -183,6 +195,7 @@ class Window {
   std::map<int64_t, Landmark> landmarks;  // by track id
   std::map<int64_t, ImuLink> imu_links;   // by start frame
   std::vector<NfrFactor> nfr_states;      // recovered unary and relative-pose factors (nfr)
+  std::vector<NfrJointFactor> nfr_joint;  // deflated unary factors (nfr_rigid_deflation)
   MargPrior<Scalar> prior;
 
   bool isVio() const { return imu_.has_value(); }
@@ -215,6 +228,7 @@ class Window {
   Scalar landmarkCost(const Landmark& lm, const RelativePoses& rel) const;
   Scalar linkCost(int64_t from, const ImuLink& link) const;
   Scalar nfrCost(const NfrFactor& f, const Landmark* lm) const;
+  Scalar nfrJointCost(const NfrJointFactor& f) const;
   Scalar totalCost() const;
 
   // One landmark's rows over the frames in system_frames (its pose–landmark factors after the
@@ -232,6 +246,8 @@ class Window {
   // W (h(x) ⊟ z) of a recovered factor at the current state, its Jacobian at the first estimates
   // (a velocity or bias factor spans its whole speed-bias block).
   RowBlock<Scalar> linearizeNfr(const NfrFactor& f, int64_t track_id, const Landmark* lm) const;
+  // A [W_i (h_i(x) ⊟ z_i)] stacked over the members, its Jacobian over their variables.
+  RowBlock<Scalar> linearizeNfrJoint(const NfrJointFactor& f) const;
   LinkLinearized<Scalar> linearizeLink(int64_t from, const ImuLink& link) const;
 
   // After a marginalization of `plan`: its factors now in the prior go (observations of kept

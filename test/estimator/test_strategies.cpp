@@ -118,14 +118,21 @@ INSTANTIATE_TEST_SUITE_P(F64, DenseStrategyTest,
                            return name;
                          });
 
+// With rigid deflation (rigid_tol > 0): along x … yaw the factors carry at most the dense prior's
+// information (to rigid_tol relative: the pose–landmark factors' invariance holds to rounding), and
+// exactly as much at some events (core/sparsify/rigid_deflation.h: wherever every rigid direction
+// had an excess).
 template <typename Scalar>
 void expectRecoveredEvents(const Variant& variant, double max_position_error_m,
-                           SparsifyTopology topology = SparsifyTopology::kPaper) {
+                           SparsifyTopology topology = SparsifyTopology::kPaper,
+                           double rigid_tol = 0) {
   const VioScenario& scenario = fifteenSeconds();
   EstimatorConfig config;
   config.diagnostics = false;
   config.marg_strategy = MargStrategy::kNfr;
   config.nfr_topology = topology;
+  config.nfr_rigid_deflation = rigid_tol > 0;
+  int matched_events = 0;
   SlidingWindowEstimator<Scalar> estimator = scenario.estimator<Scalar>(variant, config);
   int events = 0;
   double max_error = 0;
@@ -145,6 +152,11 @@ void expectRecoveredEvents(const Variant& variant, double max_position_error_m,
     // (fitted to the regularized Λ_t + εI) positive.
     EXPECT_TRUE(event.info_dense.allFinite());
     EXPECT_TRUE((event.info_sparse.array() > 0.0).all()) << event.info_sparse.transpose();
+    if (rigid_tol > 0) {
+      const auto ratio = (event.info_sparse.array() / event.info_dense.array()).head<6>();
+      EXPECT_TRUE((ratio <= 1 + rigid_tol).all()) << ratio.transpose();
+      matched_events += ((ratio - 1).abs() <= rigid_tol).all() ? 1 : 0;
+    }
     // The factors replace the prior (joint-states: all but the joint state factor).
     if (topology != SparsifyTopology::kJointStates) {
       EXPECT_TRUE(estimator.prior().empty());
@@ -155,6 +167,7 @@ void expectRecoveredEvents(const Variant& variant, double max_position_error_m,
   }
   EXPECT_GT(events, 5);
   EXPECT_LT(max_error, max_position_error_m);
+  if (rigid_tol > 0) EXPECT_GT(matched_events, 0);
 }
 
 TEST(NfrStrategy, EveryKeyframeEventIsSparsifiedQrF64) {
@@ -183,6 +196,19 @@ TEST(NfrStrategy, RelativePoseTopologyQrF64) {
 TEST(NfrStrategy, RelativePoseTopologySchurF64) {
   expectRecoveredEvents<double>(Variant::parse("sc-sc-sq-f64"), 0.01,
                                 SparsifyTopology::kRelativePose);
+}
+
+TEST(NfrStrategy, RigidDeflationQrF64) {
+  expectRecoveredEvents<double>(Variant::parse("ns-qr-sqrt-f64"), 0.01, SparsifyTopology::kPaper,
+                                1e-6);
+}
+TEST(NfrStrategy, RigidDeflationSchurF64) {
+  expectRecoveredEvents<double>(Variant::parse("sc-sc-sq-f64"), 0.01, SparsifyTopology::kPaper,
+                                1e-6);
+}
+TEST(NfrStrategy, RigidDeflationQrF32) {
+  expectRecoveredEvents<float>(Variant::parse("ns-qr-sqrt-f32"), 0.05, SparsifyTopology::kPaper,
+                               1e-3);
 }
 
 // On the same dense prior (the first keyframe event: both runs are identical until then) the joint
@@ -230,6 +256,33 @@ TEST(MargStrategyConfig, IsAValidatedConfigKey) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("bad.toml:2"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("relative-pose"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(config.nfr_rigid_deflation);
+  config.loadTomlString("[marginalization]\nnfr_rigid_deflation = true\n", "test.toml");
+  EXPECT_TRUE(config.nfr_rigid_deflation);
+  EXPECT_THROW(config.validate(), InputError);  // topology relative-pose: see below
+  config.loadTomlString("[marginalization]\nnfr_topology = \"paper\"\n", "test.toml");
+  EXPECT_NO_THROW(config.validate());
+  round_trip.loadTomlString(config.toToml(), "round_trip.toml");
+  EXPECT_TRUE(round_trip.nfr_rigid_deflation);
+  try {
+    config.loadTomlString("[marginalization]\nnfr_rigid_deflation = \"yes\"\n", "bad.toml");
+    FAIL() << "a non-boolean nfr_rigid_deflation was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("nfr_rigid_deflation"), std::string::npos) << e.what();
+  }
+  // Deflation acts on the paper topology's unary factors: not with discard / dense, nor with the
+  // other topologies.
+  for (const char* bad : {"strategy = \"discard\"", "strategy = \"dense\"",
+                          "nfr_topology = \"joint-states\"", "nfr_topology = \"relative-pose\""}) {
+    EstimatorConfig relation = config;
+    relation.loadTomlString(std::string("[marginalization]\n") + bad + "\n", "bad.toml");
+    try {
+      relation.validate();
+      FAIL() << "nfr_rigid_deflation accepted with " << bad;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("nfr_rigid_deflation"), std::string::npos) << e.what();
+    }
   }
   try {
     config.loadTomlString("[marginalization]\n\nstrategy = \"sparse\"\n", "bad.toml");

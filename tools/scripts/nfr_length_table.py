@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """ATE against run length for discard and nfr on the same (sequence, seed) pairs
-(experiments/nfr_length.toml, issue #19 section 3).
+(experiments/nfr_length.toml, issue #19 section 3), and for nfr with rigid deflation where the
+sweep has it (override nfr_deflated, experiments/nfr_length_deflation.toml, issue #31 section 2).
 
-Usage: nfr_length_table.py SWEEP_DIR   (writes SWEEP_DIR/tables/length.{md,csv} and
-SWEEP_DIR/figures/length.{png,pdf})
+Usage: nfr_length_table.py SWEEP_DIR [MORE_SWEEP_DIRS...]   (the runs of all folders, e.g. one
+per seed; writes SWEEP_DIR/tables/length.{md,csv} and SWEEP_DIR/figures/length.{png,pdf}, and
+with nfr_deflated runs SWEEP_DIR/figures/length_nfr_deflated.{png,pdf})
 
 A run is causal: frames 1..N of a whole run are bit for bit the N-frame run (checked by
 test/cli/nfr_length_agrees.py). So the ATE of an N-frame run is the ATE of the first N frames of
@@ -15,7 +17,10 @@ same comparison of local accuracy: does nfr lose locally late in a run, or only 
 drift? And the whole run's attitude error against the ground truth's orientation, split into tilt
 (observable through gravity) and yaw (unobservable): which one does nfr lose in? Needs numpy,
 scipy, h5py, pandas (marglab_results.py) and matplotlib, and the shipped
-datasets/*/gt_tum.txt.gz.
+datasets/*/gt_tum.txt.gz. With nfr_deflated runs: the same comparisons of nfr_deflated against
+discard and against nfr, a summary of the three by run length, and the median information
+ratio εᵀΛ_sε / εᵀΛ_tε of nfr and nfr_deflated along the gauge directions (/sparsify), which shows
+whether the deflation did what it is for (1 along x … yaw).
 """
 import gzip
 import math
@@ -82,10 +87,25 @@ def gt_orientations(run):
     return q
 
 
+def information_ratios(run):
+    """Median over the events of εᵀΛ_sε / εᵀΛ_tε per gauge direction, and the mean KLD of the
+    recovered events ({} without /sparsify)."""
+    sp = run.sparsify
+    if len(sp) == 0 or "info_dense_x" not in sp:
+        return {}
+    out = {d: float(np.median(np.asarray(sp["info_sparse_" + d], dtype=float) /
+                              np.asarray(sp["info_dense_" + d], dtype=float)))
+           for d in mr.DEM_DIRECTIONS}
+    kld = np.asarray(sp["kld"], dtype=float)[np.asarray(sp["recovered"], dtype=bool)]
+    out["kld"] = float(np.mean(kld)) if kld.size else float("nan")
+    return out
+
+
 def load(sweep):
     """{(override, dataset, seed): {"n": frames, "curve": {L: ate} every CURVE_STEP frames,
-    "prefix": {L: ate} at PREFIXES and "whole", "segments": [ate], "tilt": deg, "yaw": deg}} of
-    the runs that completed; a failed run is left out (with its pair)."""
+    "prefix": {L: ate} at PREFIXES and "whole", "segments": [ate], "tilt": deg, "yaw": deg,
+    "info": {direction: ratio}}} of the runs that completed; a failed run is left out (with its
+    pair)."""
     runs = {}
     for row in mr.read_index_rows(sweep):
         path = row["path"]
@@ -104,21 +124,21 @@ def load(sweep):
                                  gt_orientations(run))
         runs[(row["override"], row["dataset"].split("/")[-1], int(row["seed"]))] = {
             "n": n, "curve": curve, "prefix": prefix, "segments": segment_ates(run), "tilt": tilt,
-            "yaw": yaw}
+            "yaw": yaw, "info": information_ratios(run)}
     return runs
 
 
-def pairs(runs):
-    """[(dataset, seed, discard run, nfr run)] for the pairs where both completed."""
+def pairs(runs, a="discard", b="nfr"):
+    """[(dataset, seed, run of a, run of b)] for the pairs where both completed."""
     out = []
     for (o, d, s), r in sorted(runs.items()):
-        if o == "discard" and ("nfr", d, s) in runs:
-            out.append((d, s, r, runs[("nfr", d, s)]))
+        if o == a and (b, d, s) in runs:
+            out.append((d, s, r, runs[(b, d, s)]))
     return out
 
 
 def compare(values):
-    """(nfr better, pairs, geometric mean of nfr / discard) over [(discard, nfr)] ATEs."""
+    """(b better, pairs, geometric mean of b / a) over [(a, b)] values (ATEs, attitude errors)."""
     v = [(a, b) for a, b in values if np.isfinite(a) and np.isfinite(b) and a > 0]
     if not v:
         return 0, 0, float("nan")
@@ -126,8 +146,8 @@ def compare(values):
             math.exp(statistics.fmean(math.log(b / a) for a, b in v)))
 
 
-def length_lines(ps):
-    lines = ["| run length [frames] | nfr < discard | ATE(nfr) / ATE(discard), geo. mean |",
+def length_lines(ps, a="discard", b="nfr"):
+    lines = [f"| run length [frames] | {b} < {a} | ATE({b}) / ATE({a}), geo. mean |",
              "|---|---:|---:|"]
     for L in PREFIXES + ["whole"]:
         better, n, geo = compare([(d["prefix"][L], f["prefix"][L]) for _, _, d, f in ps
@@ -136,8 +156,8 @@ def length_lines(ps):
     return lines
 
 
-def segment_lines(ps):
-    lines = ["| segment [frames] | nfr < discard | ATE(nfr) / ATE(discard), geo. mean |",
+def segment_lines(ps, a="discard", b="nfr"):
+    lines = [f"| segment [frames] | {b} < {a} | ATE({b}) / ATE({a}), geo. mean |",
              "|---|---:|---:|"]
     k = 0
     while True:
@@ -150,9 +170,9 @@ def segment_lines(ps):
         k += 1
 
 
-def attitude_lines(ps):
-    lines = ["| attitude error, whole runs (RMS) | discard, mean [deg] | nfr, mean [deg] | "
-             "nfr < discard | nfr / discard, geo. mean |", "|---|---:|---:|---:|---:|"]
+def attitude_lines(ps, a="discard", b="nfr"):
+    lines = [f"| attitude error, whole runs (RMS) | {a}, mean [deg] | {b}, mean [deg] | "
+             f"{b} < {a} | {b} / {a}, geo. mean |", "|---|---:|---:|---:|---:|"]
     for key, what in (("tilt", "tilt (gravity axis; observable)"),
                       ("yaw", "yaw (about gravity; unobservable)")):
         better, n, geo = compare([(d[key], f[key]) for _, _, d, f in ps])
@@ -174,10 +194,42 @@ def pair_lines(ps):
     return lines
 
 
-def write_figure(out_dir, ps):
-    """ATE(nfr) / ATE(discard) against run length: one line per pair, coloured by sequence, and
+def summary_lines(runs, comparisons):
+    """Per run length and for tilt / yaw: better-in and geometric-mean ratio of each (a, b)."""
+    head = " | ".join(f"{b} / {a}" for a, b in comparisons)
+    lines = [f"| run length [frames] | {head} |", "|---|" + "---:|" * len(comparisons)]
+    for L in PREFIXES + ["whole", "tilt", "yaw"]:
+        cells = []
+        for a, b in comparisons:
+            ps = pairs(runs, a, b)
+            if L in ("tilt", "yaw"):
+                better, n, geo = compare([(x[L], y[L]) for _, _, x, y in ps])
+            else:
+                better, n, geo = compare([(x["prefix"][L], y["prefix"][L]) for _, _, x, y in ps
+                                          if L in x["prefix"] and L in y["prefix"]])
+            cells.append(f"{geo:.3f} ({better} / {n})")
+        label = f"{L} (attitude RMS, whole runs)" if L in ("tilt", "yaw") else str(L)
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def information_lines(runs, overrides):
+    """Mean over the runs of each run's median information ratio, per direction."""
+    lines = ["| strategy | runs | " + " | ".join(mr.DEM_DIRECTIONS) + " | KLD per event [nats] |",
+             "|---|---:|" + "---:|" * (len(mr.DEM_DIRECTIONS) + 1)]
+    for o in overrides:
+        sel = [r["info"] for k, r in sorted(runs.items()) if k[0] == o and r["info"]]
+        if sel:
+            lines.append(f"| {o} | {len(sel)} | " + " | ".join(
+                f"{statistics.fmean(i[d] for i in sel):.3f}" for d in mr.DEM_DIRECTIONS + ["kld"])
+                + " |")
+    return lines
+
+
+def write_figure(out_dir, ps, b="nfr", name="length"):
+    """ATE(b) / ATE(discard) against run length: one line per pair, coloured by sequence, and
     the geometric mean over the pairs that reach each length, up to the lengths at least half of
-    the pairs reach (figures/length.{png,pdf})."""
+    the pairs reach (figures/<name>.{png,pdf})."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -197,13 +249,13 @@ def write_figure(out_dir, ps):
     ax.axhline(1.0, color="grey", lw=0.8, ls="--")
     ax.set_yscale("log")
     ax.set_xlabel("run length [frames]")
-    ax.set_ylabel("ATE(nfr) / ATE(discard)")
-    ax.set_title("nfr against discard on the same runs, by run length")
+    ax.set_ylabel(f"ATE({b}) / ATE(discard)")
+    ax.set_title(f"{b} against discard on the same runs, by run length")
     ax.legend(fontsize=7, ncol=3, loc="upper left")
     fig.tight_layout()
     os.makedirs(out_dir, exist_ok=True)
     for ext in ("png", "pdf"):  # no creation date: the same runs give the same file
-        atomic_save.savefig(fig, os.path.join(out_dir, "length." + ext), dpi=150,
+        atomic_save.savefig(fig, os.path.join(out_dir, name + "." + ext), dpi=150,
                             metadata={"CreationDate": None} if ext == "pdf" else None)
     plt.close(fig)
 
@@ -219,32 +271,59 @@ def csv_rows(runs):
     return rows
 
 
-def main():
-    if len(sys.argv) != 2:
-        print(__doc__.strip().splitlines()[3], file=sys.stderr)
-        return 2
-    sweep = sys.argv[1]
-    runs = load(sweep)
-    ps = pairs(runs)
-    lines = ["# nfr against discard by run length (issue #19, section 3)", "",
-             f"Sweep `{os.path.basename(os.path.normpath(sweep))}`: {len(ps)} (sequence, seed) "
-             "pairs where both runs completed. ATE RMSE of the first N frames of each run, "
-             "aligned on their own (what an N-frame run reports).", ""]
-    lines += length_lines(ps)
+def comparison_lines(ps, a, b):
+    lines = length_lines(ps, a, b)
     lines += ["", f"Local accuracy: the ATE of each {SEGMENT}-frame segment, aligned on its own "
               "(pairs with that segment).", ""]
-    lines += segment_lines(ps)
+    lines += segment_lines(ps, a, b)
     lines += ["", "Attitude error of the whole runs against the shipped ground truth's orientation, "
               "after each run's own position alignment.", ""]
-    lines += attitude_lines(ps)
-    lines += ["", "nfr / discard per pair: ATE by run length, then the whole run's tilt and yaw "
-              "RMS (below 1: nfr better).", ""]
+    lines += attitude_lines(ps, a, b)
+    lines += ["", f"{b} / {a} per pair: ATE by run length, then the whole run's tilt and yaw "
+              f"RMS (below 1: {b} better).", ""]
     lines += pair_lines(ps)
+    return lines
+
+
+def main():
+    if len(sys.argv) < 2:
+        print(__doc__.strip().splitlines()[4], file=sys.stderr)
+        return 2
+    sweep = sys.argv[1]
+    runs = {}
+    for folder in sys.argv[1:]:
+        runs.update(load(folder))
+    ps = pairs(runs)
+    names = ", ".join(f"`{os.path.basename(os.path.normpath(f))}`" for f in sys.argv[1:])
+    lines = ["# nfr against discard by run length (issue #19, section 3)", "",
+             f"Sweep {names}: {len(ps)} (sequence, seed) "
+             "pairs where both runs completed. ATE RMSE of the first N frames of each run, "
+             "aligned on their own (what an N-frame run reports).", ""]
+    deflated = any(k[0] == "nfr_deflated" for k in runs)
+    if deflated:
+        comparisons = [("discard", "nfr"), ("discard", "nfr_deflated"), ("nfr", "nfr_deflated")]
+        lines += ["## Summary: nfr with and without rigid deflation (issue #31, section 2)", "",
+                  "Geometric mean of the ratio (pairs where the second is better / pairs).", ""]
+        lines += summary_lines(runs, comparisons)
+        lines += ["", "Information of the recovered factors relative to the dense prior along the "
+                  "gauge directions (/sparsify info_sparse / info_dense: median over a run's "
+                  "events, mean over the runs), and the KLD to the dense prior (/sparsify kld: "
+                  "mean over a run's events, mean over the runs).", ""]
+        lines += information_lines(runs, ["nfr", "nfr_deflated"])
+        lines += ["", "## nfr against discard", ""]
+    lines += comparison_lines(ps, "discard", "nfr")
+    if deflated:
+        for a in ("discard", "nfr"):
+            lines += ["", f"## nfr_deflated against {a}", ""]
+            lines += comparison_lines(pairs(runs, a, "nfr_deflated"), a, "nfr_deflated")
     out_dir = os.path.join(sweep, "tables")
     os.makedirs(out_dir, exist_ok=True)
     write_csv(os.path.join(out_dir, "length.csv"), csv_rows(runs))
     write_text(os.path.join(out_dir, "length.md"), "\n".join(lines) + "\n")
     write_figure(os.path.join(sweep, "figures"), ps)
+    if deflated:
+        write_figure(os.path.join(sweep, "figures"), pairs(runs, "discard", "nfr_deflated"),
+                     "nfr_deflated", "length_nfr_deflated")
     print(os.path.join(out_dir, "length.md"))
     return 0
 
