@@ -21,27 +21,21 @@
 
 #include "core/sparsify/nfr.h"
 #include "geometry/geometry_test_utils.h"
+#include "linalg/linalg_test_util.h"
 
 namespace marglab {
 namespace {
+
+using test::randomGaussian;
 
 template <typename S>
 double eps() {
   return static_cast<double>(NumericTraits<S>::kEpsilon);
 }
 
-MatXd gaussian(std::mt19937_64& rng, int rows, int cols) {
-  std::normal_distribution<double> normal(0.0, 1.0);
-  MatXd M(rows, cols);
-  for (int j = 0; j < cols; ++j) {
-    for (int i = 0; i < rows; ++i) M(i, j) = normal(rng);
-  }
-  return M;
-}
-
 // Q diag(cond^(k/(d−1))) Qᵀ with Q a random orthogonal matrix: SPD with condition number cond.
 MatXd randomSpd(std::mt19937_64& rng, int d, double cond) {
-  const MatXd Q = Eigen::HouseholderQR<MatXd>(gaussian(rng, d, d)).householderQ();
+  const MatXd Q = Eigen::HouseholderQR<MatXd>(randomGaussian(rng, d, d)).householderQ();
   VecXd lambda(d);
   for (int k = 0; k < d; ++k) lambda[k] = d > 1 ? std::pow(cond, double(k) / (d - 1)) : 1.0;
   return Q * lambda.asDiagonal() * Q.transpose();
@@ -86,13 +80,13 @@ Blanket<double> imuStateWithLandmarks(std::mt19937_64& rng, const Eigen::Vector3
   BlanketVariable<double> bias;
   bias.kind = BlanketKind::kBias;
   bias.offset = 9;
-  bias.value = 0.01 * gaussian(rng, 6, 1);
+  bias.value = 0.01 * randomGaussian(rng, 6, 1);
   x.push_back(bias);
   for (int j = 0; j < n_landmarks; ++j) {
     BlanketVariable<double> landmark;
     landmark.kind = BlanketKind::kLandmark;
     landmark.offset = 15 + 3 * j;
-    landmark.value = pose.T_w_i.translation() + range(rng) * gaussian(rng, 3, 1).normalized();
+    landmark.value = pose.T_w_i.translation() + range(rng) * randomGaussian(rng, 3, 1).normalized();
     x.push_back(landmark);
   }
   return x;
@@ -192,7 +186,7 @@ Blanket<double> posesWithLandmarks(std::mt19937_64& rng, const std::vector<Eigen
     pose.kind = BlanketKind::kPose;
     pose.offset = offset;
     pose.T_w_i = SE3d(expSO3<double>(phis[k]),
-                      Eigen::Vector3d(0.7 * double(k), -0.3, 0.2) + 0.1 * gaussian(rng, 3, 1));
+                      Eigen::Vector3d(0.7 * double(k), -0.3, 0.2) + 0.1 * randomGaussian(rng, 3, 1));
     x.push_back(pose);
     offset += 6;
   }
@@ -204,7 +198,7 @@ Blanket<double> posesWithLandmarks(std::mt19937_64& rng, const std::vector<Eigen
   BlanketVariable<double> bias;
   bias.kind = BlanketKind::kBias;
   bias.offset = offset + 3;
-  bias.value = 0.01 * gaussian(rng, 6, 1);
+  bias.value = 0.01 * randomGaussian(rng, 6, 1);
   x.push_back(bias);
   offset += 9;
   const Eigen::Vector3d t_newest = x[phis.size() - 1].T_w_i.translation();
@@ -212,7 +206,7 @@ Blanket<double> posesWithLandmarks(std::mt19937_64& rng, const std::vector<Eigen
     BlanketVariable<double> landmark;
     landmark.kind = BlanketKind::kLandmark;
     landmark.offset = offset + 3 * j;
-    landmark.value = t_newest + range(rng) * gaussian(rng, 3, 1).normalized();
+    landmark.value = t_newest + range(rng) * randomGaussian(rng, 3, 1).normalized();
     x.push_back(landmark);
   }
   return x;
@@ -374,7 +368,7 @@ std::vector<MatX<S>> informationBlocks(const Sparsification<S>& sp) {
 template <typename S>
 MatX<S> congruence(std::mt19937_64& rng, const MatX<S>& Lambda, double t) {
   const int d = static_cast<int>(Lambda.rows());
-  const MatXd G = gaussian(rng, d, d);
+  const MatXd G = randomGaussian(rng, d, d);
   const MatXd M = MatXd::Identity(d, d) + t * G / Eigen::JacobiSVD<MatXd>(G).singularValues()[0];
   return (M * Lambda.template cast<double>() * M.transpose()).template cast<S>();
 }
@@ -507,7 +501,7 @@ TYPED_TEST(NfrTest, ClosedFormIsTheMinimumOfTheKld) {
     } else {
       // Λ + s E with ‖s E‖₂ = ½ λ_min(Λ): stays positive definite.
       const int d = static_cast<int>(perturbed[i].rows());
-      const MatXd E0 = gaussian(rng, d, d);
+      const MatXd E0 = randomGaussian(rng, d, d);
       const MatXd E = 0.5 * (E0 + E0.transpose());
       const MatXd L = perturbed[i].template cast<double>();
       const double lambda_min = Eigen::SelfAdjointEigenSolver<MatXd>(L).eigenvalues()[0];
@@ -541,7 +535,7 @@ TYPED_TEST(NfrTest, KldGradientMatchesCentralDifferences) {
   for (size_t i = 0; i < Lambda_r.size(); ++i) {
     const int d = static_cast<int>(Lambda_r[i].rows());
     const MatXd L = Eigen::LLT<MatXd>(Lambda_r[i].template cast<double>()).matrixL();
-    const MatXd S0 = gaussian(rng, d, d);
+    const MatXd S0 = randomGaussian(rng, d, d);
     MatXd Si = 0.5 * (S0 + S0.transpose());
     Si /= Eigen::SelfAdjointEigenSolver<MatXd>(Si).eigenvalues().cwiseAbs().maxCoeff();
     E.push_back((L * Si * L.transpose()).cast<S>());
@@ -580,7 +574,7 @@ TYPED_TEST(NfrTest, KldIsNonNegative) {
     std::vector<MatX<S>> random_blocks;
     for (const auto& f : sp.factors) {
       const int d = static_cast<int>(f.rows.size());
-      const double scale = std::exp(gaussian(rng, 1, 1)(0, 0));
+      const double scale = std::exp(randomGaussian(rng, 1, 1)(0, 0));
       random_blocks.push_back((scale * randomSpd(rng, d, 50.0)).cast<S>());
     }
     EXPECT_GE(double(problem.kld(random_blocks)), double(sp.kld) - tol) << "trial " << trial;
@@ -681,7 +675,7 @@ void expectSquareRootFactors(std::mt19937_64& rng, const Blanket<double>& x,
   const Blanket<S> x_s = castBlanket<S>(x);
   Blanket<S> x_moved = x_s;
   for (auto& v : x_moved) {
-    const Vec<S, 6> d = (0.1 * gaussian(rng, 6, 1)).cast<S>();
+    const Vec<S, 6> d = (0.1 * randomGaussian(rng, 6, 1)).cast<S>();
     if (v.kind == BlanketKind::kPose) {
       v.T_w_i = boxPlus(v.T_w_i, d);
     } else {

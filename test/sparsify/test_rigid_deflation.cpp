@@ -17,21 +17,15 @@
 #include <random>
 
 #include "core/sparsify/rigid_deflation.h"
+#include "linalg/linalg_test_util.h"
 
 namespace marglab {
 namespace {
 
+using test::randomGaussian;
+
 constexpr int kRigid = 6;
 constexpr double kRel = 1e-9;
-
-MatXd gaussian(std::mt19937_64& rng, int rows, int cols) {
-  std::normal_distribution<double> normal(0.0, 1.0);
-  MatXd M(rows, cols);
-  for (int j = 0; j < cols; ++j) {
-    for (int i = 0; i < rows; ++i) M(i, j) = normal(rng);
-  }
-  return M;
-}
 
 MatXd symmetricSqrt(const MatXd& S) {
   const Eigen::SelfAdjointEigenSolver<MatXd> eig(S);
@@ -50,11 +44,11 @@ struct Problem {
 
 Problem makeProblem(std::mt19937_64& rng, int n, int m) {
   Problem p;
-  p.E = gaussian(rng, n, kRigid).colwise().normalized();
-  p.J_u = gaussian(rng, m, n);
+  p.E = randomGaussian(rng, n, kRigid).colwise().normalized();
+  p.J_u = randomGaussian(rng, m, n);
   const MatXd P_perp =
       MatXd::Identity(n, n) - p.E * (p.E.transpose() * p.E).inverse() * p.E.transpose();
-  const MatXd H_inv = gaussian(rng, n - kRigid - 2, n) * P_perp;  // H_inv E = 0
+  const MatXd H_inv = randomGaussian(rng, n - kRigid - 2, n) * P_perp;  // H_inv E = 0
   p.Lambda_s = p.J_u.transpose() * p.J_u + H_inv.transpose() * H_inv;
   return p;
 }
@@ -67,7 +61,7 @@ MatXd denseGram(const MatXd& G_s, const VecXd& mu, const MatXd& P) {
 }
 
 MatXd randomOrthogonal(std::mt19937_64& rng, int d) {
-  return Eigen::HouseholderQR<MatXd>(gaussian(rng, d, d)).householderQ();
+  return Eigen::HouseholderQR<MatXd>(randomGaussian(rng, d, d)).householderQ();
 }
 
 MatXd deflated(const Problem& p, const RigidDeflation& d) {
@@ -80,7 +74,7 @@ double info(const MatXd& Lambda, const VecXd& e) { return e.dot(Lambda * e); }
 // A random direction orthogonal to span E in the Λ_s inner product (to its numerical range, with
 // G_s's pseudo-inverse, when Λ_s has next to no information along part of span E).
 VecXd lambdaOrthogonal(std::mt19937_64& rng, const Problem& p) {
-  const VecXd r = gaussian(rng, static_cast<int>(p.E.rows()), 1);
+  const VecXd r = randomGaussian(rng, static_cast<int>(p.E.rows()), 1);
   const Eigen::SelfAdjointEigenSolver<MatXd> eig(p.G_s());
   const VecXd s = eig.eigenvalues();
   const VecXd s_inv = (s.array() > 1e-12 * s.maxCoeff()).select(s.cwiseInverse(), 0.0);
@@ -144,7 +138,7 @@ TEST(RigidDeflation, KeepsARigidDirectionThatIsNotOverconfident) {
   const MatXd G_s = p.G_s();
   // P's first column along G_s^(1/2) e_roll: then e_roll is a generalized eigen-direction.
   const VecXd e_roll = VecXd::Unit(kRigid, 3);
-  MatXd seed = gaussian(rng, kRigid, kRigid);
+  MatXd seed = randomGaussian(rng, kRigid, kRigid);
   seed.col(0) = symmetricSqrt(G_s) * e_roll;
   const MatXd P = Eigen::HouseholderQR<MatXd>(seed).householderQ();
   VecXd mu(kRigid);
@@ -180,7 +174,7 @@ TEST(RigidDeflation, NearSingularPriorsStayFiniteAndPositiveSemiDefinite) {
   std::mt19937_64 rng(14);
   Problem p = makeProblem(rng, 36, 24);
   // J_u E v = 1e-9 J_u⁰ E v: Λ_s's information along E v is ~1e-18 of the rest.
-  const VecXd v = gaussian(rng, kRigid, 1).normalized();
+  const VecXd v = randomGaussian(rng, kRigid, 1).normalized();
   const VecXd Ev = p.E * v;
   const MatXd J0 = p.J_u;
   p.J_u = J0 - (1 - 1e-9) * (J0 * Ev) * Ev.transpose() / Ev.squaredNorm();
