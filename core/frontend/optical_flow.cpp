@@ -142,7 +142,30 @@ struct StereoFrontend::Impl {
                    const std::vector<cv::Point2f>& points,
                    const std::unordered_map<int64_t, cv::Point2f>& predicted_right,
                    TrackFrame* frame);
+  // Steps 1–3: the previous frame's keypoints tracked into `pyramid0` and checked; the survivors
+  // appended to *frame / *points, with their predicted right pixels (the stereo starts).
+  void trackTemporal(const std::vector<cv::Mat>& pyramid0, const FramePrediction* prediction,
+                     TrackFrame* frame, std::vector<cv::Point2f>* points,
+                     std::unordered_map<int64_t, cv::Point2f>* predicted_right,
+                     FrontendFrameStats* stats, std::vector<FlowCandidate>* candidates);
+  // The frame becomes the previous one of the next call.
+  void advance(int64_t t_ns, const FrontendFrameStats& stats, const TrackFrame& frame,
+               std::vector<cv::Mat>&& pyramid0, std::vector<cv::Point2f>&& points);
 };
+
+namespace {
+
+// A keypoint of the frame: its raw left pixel in *points, its observation in *frame.
+void addKeypoint(const cv::Point2f& p, int64_t id, const Eigen::Vector2d& uv, TrackFrame* frame,
+                 std::vector<cv::Point2f>* points) {
+  points->push_back(p);
+  StereoObservation obs;
+  obs.track_id = id;
+  obs.uv0 = uv;
+  frame->observations.push_back(obs);
+}
+
+}  // namespace
 
 // Constant velocity of the tracker's own motion, scaled to the new time step: T_new_prev =
 // exp(s log T_last), s = Δt_new / Δt_last.
@@ -551,6 +574,78 @@ cv::Mat matchedRight(const cv::Mat& left, const cv::Mat& right) {
 
 }  // namespace
 
+void StereoFrontend::Impl::trackTemporal(const std::vector<cv::Mat>& pyramid0,
+                                         const FramePrediction* prediction, TrackFrame* frame,
+                                         std::vector<cv::Point2f>* points,
+                                         std::unordered_map<int64_t, cv::Point2f>* predicted_right,
+                                         FrontendFrameStats* stats,
+                                         std::vector<FlowCandidate>* candidates) {
+  std::vector<bool> in_view;
+  std::vector<double> scale;
+  const std::vector<cv::Point2f> start = predictLeft(prediction, &in_view, &scale);
+  std::vector<cv::Point2f> tracked = start;
+  std::vector<bool> lk_ok;
+  std::vector<bool> ok = trackForwardBackward(prev_pyramid, pyramid0, prev_points, &tracked,
+                                              &lk_ok, options.pyramid_levels);
+  if (prediction != nullptr) {
+    retrackScaled(prev_pyramid, pyramid0, start, scale, in_view, &tracked, &ok);
+  }
+  std::vector<std::size_t> survivors;
+  std::vector<Eigen::Vector2d> uv_new;
+  for (std::size_t i = 0; i < ok.size(); ++i) {
+    Eigen::Vector2d uv;
+    if (in_view[i] && ok[i] && undistort(cam0, tracked[i], &uv)) {
+      survivors.push_back(i);
+      uv_new.push_back(uv);
+    }
+  }
+  std::vector<bool> keep(survivors.size(), true);
+  geometricCheck(survivors, uv_new, &keep, stats);
+  std::vector<bool> kept(ok.size(), false);
+  for (std::size_t k = 0; k < survivors.size(); ++k) {
+    if (!keep[k]) continue;
+    const std::size_t i = survivors[k];
+    kept[i] = true;
+    addKeypoint(tracked[i], prev_ids[i], uv_new[k], frame, points);
+    // The stereo start of a continued point: its predicted position projected into cam1.
+    const auto p = prev_depth_points.find(prev_ids[i]);
+    if (p == prev_depth_points.end()) continue;
+    ++stats->n_continued_depth;
+    if (prediction == nullptr) continue;
+    if (auto r = project(cam1, T_c1_c0 * (prediction->T_new_prev * p->second))) {
+      (*predicted_right)[prev_ids[i]] = *r;
+    }
+  }
+  if (candidates != nullptr) {
+    for (std::size_t i = 0; i < ok.size(); ++i) {
+      candidates->push_back({prev_ids[i], prev_points[i].x, prev_points[i].y, tracked[i].x,
+                             tracked[i].y, in_view[i] && lk_ok[i], kept[i]});
+    }
+  }
+}
+
+void StereoFrontend::Impl::advance(int64_t t_ns, const FrontendFrameStats& stats,
+                                   const TrackFrame& frame, std::vector<cv::Mat>&& pyramid0,
+                                   std::vector<cv::Point2f>&& points) {
+  if (stats.has_motion) {
+    last_motion = stats.T_new_prev;
+    last_motion_dt_s = 1e-9 * static_cast<double>(t_ns - prev_t_ns);
+  } else {
+    last_motion.reset();
+  }
+  prev_t_ns = t_ns;
+  last_raw_left.clear();
+  for (const cv::Point2f& p : points) last_raw_left.emplace_back(p.x, p.y);
+  prev_pyramid = std::move(pyramid0);
+  prev_points = std::move(points);
+  prev_ids.clear();
+  prev_uv.clear();
+  for (const StereoObservation& obs : frame.observations) {
+    prev_ids.push_back(obs.track_id);
+    prev_uv.push_back(obs.uv0);
+  }
+}
+
 TrackFrame StereoFrontend::process(int64_t t_ns, const cv::Mat& left, const cv::Mat& right,
                                    FrontendFrameStats* stats,
                                    std::vector<FlowCandidate>* candidates,
@@ -576,56 +671,9 @@ TrackFrame StereoFrontend::process(int64_t t_ns, const cv::Mat& left, const cv::
   frame.t_ns = t_ns;
   std::vector<cv::Point2f> points;
   std::unordered_map<int64_t, cv::Point2f> predicted_right;
-  auto add = [&](const cv::Point2f& p, int64_t id, const Eigen::Vector2d& uv) {
-    points.push_back(p);
-    StereoObservation obs;
-    obs.track_id = id;
-    obs.uv0 = uv;
-    frame.observations.push_back(obs);
-  };
   if (!m.prev_points.empty()) {
-    std::vector<bool> in_view;
-    std::vector<double> scale;
-    const std::vector<cv::Point2f> start = m.predictLeft(prediction, &in_view, &scale);
-    std::vector<cv::Point2f> tracked = start;
-    std::vector<bool> lk_ok;
-    std::vector<bool> ok = m.trackForwardBackward(m.prev_pyramid, pyramid0, m.prev_points,
-                                                  &tracked, &lk_ok, m.options.pyramid_levels);
-    if (prediction != nullptr) {
-      m.retrackScaled(m.prev_pyramid, pyramid0, start, scale, in_view, &tracked, &ok);
-    }
-    std::vector<std::size_t> survivors;
-    std::vector<Eigen::Vector2d> uv_new;
-    for (std::size_t i = 0; i < ok.size(); ++i) {
-      Eigen::Vector2d uv;
-      if (in_view[i] && ok[i] && m.undistort(m.cam0, tracked[i], &uv)) {
-        survivors.push_back(i);
-        uv_new.push_back(uv);
-      }
-    }
-    std::vector<bool> keep(survivors.size(), true);
-    m.geometricCheck(survivors, uv_new, &keep, &frame_stats);
-    std::vector<bool> kept(ok.size(), false);
-    for (std::size_t k = 0; k < survivors.size(); ++k) {
-      if (!keep[k]) continue;
-      const std::size_t i = survivors[k];
-      kept[i] = true;
-      add(tracked[i], m.prev_ids[i], uv_new[k]);
-      frame_stats.n_continued_depth += m.prev_depth_points.count(m.prev_ids[i]) != 0;
-      // The stereo start of a continued point: its predicted position projected into cam1.
-      const auto p = m.prev_depth_points.find(m.prev_ids[i]);
-      if (prediction != nullptr && p != m.prev_depth_points.end()) {
-        if (auto r = m.project(m.cam1, m.T_c1_c0 * (prediction->T_new_prev * p->second))) {
-          predicted_right[m.prev_ids[i]] = *r;
-        }
-      }
-    }
-    if (candidates != nullptr) {
-      for (std::size_t i = 0; i < ok.size(); ++i) {
-        candidates->push_back({m.prev_ids[i], m.prev_points[i].x, m.prev_points[i].y,
-                               tracked[i].x, tracked[i].y, in_view[i] && lk_ok[i], kept[i]});
-      }
-    }
+    m.trackTemporal(pyramid0, prediction, &frame, &points, &predicted_right, &frame_stats,
+                    candidates);
   }
   const int n_tracked = static_cast<int>(points.size());
 
@@ -634,29 +682,12 @@ TrackFrame StereoFrontend::process(int64_t t_ns, const cv::Mat& left, const cv::
   m.detect(pyramid0, points, &detected);
   for (const cv::Point2f& p : detected) {
     Eigen::Vector2d uv;
-    if (m.undistort(m.cam0, p, &uv)) add(p, m.next_id++, uv);
+    if (m.undistort(m.cam0, p, &uv)) addKeypoint(p, m.next_id++, uv, &frame, &points);
   }
 
   // 5. Stereo matches left → right.
   m.matchStereo(pyramid0, pyramid1, points, predicted_right, &frame);
-
-  if (frame_stats.has_motion) {
-    m.last_motion = frame_stats.T_new_prev;
-    m.last_motion_dt_s = 1e-9 * static_cast<double>(t_ns - m.prev_t_ns);
-  } else {
-    m.last_motion.reset();
-  }
-  m.prev_t_ns = t_ns;
-  m.last_raw_left.clear();
-  for (const cv::Point2f& p : points) m.last_raw_left.emplace_back(p.x, p.y);
-  m.prev_pyramid = std::move(pyramid0);
-  m.prev_points = std::move(points);
-  m.prev_ids.clear();
-  m.prev_uv.clear();
-  for (const StereoObservation& obs : frame.observations) {
-    m.prev_ids.push_back(obs.track_id);
-    m.prev_uv.push_back(obs.uv0);
-  }
+  m.advance(t_ns, frame_stats, frame, std::move(pyramid0), std::move(points));
   if (stats != nullptr) {
     frame_stats.t_ns = t_ns;
     frame_stats.n_features = static_cast<int>(frame.observations.size());
