@@ -512,11 +512,47 @@ class Builder {
     return claim;
   }
 
-  // Tables 4 and 6.
-  std::optional<Table> ablation(int number, bool (*family)(const std::string&),
-                                const std::string& family_name, std::string* why) const {
-    const std::string id = fmt::format("table{}", number);
-    const PaperTable* paper = paperTable(id);
+  // One ablation column's averages over the sequences (Tables 4 and 6): per sequence the mean
+  // over its runs, then the mean over sequences; real-time = Σ duration / Σ (t_opt + t_marg).
+  struct AblationAverages {
+    TableCell::State state = TableCell::State::kValue;
+    int n_runs = 0;
+    double ate_m = 0, realtime = 0, t_total_s = 0, t_opt_s = 0, t_marg_s = 0;
+  };
+  AblationAverages ablationAverages(const std::vector<std::string>& sequences,
+                                    const std::string& variant) const {
+    AblationAverages out;
+    std::vector<double> ate, total, opt, marg;
+    double duration = 0, wall = 0;
+    for (const std::string& d : sequences) {
+      const Selection& sel = select(d, variant);
+      out.n_runs += static_cast<int>(sel.runs.size());
+      if (sel.state() == TableCell::State::kFailed) out.state = TableCell::State::kFailed;
+      if (sel.state() != TableCell::State::kValue) continue;
+      std::vector<double> a, w, o, m;
+      for (const RunRecord* r : sel.runs) {
+        a.push_back(r->ate_rmse);
+        w.push_back(r->t_opt_s + r->t_marg_s);
+        o.push_back(r->t_opt_s);
+        m.push_back(r->t_marg_s);
+        duration += r->duration_s;
+        wall += r->t_opt_s + r->t_marg_s;
+      }
+      ate.push_back(mean(a));
+      total.push_back(mean(w));
+      opt.push_back(mean(o));
+      marg.push_back(mean(m));
+    }
+    out.ate_m = mean(ate);
+    out.realtime = duration / wall;
+    out.t_total_s = mean(total);
+    out.t_opt_s = mean(opt);
+    out.t_marg_s = mean(marg);
+    return out;
+  }
+
+  // The sequences of a family that have all eight ablation variants.
+  std::vector<std::string> ablationSequences(bool (*family)(const std::string&)) const {
     std::vector<std::string> sequences;
     for (const std::string& d : datasets_) {
       if (!family(d)) continue;
@@ -526,6 +562,15 @@ class Builder {
         sequences.push_back(d);
       }
     }
+    return sequences;
+  }
+
+  // Tables 4 and 6.
+  std::optional<Table> ablation(int number, bool (*family)(const std::string&),
+                                const std::string& family_name, std::string* why) const {
+    const std::string id = fmt::format("table{}", number);
+    const PaperTable* paper = paperTable(id);
+    const std::vector<std::string> sequences = ablationSequences(family);
     if (sequences.empty()) {
       *why = fmt::format("Table {}: no {} sequence has all eight ablation variants ({})", number,
                          family_name, fmt::join(kAblation, ", "));
@@ -540,19 +585,24 @@ class Builder {
     t.row_header = "metric";
     t.quantities = {"value"};
     t.columns = ablationColumns();
+    std::vector<AblationAverages> averages;
+    for (const TableColumn& column : t.columns) {
+      averages.push_back(ablationAverages(sequences, column.variant));
+    }
     struct Metric {
       const char* key;
       const char* label;
       int ours_decimals, paper_decimals;
       bool higher;
       const char* suffix;
+      double AblationAverages::*value;
     };
-    const Metric metrics[] = {{"ate_m", "ATE [m]", 4, 3, false, ""},
-                              {"realtime", "real-time", 1, 1, true, "x"},
-                              {"t_total_s", "t total [s]", 2, 1, false, ""},
-                              {"t_opt_s", "t opt [s]", 2, 1, false, ""},
-                              {"t_marg_s", "t marg [s]", 2, 1, false, ""}};
-    std::string frames;
+    const Metric metrics[] = {
+        {"ate_m", "ATE [m]", 4, 3, false, "", &AblationAverages::ate_m},
+        {"realtime", "real-time", 1, 1, true, "x", &AblationAverages::realtime},
+        {"t_total_s", "t total [s]", 2, 1, false, "", &AblationAverages::t_total_s},
+        {"t_opt_s", "t opt [s]", 2, 1, false, "", &AblationAverages::t_opt_s},
+        {"t_marg_s", "t marg [s]", 2, 1, false, "", &AblationAverages::t_marg_s}};
     for (const Metric& metric : metrics) {
       TableRow row;
       row.key = metric.key;
@@ -561,60 +611,38 @@ class Builder {
       row.paper_decimals = metric.paper_decimals;
       row.higher_is_better = metric.higher;
       row.suffix = metric.suffix;
-      for (const TableColumn& column : t.columns) {
+      for (std::size_t c = 0; c < t.columns.size(); ++c) {
         TableCell cell;
-        cell.state = TableCell::State::kValue;
-        std::vector<double> ate, total, opt, marg;
-        double duration = 0, wall = 0;
-        for (const std::string& d : sequences) {
-          const Selection& sel = select(d, column.variant);
-          cell.n_runs += static_cast<int>(sel.runs.size());
-          if (sel.state() == TableCell::State::kFailed) cell.state = TableCell::State::kFailed;
-          if (sel.state() != TableCell::State::kValue) continue;
-          std::vector<double> a, w, o, m;
-          for (const RunRecord* r : sel.runs) {
-            a.push_back(r->ate_rmse);
-            w.push_back(r->t_opt_s + r->t_marg_s);
-            o.push_back(r->t_opt_s);
-            m.push_back(r->t_marg_s);
-            duration += r->duration_s;
-            wall += r->t_opt_s + r->t_marg_s;
-          }
-          ate.push_back(mean(a));
-          total.push_back(mean(w));
-          opt.push_back(mean(o));
-          marg.push_back(mean(m));
-        }
-        if (cell.state == TableCell::State::kValue) {
-          const std::string key = metric.key;
-          cell.numbers = {key == "ate_m"       ? mean(ate)
-                          : key == "realtime"  ? duration / wall
-                          : key == "t_total_s" ? mean(total)
-                          : key == "t_opt_s"   ? mean(opt)
-                                               : mean(marg)};
-        }
+        cell.state = averages[c].state;
+        cell.n_runs = averages[c].n_runs;
+        if (cell.state == TableCell::State::kValue) cell.numbers = {averages[c].*metric.value};
         row.ours.push_back(cell);
-        row.paper.push_back(paperCell(paper, metric.key, column.variant, t.quantities));
+        row.paper.push_back(paperCell(paper, metric.key, t.columns[c].variant, t.quantities));
       }
       markBest(row.ours, 1, row.ours_decimals, row.higher_is_better);
       markBest(row.paper, 1, row.paper_decimals, row.higher_is_better);
       t.rows.push_back(std::move(row));
     }
+    addAblationNotes(sequences, paper, &t);
+    return t;
+  }
+
+  void addAblationNotes(const std::vector<std::string>& sequences, const PaperTable* paper,
+                        Table* t) const {
     std::vector<std::string> labels;
     for (const std::string& d : sequences) {
       labels.push_back(fmt::format("{} ({} frames)", d, framesLabel(d, kAblation)));
     }
-    t.notes.push_back(fmt::format(
+    t->notes.push_back(fmt::format(
         "Columns: optimization / marginalization - precision; NS = nullspace projection "
         "(NS+LDLT, NS+QR), SC = Schur complement (SC+LDLT, SC+SC); all store the prior in square "
         "root form. Ours: averages over {} sequence(s) that have all eight variants: {}.",
         sequences.size(), fmt::join(labels, ", ")));
-    t.notes.push_back(
+    t->notes.push_back(
         "t total = t opt + t marg (our front-end is simulated and not timed); real-time = "
         "Σ duration / Σ t total; x: the variant failed on at least one of these sequences.");
-    t.notes.push_back(modeNote(sequences));
-    addCommonNotes(&t, paper, nullptr);
-    return t;
+    t->notes.push_back(modeNote(sequences));
+    addCommonNotes(t, paper, nullptr);
   }
 
   // Hsiung et al. Table I analog; the builder's columns are marginalization strategies.
