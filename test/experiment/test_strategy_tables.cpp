@@ -152,6 +152,54 @@ class StrategyTables : public test::TempDirTest {
   std::map<std::string, Expected> expected_;  // dataset:strategy
 };
 
+// The cells of a tables.csv, keyed "table|row|variant|quantity".
+class CsvCells {
+ public:
+  explicit CsvCells(const std::vector<std::vector<std::string>>& csv) : header_(csv.front()) {
+    for (std::size_t r = 1; r < csv.size(); ++r) {
+      const auto& f = csv[r];
+      cells_[f[col("table")] + "|" + f[col("row")] + "|" + f[col("variant")] + "|" +
+             f[col("quantity")]] = f;
+    }
+  }
+  std::size_t col(const char* name) const {
+    return static_cast<std::size_t>(std::find(header_.begin(), header_.end(), name) -
+                                    header_.begin());
+  }
+  // The CSV row of a cell (a test failure and empty fields when there is none).
+  const std::vector<std::string>& cell(const std::string& key) const {
+    const auto it = cells_.find(key);
+    EXPECT_NE(it, cells_.end()) << key;
+    return it == cells_.end() ? none_ : it->second;
+  }
+  // Our value of a cell that must be ok.
+  double number(const std::string& key) const {
+    const auto& f = cell(key);
+    EXPECT_EQ(f[col("ours_state")], "ok") << key;
+    return f[col("ours")].empty() ? std::nan("") : std::stod(f[col("ours")]);
+  }
+
+ private:
+  std::vector<std::string> header_;
+  std::map<std::string, std::vector<std::string>> cells_;
+  std::vector<std::string> none_ = std::vector<std::string>(header_.size());
+};
+
+// The trimmed cells of the Markdown table line that starts with `prefix`.
+std::vector<std::string> markdownCells(const std::string& md, const std::string& prefix) {
+  std::istringstream lines(md);
+  std::vector<std::string> printed;
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind(prefix, 0) != 0) continue;
+    std::stringstream fields(line);
+    for (std::string f; std::getline(fields, f, '|');) {
+      const auto a = f.find_first_not_of(' '), b = f.find_last_not_of(' ');
+      if (a != std::string::npos) printed.push_back(f.substr(a, b - a + 1));
+    }
+  }
+  return printed;
+}
+
 TEST_F(StrategyTables, ValuesEqualTheResultsFiles) {
   addRun("euroc/MH_02_easy", "nfr", 0);
   addRun("euroc/MH_02_easy", "discard", 1);
@@ -166,28 +214,12 @@ TEST_F(StrategyTables, ValuesEqualTheResultsFiles) {
 
   const auto csv = parseCsv(readText(tables / "tables.csv"), "tables.csv");
   ASSERT_GT(csv.size(), 1u);
-  const auto& header = csv.front();
-  auto col = [&](const char* name) {
-    return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) - header.begin());
-  };
-  // (table, row, variant, quantity) → the CSV row.
-  std::map<std::string, std::vector<std::string>> cells;
-  for (std::size_t r = 1; r < csv.size(); ++r) {
-    const auto& f = csv[r];
-    cells[f[col("table")] + "|" + f[col("row")] + "|" + f[col("variant")] + "|" +
-          f[col("quantity")]] = f;
-  }
+  const CsvCells cells(csv);
+  auto col = [&](const char* name) { return cells.col(name); };
   auto cell = [&](const std::string& key) -> const std::vector<std::string>& {
-    const auto it = cells.find(key);
-    EXPECT_NE(it, cells.end()) << key;
-    static const std::vector<std::string> kNone(header.size());
-    return it == cells.end() ? kNone : it->second;
+    return cells.cell(key);
   };
-  auto number = [&](const std::string& key) {
-    const auto& f = cell(key);
-    EXPECT_EQ(f[col("ours_state")], "ok") << key;
-    return f[col("ours")].empty() ? std::nan("") : std::stod(f[col("ours")]);
-  };
+  auto number = [&](const std::string& key) { return cells.number(key); };
 
   // Table I analog.
   for (const std::string d : {"euroc/MH_02_easy", "euroc/V1_02_medium"}) {
@@ -230,16 +262,7 @@ TEST_F(StrategyTables, ValuesEqualTheResultsFiles) {
   // Markdown: the printed cells of MH_02_easy in Table I (ATE of nfr, dense, discard, then KLD and
   // nnz ratio, each with the paper's beside), bold only among the ATE columns.
   const std::string md = readText(tables / "sparsify_table1.md");
-  std::istringstream lines(md);
-  std::vector<std::string> printed;
-  for (std::string line; std::getline(lines, line);) {
-    if (line.rfind("| MH_02_easy |", 0) != 0) continue;
-    std::stringstream fields(line);
-    for (std::string f; std::getline(fields, f, '|');) {
-      const auto a = f.find_first_not_of(' '), b = f.find_last_not_of(' ');
-      if (a != std::string::npos) printed.push_back(f.substr(a, b - a + 1));
-    }
-  }
+  const std::vector<std::string> printed = markdownCells(md, "| MH_02_easy |");
   const Expected& nfr = expected_.at("euroc/MH_02_easy:nfr");
   const Expected& discard = expected_.at("euroc/MH_02_easy:discard");
   const bool nfr_best = std::round(nfr.ate * 1e4) <= std::round(discard.ate * 1e4);
