@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cstdint>
 #include <fstream>
-#include <iterator>
 #include <vector>
 
 namespace marglab::h5::detail {
@@ -54,10 +53,14 @@ std::optional<BadObject> badObject(const std::vector<unsigned char>& file, std::
 }  // namespace
 
 std::optional<std::string> findBadGlobalHeap(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) return std::nullopt;  // libhdf5 says why it cannot open the file
-  const std::vector<unsigned char> file((std::istreambuf_iterator<char>(in)),
-                                        std::istreambuf_iterator<char>());
+  const std::streamoff size = std::max<std::streamoff>(in.tellg(), 0);
+  std::vector<unsigned char> file(static_cast<std::size_t>(size));
+  in.seekg(0);
+  if (!in.read(reinterpret_cast<char*>(file.data()), static_cast<std::streamsize>(file.size()))) {
+    return std::nullopt;  // libhdf5 says why it cannot read the file
+  }
   const int lengths = sizeOfLengths(file);
   const std::uint64_t prefix = 8 + static_cast<std::uint64_t>(lengths);  // GCOL, version, size
   static const unsigned char kGcol[4] = {'G', 'C', 'O', 'L'};
