@@ -198,6 +198,8 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
     orSentinel(above(0), -1, "dataset default"));
   I("failure", "min_tracked_observations", &c.min_tracked_observations, between(0, 100000));
   I("failure", "max_tracking_loss_frames", &c.max_tracking_loss_frames, between(1, kMaxWindow));
+  D("failure", "inconsistent_px", &c.inconsistent_px, above(0));
+  D("failure", "max_inconsistent_share", &c.max_inconsistent_share, between(0, 1));
   list.push_back(choice("imu", "noise_profile", &c.imu_noise_profile, parseImuNoiseProfile,
                         "\"kalibr\" or \"basalt\""));
   list.push_back(

@@ -26,7 +26,8 @@
 //                   detect_margin_px (−1: dataset default), disparity_guesses_px (a list; []: dataset default), prediction
 //                   ("estimator"|"tracker"|"none")
 //   [failure]       max_position_error_m (−1: dataset default), min_tracked_observations,
-//                   max_tracking_loss_frames (the tracking-failure rule, core/pipeline/run.h)
+//                   max_tracking_loss_frames, inconsistent_px, max_inconsistent_share (the
+//                   tracking-failure rule, core/pipeline/tracking_monitor.h)
 //   [imu]           noise_profile ("kalibr"|"basalt": the IMU densities of VIO runs, for the
 //                   synthetic IMU and the estimator's weights; see core/imu/noise_profile.h)
 //   [sim]           profile ("ideal"|"realistic": simulated tracks' noise model,
@@ -158,10 +159,15 @@ struct EstimatorConfig {
   FrontendOptions frontend;
   // failure
   double max_position_error_m = -1;
-  // A run has lost the scene when fewer than min_tracked_observations of a frame's observations
-  // continue landmarks of the window for max_tracking_loss_frames frames in a row.
+  // A run has lost the scene after max_tracking_loss_frames frames in a row in which fewer than
+  // min_tracked_observations of the frame's observations continue landmarks of the window, or in
+  // which more than max_inconsistent_share of the observations checked after the optimization
+  // (FrameResult::n_checked) lie farther than inconsistent_px from their landmark's projection
+  // (core/pipeline/tracking_monitor.h). max_inconsistent_share = 1 turns the second cause off.
   int min_tracked_observations = 10;
   int max_tracking_loss_frames = 3;
+  double inconsistent_px = 5;
+  double max_inconsistent_share = 0.3;
   // imu
   ImuNoiseProfile imu_noise_profile = ImuNoiseProfile::kKalibr;
   // sim

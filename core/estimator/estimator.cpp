@@ -87,6 +87,7 @@ FrameResult SlidingWindowEstimator<Scalar>::processFrame(const TrackFrame& track
     result.v_w = optimized.speed_bias.template head<3>().template cast<double>();
   }
   if (!result.status.ok()) return result;
+  countInconsistent(id, &result);
 
   updateKeyframe(id, track_frame, connected);
   result.is_keyframe = window_.frames.at(id).is_keyframe;
@@ -139,6 +140,15 @@ std::vector<std::pair<int64_t, Eigen::Vector3d>> SlidingWindowEstimator<Scalar>:
     }
   }
   return points;
+}
+
+template <typename Scalar>
+void SlidingWindowEstimator<Scalar>::countInconsistent(int64_t id, FrameResult* result) const {
+  const std::vector<Scalar> errors = window_.frameReprojectionErrors(id);
+  const Scalar bound = static_cast<Scalar>(config_.inconsistent_px);
+  result->n_checked = static_cast<int>(errors.size());
+  result->n_inconsistent = static_cast<int>(
+      std::count_if(errors.begin(), errors.end(), [bound](Scalar e) { return !(e <= bound); }));
 }
 
 template <typename Scalar>

@@ -87,6 +87,10 @@ struct FrameResult {
   int n_landmarks = 0;
   int n_observations = 0;
   int n_connected = 0;  // the frame's observations of landmarks already in the window
+  // After the optimization: the observations Window::frameReprojectionErrors checks, and those of
+  // them farther than failure.inconsistent_px from their landmark's projection.
+  int n_checked = 0;
+  int n_inconsistent = 0;
   int lm_iterations = 0;
   double cost_initial = 0;
   double cost_final = 0;
@@ -185,6 +189,8 @@ class SlidingWindowEstimator {
   void initializeGaugePrior(int64_t frame_id);
   void addImuLink(int64_t from, int64_t to);
   void updateKeyframe(int64_t id, const TrackFrame& frame, int connected);
+  // result->n_checked / n_inconsistent of the optimized frame id (config failure.inconsistent_px).
+  void countInconsistent(int64_t id, FrameResult* result) const;
 
   // Levenberg–Marquardt.
   Status optimize(FrameResult* result);

@@ -311,6 +311,25 @@ Scalar Window<Scalar>::totalCost() const {
 }
 
 template <typename Scalar>
+std::vector<Scalar> Window<Scalar>::frameReprojectionErrors(int64_t frame_id) const {
+  const SE3S& T_w_t = poseOf(frame_id);
+  std::vector<Scalar> errors;
+  for (const auto& [id, lm] : landmarks) {
+    const auto obs = lm.obs.find(frame_id);
+    if (obs == lm.obs.end() || lm.host == frame_id || lm.obs.size() < 2) continue;
+    const Vec3S q =
+        lm.world() ? T_c_i_[0] * (T_w_t.inverse() * lm.param)
+                   : transformLandmark<Scalar>(
+                         relativePose<Scalar>(poseOf(lm.host), T_i_c_[0], T_w_t, T_i_c_[0]),
+                         lm.param);
+    Vec2S uv;
+    errors.push_back(rig_.cam0.project(q, &uv) ? (uv - obs->second.uv0).norm()
+                                               : std::numeric_limits<Scalar>::infinity());
+  }
+  return errors;
+}
+
+template <typename Scalar>
 bool Window<Scalar>::landmarkRows(int64_t track_id, const std::set<int64_t>& system_frames,
                                   const RelativePoses& rel, NfrRows nfr,
                                   RowBlock<Scalar>* out) const {

@@ -230,6 +230,9 @@ class Window {
   Scalar nfrCost(const NfrFactor& f, const Landmark* lm) const;
   Scalar nfrJointCost(const NfrJointFactor& f) const;
   Scalar totalCost() const;
+  // ‖π(q) − z‖ in pixels, cam0, at the current state, of frame_id's observations of landmarks it
+  // shares with other frames and does not host; +∞ where q does not project (behind the camera).
+  std::vector<Scalar> frameReprojectionErrors(int64_t frame_id) const;
 
   // One landmark's rows over the frames in system_frames (its pose–landmark factors after the
   // observations with NfrRows::kInclude). False when it has fewer than min_rows rows.

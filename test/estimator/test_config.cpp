@@ -152,7 +152,11 @@ INSTANTIATE_TEST_SUITE_P(
         BadValue{"TrackingFramesZero", "[failure]\nmax_tracking_loss_frames = 0\n",
                  "failure.max_tracking_loss_frames = 0: expected an integer in [1, 1000000]"},
         BadValue{"TrackedObservationsNegative", "[failure]\nmin_tracked_observations = -1\n",
-                 "failure.min_tracked_observations = -1: expected an integer in [0, 100000]"}),
+                 "failure.min_tracked_observations = -1: expected an integer in [0, 100000]"},
+        BadValue{"InconsistentPxZero", "[failure]\ninconsistent_px = 0\n",
+                 "failure.inconsistent_px = 0: expected a finite number > 0"},
+        BadValue{"InconsistentShareAboveOne", "[failure]\nmax_inconsistent_share = 1.5\n",
+                 "failure.max_inconsistent_share = 1.5: expected a finite number in [0, 1]"}),
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(ConfigValidation, FrontendKeysRoundTripAndResolvePerDataset) {
