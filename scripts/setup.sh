@@ -15,6 +15,7 @@ PACKAGES=(
   libpng-dev libjpeg-dev  # core/frontend/image_file.cpp
   nlohmann-json3-dev  # JSON output (core/massspring, core/bench)
   python3 python3-matplotlib python3-h5py python3-numpy python3-scipy  # scipy: tools/scripts
+  python3-opencv  # tools/scripts/kitti_rotation_check.py: an estimate independent of marglab
   python3-pandas jupyter-nbconvert python3-nbclient python3-nbformat python3-ipykernel
   chromium python3-websocket
   slurm-wlm munge  # scripts/slurm_local.sh: a one-node Slurm cluster for `sweep --backend slurm`
