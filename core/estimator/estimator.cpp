@@ -504,10 +504,12 @@ MargPlan SlidingWindowEstimator<Scalar>::planKeyframeMarginalization(int64_t fra
 template <typename Scalar>
 Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult* result) {
   const bool current_is_kf = window_.frames.at(current).is_keyframe;
-  std::optional<int64_t> kf;
-  const MargPlan plan = policy_.plan(window_, current, &kf);
-  if (!plan.empty()) {
-    if (Status s = marginalizePlan(plan, kf.has_value(), result); !s.ok()) return s;
+  const MargDecision decision = policy_.decide(window_, current);
+  applyEdits(decision.edits, &window_);
+  if (!decision.plan.empty()) {
+    if (Status s = marginalizePlan(decision.plan, decision.keyframe.has_value(), result); !s.ok()) {
+      return s;
+    }
   }
   if (!isVio() && !current_is_kf) window_.frames.erase(current);
   return Status::Ok();

@@ -39,7 +39,8 @@ MargPlan MarginalizationPolicy<Scalar>::keyframeMarginalization(const Window<Sca
 
 template <typename Scalar>
 std::optional<int64_t> MarginalizationPolicy<Scalar>::selectKeyframe(
-    const Window<Scalar>& w, int64_t current, const std::set<VarKey>& marg_vars) const {
+    const Window<Scalar>& w, int64_t current, const std::set<VarKey>& marg_vars,
+    bool current_dropped) const {
   const std::vector<int64_t> kfs = w.keyframeIds();
   if (static_cast<int>(kfs.size()) <= config_.max_kfs) return std::nullopt;
   // Only pose-only keyframes (VIO: older than the states, or losing their speed-bias now).
@@ -56,7 +57,7 @@ std::optional<int64_t> MarginalizationPolicy<Scalar>::selectKeyframe(
     for (const auto& [id, lm] : w.landmarks) {
       if (lm.host != c) continue;
       ++hosted;
-      connected += lm.obs.count(current) != 0 ? 1 : 0;
+      connected += !current_dropped && lm.obs.count(current) != 0 ? 1 : 0;
     }
     if (hosted == 0 || connected < config_.marg_connected_share * hosted) return c;
   }
@@ -82,9 +83,9 @@ std::optional<int64_t> MarginalizationPolicy<Scalar>::selectKeyframe(
 }
 
 template <typename Scalar>
-MargPlan MarginalizationPolicy<Scalar>::plan(Window<Scalar>& w, int64_t current,
-                                              std::optional<int64_t>* kf) const {
-  MargPlan plan;
+MargDecision MarginalizationPolicy<Scalar>::decide(const Window<Scalar>& w, int64_t current) const {
+  MargDecision decision;
+  MargPlan& plan = decision.plan;
   std::set<int64_t> marg_landmarks;
   for (const auto& [id, lm] : w.landmarks) {
     if (lm.obs.count(current) == 0) marg_landmarks.insert(id);  // track lost
@@ -96,20 +97,19 @@ MargPlan MarginalizationPolicy<Scalar>::plan(Window<Scalar>& w, int64_t current,
     plan.drop_obs_frames.insert(state_plan->drop_obs_frames.begin(),
                                 state_plan->drop_obs_frames.end());
   }
-  for (int64_t f : plan.drop_obs_frames) {
-    for (auto& [id, lm] : w.landmarks) lm.obs.erase(f);
-  }
-  *kf = selectKeyframe(w, current, plan.vars);
-  if (*kf) {
-    plan.vars.insert({**kf, StateBlock::kPose});
+  decision.edits.erase_frames = plan.drop_obs_frames;
+  decision.keyframe =
+      selectKeyframe(w, current, plan.vars, plan.drop_obs_frames.count(current) != 0);
+  if (const std::optional<int64_t> kf = decision.keyframe) {
+    plan.vars.insert({*kf, StateBlock::kPose});
     if (keepsLandmarks(w)) {
-      planKeptLandmarks(w, **kf, &marg_landmarks, &plan);
+      planKeptLandmarks(w, *kf, &marg_landmarks, &decision);
     } else {
-      for (auto& [id, lm] : w.landmarks) {
-        if (lm.host == **kf) {
+      for (const auto& [id, lm] : w.landmarks) {
+        if (lm.host == *kf) {
           marg_landmarks.insert(id);
-        } else if (marg_landmarks.count(id) == 0) {
-          lm.obs.erase(**kf);  // keeps the prior sparse (paper §3.2.2)
+        } else if (marg_landmarks.count(id) == 0 && lm.obs.count(*kf) != 0) {
+          decision.edits.erase_obs.emplace_back(id, *kf);  // keeps the prior sparse (§3.2.2)
         }
       }
     }
@@ -119,31 +119,31 @@ MargPlan MarginalizationPolicy<Scalar>::plan(Window<Scalar>& w, int64_t current,
     if (marg_landmarks.erase(track) != 0) plan.vars.insert({track, StateBlock::kLandmark});
   }
   plan.landmarks.assign(marg_landmarks.begin(), marg_landmarks.end());
-  return plan;
+  return decision;
 }
 
 template <typename Scalar>
-void MarginalizationPolicy<Scalar>::planKeptLandmarks(Window<Scalar>& w, int64_t kf,
+void MarginalizationPolicy<Scalar>::planKeptLandmarks(const Window<Scalar>& w, int64_t kf,
                                                       std::set<int64_t>* marg_landmarks,
-                                                      MargPlan* plan) const {
+                                                      MargDecision* decision) const {
   // Below this inverse distance (1 km) a landmark is as good as at infinity: no world point.
   const Scalar min_rho = Scalar(1e-3);
-  for (auto& [id, lm] : w.landmarks) {
+  const std::set<int64_t>& erased = decision->edits.erase_frames;
+  for (const auto& [id, lm] : w.landmarks) {
     if (marg_landmarks->count(id) != 0) continue;
     const bool seen_in_kf = lm.obs.count(kf) != 0;
     if (!seen_in_kf && lm.host != kf) continue;
-    const bool seen_elsewhere = std::any_of(lm.obs.begin(), lm.obs.end(),
-                                            [kf](const auto& entry) { return entry.first != kf; });
+    const bool seen_elsewhere =
+        std::any_of(lm.obs.begin(), lm.obs.end(), [kf, &erased](const auto& entry) {
+          return entry.first != kf && erased.count(entry.first) == 0;
+        });
     if (!seen_elsewhere || (!lm.world() && lm.param.z() < min_rho)) {
       marg_landmarks->insert(id);
       continue;
     }
     // Re-parametrized as a world point before it joins the prior: a free variable, so no change
     // of variables of any prior is needed, and its host may leave the window later.
-    if (!lm.world()) {
-      lm.param = w.poseOf(lm.host) * (w.T_i_c(0) * landmarkToPoint<Scalar>(lm.param));
-      lm.host = -1;
-    }
+    if (!lm.world()) decision->edits.to_world.push_back(id);
     if (!seen_in_kf) continue;
     // nfr needs a positive definite Λ_t: a monocular observation alone gives the landmark a
     // rank-2 prior (no depth), so it is dropped unless a factor anchored at kf fixes the depth.
@@ -151,14 +151,29 @@ void MarginalizationPolicy<Scalar>::planKeptLandmarks(Window<Scalar>& w, int64_t
                                             [kf](const auto& f) { return f.frame == kf; });
     if (config_.marg_strategy == MargStrategy::kNfr && !lm.obs.at(kf).has_right &&
         !anchored_at_kf) {
-      lm.obs.erase(kf);
+      decision->edits.erase_obs.emplace_back(id, kf);
       continue;
     }
-    plan->kept_landmark_obs.emplace_back(id, kf);
+    decision->plan.kept_landmark_obs.emplace_back(id, kf);
   }
 }
 
-#define MARGLAB_INST(S) template class MarginalizationPolicy<S>;
+template <typename Scalar>
+void applyEdits(const WindowEdits& edits, Window<Scalar>* w) {
+  for (int64_t f : edits.erase_frames) {
+    for (auto& [id, lm] : w->landmarks) lm.obs.erase(f);
+  }
+  for (const auto& [track, frame] : edits.erase_obs) w->landmarks.at(track).obs.erase(frame);
+  for (int64_t track : edits.to_world) {
+    auto& lm = w->landmarks.at(track);
+    lm.param = w->poseOf(lm.host) * (w->T_i_c(0) * landmarkToPoint<Scalar>(lm.param));
+    lm.host = -1;
+  }
+}
+
+#define MARGLAB_INST(S)                   \
+  template class MarginalizationPolicy<S>; \
+  template void applyEdits<S>(const WindowEdits&, Window<S>*);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

@@ -11,10 +11,14 @@
 //          track ended are marginalized right away.
 // Strategies dense / nfr (VIO) keep the keyframe's landmarks that other frames still see, as world
 // points in the new prior, with the keyframe's observations of them.
+// The policy only decides (decide() is const on the window); the estimator applies the decision's
+// window edits (applyEdits) before it marginalizes the plan.
 
 #include <cstdint>
 #include <optional>
 #include <set>
+#include <utility>
+#include <vector>
 
 #include "core/estimator/config.h"
 #include "core/estimator/marginalizer.h"
@@ -22,14 +26,34 @@
 
 namespace marglab {
 
+// What the window changes before a plan is marginalized: the observations the plan drops (every
+// observation in erase_frames; single ones in erase_obs as (track, frame)) and the hosted landmarks
+// that join a dense / nfr prior, re-parametrized as world points at the current poses.
+struct WindowEdits {
+  std::set<int64_t> erase_frames;
+  std::vector<std::pair<int64_t, int64_t>> erase_obs;
+  std::vector<int64_t> to_world;
+};
+
+// The decision after one frame: the plan, the keyframe it marginalizes (if any), and the edits.
+struct MargDecision {
+  MargPlan plan;
+  std::optional<int64_t> keyframe;
+  WindowEdits edits;
+};
+
+// Applies the edits in the order the decision assumed: erasures, then re-parametrizations.
+template <typename Scalar>
+void applyEdits(const WindowEdits& edits, Window<Scalar>* w);
+
 template <typename Scalar>
 class MarginalizationPolicy {
  public:
   explicit MarginalizationPolicy(const EstimatorConfig& config) : config_(config) {}
 
-  // The plan after frame `current`; observations the plan drops are erased from the window now,
-  // and (dense / nfr) kept landmarks become world points. *kf: the keyframe marginalized, if any.
-  MargPlan plan(Window<Scalar>& w, int64_t current, std::optional<int64_t>* kf) const;
+  // What leaves the window after frame `current`, judged on the window as it will be once the
+  // decision's edits are applied.
+  MargDecision decide(const Window<Scalar>& w, int64_t current) const;
   // The oldest VIO state (keyframe: its speed-bias; otherwise the whole state); nullopt for VO or
   // with no state to spare (force: even within max_states).
   std::optional<MargPlan> stateMarginalization(const Window<Scalar>& w, bool force = false) const;
@@ -41,10 +65,12 @@ class MarginalizationPolicy {
   }
 
  private:
+  // current_dropped: the current frame's observations are erased (a VO non-keyframe).
   std::optional<int64_t> selectKeyframe(const Window<Scalar>& w, int64_t current,
-                                        const std::set<VarKey>& marg_vars) const;
-  void planKeptLandmarks(Window<Scalar>& w, int64_t kf, std::set<int64_t>* marg_landmarks,
-                         MargPlan* plan) const;
+                                        const std::set<VarKey>& marg_vars,
+                                        bool current_dropped) const;
+  void planKeptLandmarks(const Window<Scalar>& w, int64_t kf, std::set<int64_t>* marg_landmarks,
+                         MargDecision* decision) const;
 
   EstimatorConfig config_;
 };
