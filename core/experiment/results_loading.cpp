@@ -26,7 +26,7 @@ bool fromIndexRow(RunRecord* r) {
   const std::string& status = row.get("status");
   if (status != "ok" && status != "failed") return false;
   if (status == "ok" && !std::isfinite(row.number("ate_rmse"))) return false;
-  r->state = status;
+  r->state = status == "ok" ? RunRecord::State::kOk : RunRecord::State::kFailed;
   r->mode = row.get("mode");
   r->ate_rmse = row.number("ate_rmse");
   r->t_opt_s = row.number("t_opt_total_s");
@@ -68,7 +68,8 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
       r.row = row;
       r.dir = dir;
       r.results_path = (fs::path(dir) / row.get("results")).string();
-      r.state = row.get("status") == "failed" ? "failed" : "missing";
+      r.state = row.get("status") == "failed" ? RunRecord::State::kFailed
+                                               : RunRecord::State::kMissing;
       const bool has_file = !row.get("results").empty() && fs::is_regular_file(r.results_path);
       if (!has_file) r.row.set("dataset", tableDataset(row.get("dataset"), nullptr));
       if (has_file) {
@@ -82,7 +83,7 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
           }
           const SummaryValues s = reader.summary();
           r.row.set("dataset", tableDataset(row.get("dataset"), &info.metadata));
-          r.state = info.status == "ok" ? "ok" : "failed";
+          r.state = info.status == "ok" ? RunRecord::State::kOk : RunRecord::State::kFailed;
           r.mode = info.metadata.mode;
           r.marg_strategy = info.metadata.marg_strategy;
           r.frontend = info.metadata.frontend;
@@ -101,7 +102,7 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
               fmt::format("{}: not a complete results file ({}); counted as "
                           "not run",
                           r.results_path, e.what()));
-          r.state = "missing";
+          r.state = RunRecord::State::kMissing;
         }
       } else if (fromIndexRow(&r)) {
         ++from_index;

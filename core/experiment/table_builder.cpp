@@ -14,6 +14,7 @@
 #include <limits>
 #include <optional>
 #include <set>
+#include <tuple>
 #include <utility>
 
 #include "core/common/error.h"
@@ -142,8 +143,8 @@ struct Selection {
     if (runs.empty()) return TableCell::State::kMissing;
     bool missing = false;
     for (const RunRecord* r : runs) {
-      if (r->state == "failed") return TableCell::State::kFailed;
-      if (r->state != "ok") missing = true;
+      if (r->state == RunRecord::State::kFailed) return TableCell::State::kFailed;
+      if (r->state != RunRecord::State::kOk) missing = true;
     }
     return missing ? TableCell::State::kMissing : TableCell::State::kValue;
   }
@@ -180,8 +181,8 @@ TableCell seedCell(const Selection& sel, const std::vector<RunValue>& quantities
   cell.seed_stats = true;
   std::vector<const RunRecord*> ok;
   for (const RunRecord* r : sel.runs) {
-    if (r->state == "ok") ok.push_back(r);
-    if (r->state == "failed") ++cell.n_failed;
+    if (r->state == RunRecord::State::kOk) ok.push_back(r);
+    if (r->state == RunRecord::State::kFailed) ++cell.n_failed;
   }
   cell.n_runs = static_cast<int>(ok.size()) + cell.n_failed;
   if (cell.n_runs == 0) return cell;
@@ -301,26 +302,38 @@ std::string oursNote(const std::string& paper_machine, const std::set<std::strin
                      paper_machine.empty() ? std::string(".") : ", on " + paper_machine + ".");
 }
 
+// A cell of a table set: a dataset (row) and a column (variant or strategy); with the seed, one run.
+struct CellKey {
+  std::string dataset, column;
+  bool operator<(const CellKey& o) const {
+    return std::tie(dataset, column) < std::tie(o.dataset, o.column);
+  }
+};
+struct RunKey {
+  CellKey cell;
+  std::string seed;
+  bool operator<(const RunKey& o) const { return std::tie(cell, seed) < std::tie(o.cell, o.seed); }
+};
+
 class Builder {
  public:
   Builder(const ResultSet& results, const PaperValues& paper, const ColumnOf& column_of)
       : paper_(paper) {
     // Deduplicate dataset × column × seed: the run with more requested frames wins.
-    std::map<std::string, std::pair<std::string, const RunRecord*>> chosen;
+    std::map<RunKey, const RunRecord*> chosen;
     for (const RunRecord& r : results.runs) {
       const std::optional<std::string> column = column_of(r);
       if (!column) continue;
-      const std::string key = r.row.get("dataset") + "|" + *column + "|" + r.row.get("seed");
+      const RunKey key{{r.row.get("dataset"), *column}, r.row.get("seed")};
       auto frames = [](const RunRecord* x) {
         const double f = x->row.number("frames");
         return !std::isfinite(f) || f <= 0 ? std::numeric_limits<double>::infinity() : f;
       };
       auto it = chosen.find(key);
-      if (it == chosen.end() || frames(&r) > frames(it->second.second)) chosen[key] = {*column, &r};
+      if (it == chosen.end() || frames(&r) > frames(it->second)) chosen[key] = &r;
     }
-    for (const auto& [key, choice] : chosen) {
-      const auto& [column, run] = choice;
-      by_cell_[run->row.get("dataset") + "|" + column].runs.push_back(run);
+    for (const auto& [key, run] : chosen) {
+      by_cell_[key.cell].runs.push_back(run);
       datasets_.insert(run->row.get("dataset"));
       modes_[run->row.get("dataset")].insert(run->mode.empty() ? "?" : run->mode);
       if (!run->frontend.empty()) frontends_[run->row.get("dataset")].insert(run->frontend);
@@ -338,16 +351,13 @@ class Builder {
   }
 
   bool hasVariant(const std::string& variant) const {
-    return std::any_of(by_cell_.begin(), by_cell_.end(), [&variant](const auto& cell) {
-      const std::string& key = cell.first;
-      return key.size() > variant.size() &&
-             key.compare(key.size() - variant.size() - 1, std::string::npos, "|" + variant) == 0;
-    });
+    return std::any_of(by_cell_.begin(), by_cell_.end(),
+                       [&variant](const auto& cell) { return cell.first.column == variant; });
   }
 
   const Selection& select(const std::string& dataset, const std::string& variant) const {
     static const Selection kNone;
-    const auto it = by_cell_.find(dataset + "|" + variant);
+    const auto it = by_cell_.find(CellKey{dataset, variant});
     return it == by_cell_.end() ? kNone : it->second;
   }
 
@@ -391,7 +401,7 @@ class Builder {
       if (const PaperTable::Row* row = table->row(dataset)) label = row->label;
     }
     for (const auto& [key, sel] : by_cell_) {
-      if (!startsWith(key, dataset + "|")) continue;
+      if (key.dataset != dataset) continue;
       for (const RunRecord* r : sel.runs) {
         if (r->gt_source.find("estimate") != std::string::npos) {
           *estimate = true;
@@ -417,8 +427,7 @@ class Builder {
   // Whether a cell of Table 1 (vio) or 2 holds more than one seed.
   bool severalSeeds(bool vio) const {
     for (const auto& [key, sel] : by_cell_) {
-      const std::string dataset = key.substr(0, key.find('|'));
-      if ((vio ? isVioDataset : isVoDataset)(dataset) && sel.runs.size() > 1) return true;
+      if ((vio ? isVioDataset : isVoDataset)(key.dataset) && sel.runs.size() > 1) return true;
     }
     return false;
   }
@@ -825,9 +834,9 @@ class Builder {
          std::initializer_list<Column>{{pair[0], &ate_64, &row.seeds_64, &row.failed_64},
                                        {pair[1], &ate_32, &row.seeds_32, &row.failed_32}}) {
       for (const RunRecord* r : select(dataset, variant).runs) {
-        if (r->state == "ok") (*ate)[r->row.get("seed")] = r->ate_rmse;
-        *failed += r->state == "failed";
-        *seeds += r->state == "ok" || r->state == "failed";
+        if (r->state == RunRecord::State::kOk) (*ate)[r->row.get("seed")] = r->ate_rmse;
+        *failed += r->state == RunRecord::State::kFailed;
+        *seeds += r->state == RunRecord::State::kOk || r->state == RunRecord::State::kFailed;
       }
     }
     auto values = [](const std::map<std::string, double>& m) {
@@ -853,7 +862,7 @@ class Builder {
   }
 
   const PaperValues& paper_;
-  std::map<std::string, Selection> by_cell_;
+  std::map<CellKey, Selection> by_cell_;
   std::set<std::string> datasets_;
   std::map<std::string, std::set<std::string>> frontends_;  // dataset → where its tracks came from
   std::map<std::string, std::set<std::string>> modes_;       // dataset → modes

@@ -95,7 +95,8 @@ struct RunRecord {
   IndexRow row;               // the index row
   std::string dir;            // the sweep folder it came from
   std::string results_path;   // absolute or relative to the working directory
-  std::string state;          // "ok" | "failed" | "missing" (no complete file, not failed)
+  // kMissing: no complete results file, and not failed.
+  enum class State { kOk, kFailed, kMissing } state = State::kMissing;
   std::string mode;           // results file attribute "mode" ("vo" | "vio")
   std::string gt_source;      // results file attribute "gt_source" (may be "")
   std::string marg_strategy;  // results file attribute "marg_strategy" ("" without a file)
