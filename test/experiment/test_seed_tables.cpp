@@ -276,7 +276,7 @@ TEST_F(SeedTables, AnOkRowWithoutFileOrSummaryIsCountedAsNotRun) {
   fs::remove_all(dir_ / "sweep" / "runs");
   const ResultSet set = loadResults({(dir_ / "sweep").string()});
   ASSERT_EQ(set.runs.size(), 1u);
-  EXPECT_EQ(set.runs[0].state, "missing");
+  EXPECT_EQ(set.runs[0].state, RunRecord::State::kMissing);
   ASSERT_EQ(set.warnings.size(), 1u);
   EXPECT_NE(set.warnings[0].find("neither it nor its index row holds an ATE"), std::string::npos);
 }
