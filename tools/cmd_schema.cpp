@@ -19,8 +19,8 @@ const bool kRegistered = cli::registerCommand(
        auto* json = sub.add_flag("--json", "JSON, for tools/scripts/results_schema.json (default)");
        sub.add_flag("--markdown", *markdown, "The tables of docs/design.md §6")->excludes(json);
        return [markdown] {
-         fmt::print("{}", *markdown ? results_schema::schemaMarkdown()
-                                    : results_schema::schemaJson());
+         fmt::print("{}",
+                    *markdown ? results_schema::schemaMarkdown() : results_schema::schemaJson());
          return 0;
        };
      }});

@@ -131,8 +131,9 @@ SummaryValues readSummary(const h5::Group& g, const std::string& path) {
           } else {
             const auto v = g.attr<std::vector<double>>(a.name);
             if (v.size() != static_cast<std::size_t>(T::SizeAtCompileTime)) {
-              throw InputError(path, 0, fmt::format("/summary: {} has {} values, expected {}",
-                                                    a.name, v.size(), T::SizeAtCompileTime));
+              throw InputError(path, 0,
+                               fmt::format("/summary: {} has {} values, expected {}", a.name,
+                                           v.size(), T::SizeAtCompileTime));
             }
             s.*member =
                 Eigen::Map<const Eigen::Matrix<double, T::ColsAtCompileTime, T::RowsAtCompileTime>>(
@@ -368,9 +369,9 @@ std::size_t ResultsReader::margCount() const {
 }
 
 std::vector<MargRecord> ResultsReader::margs(bool with_eigenvalues) const {
-  return results_schema::readTable(
-      file_.openGroup("marg"), results_schema::margTable(),
-      with_eigenvalues ? results_schema::RaggedColumns::kRead : results_schema::RaggedColumns::kSkip);
+  return results_schema::readTable(file_.openGroup("marg"), results_schema::margTable(),
+                                   with_eigenvalues ? results_schema::RaggedColumns::kRead
+                                                    : results_schema::RaggedColumns::kSkip);
 }
 
 VecXd ResultsReader::eigenvalues(std::size_t k) const {

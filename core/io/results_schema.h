@@ -95,9 +95,9 @@ template <class Pointer>
 using MemberType = typename MemberOf<Pointer>::type;
 
 template <class Record>
-using Member = std::variant<std::int64_t Record::*, int Record::*, bool Record::*,
-                            double Record::*, Eigen::Vector3d Record::*,
-                            Eigen::Quaterniond Record::*, Vec7d Record::*, VecXd Record::*>;
+using Member = std::variant<std::int64_t Record::*, int Record::*, bool Record::*, double Record::*,
+                            Eigen::Vector3d Record::*, Eigen::Quaterniond Record::*,
+                            Vec7d Record::*, VecXd Record::*>;
 
 template <class Record>
 struct Column {

@@ -94,16 +94,18 @@ std::string cell(const std::string& text) {
 }
 
 std::string shapeOf(const ColumnFacts& facts, const char* rows) {
-  if (facts.width == kRagged) return fmt::format("ragged: values f64 [K], offsets int64 [{}+1]", rows);
+  if (facts.width == kRagged)
+    return fmt::format("ragged: values f64 [K], offsets int64 [{}+1]", rows);
   if (facts.width == 0) return fmt::format("{} ({})", facts.type, rows);
   return fmt::format("{} ({},{}): {}", facts.type, rows, facts.width, fmt::join(facts.axes, " "));
 }
 
 template <class Record>
 std::string tableMarkdown(const Table<Record>& table, const char* rows) {
-  std::string out = fmt::format("**`/{}`** — {}:\n\n| dataset | type, shape | unit | content |\n"
-                                "|---|---|---|---|\n",
-                                table.group, table.description);
+  std::string out = fmt::format(
+      "**`/{}`** — {}:\n\n| dataset | type, shape | unit | content |\n"
+      "|---|---|---|---|\n",
+      table.group, table.description);
   for (const Column<Record>& c : table.columns) {
     std::string content = c.description;
     if (c.presence == Presence::kOptional) content += " (absent in older files)";

@@ -101,8 +101,9 @@ TEST_F(ResultsSchemaFile, ReaderRequiresRequiredColumnsOnly) {
   s.kld = 0.5;
   w.appendSparsify(s);
   w.finish({});
-  const std::string edit = "/usr/bin/python3 -c \"import h5py; f = h5py.File('" + path +
-                           "', 'r+'); del f['sparsify/info_dense']; del f['sparsify/info_sparse']\"";
+  const std::string edit =
+      "/usr/bin/python3 -c \"import h5py; f = h5py.File('" + path +
+      "', 'r+'); del f['sparsify/info_dense']; del f['sparsify/info_sparse']\"";
   if (runShell(edit).exit_code != 0) GTEST_SKIP() << "no /usr/bin/python3 with h5py";
   const std::vector<SparsifyRecord> rows = ResultsReader(path).sparsifyRecords();
   ASSERT_EQ(rows.size(), 1u);
