@@ -10,6 +10,7 @@ cd "$(dirname "$0")/.."
 
 PACKAGES=(
   build-essential cmake pkg-config git ccache  # ccache: repeated clean-clone builds take minutes
+  universal-ctags  # tools/scripts/long_functions.py (test long_functions)
   libeigen3-dev libsuitesparse-dev libceres-dev libcli11-dev libfmt-dev libhdf5-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtomlplusplus-dev libopencv-dev
   libpng-dev libjpeg-dev  # core/frontend/image_file.cpp

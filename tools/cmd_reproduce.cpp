@@ -69,18 +69,15 @@ std::string extractTable(const std::string& markdown, const std::string& title_p
   return out;
 }
 
-int runReproduce(const ReproduceArgs& args) {
-  const auto start = std::chrono::steady_clock::now();
-  const std::vector<std::string> files =
-      args.quick ? std::vector<std::string>{"quick.toml"}
-                 : std::vector<std::string>{"paper_vo.toml", "paper_vio.toml"};
-  // Validate every sweep before running any.
+// Runs the sweeps (validated before any runs) and returns the worst exit code, 130 at once on an
+// interrupt; dirs gets each sweep's folder.
+int runSweeps(const ReproduceArgs& args, const std::vector<std::string>& files,
+              std::vector<std::string>* dirs) {
   std::vector<experiment::SweepPlan> plans;
   for (const std::string& f : files) {
     plans.push_back(experiment::loadSweepFile((fs::path(args.experiments) / f).string(),
                                               cli::sweepParseOptions()));
   }
-  std::vector<std::string> dirs;
   int worst = 0;
   for (std::size_t i = 0; i < plans.size(); ++i) {
     experiment::SweepOptions options;
@@ -96,8 +93,54 @@ int runReproduce(const ReproduceArgs& args) {
         plans[i], (fs::path(args.experiments) / files[i]).string(), options);
     if (code == 130) return code;
     worst = std::max(worst, code);
-    dirs.push_back(options.out_dir);
+    dirs->push_back(options.out_dir);
   }
+  return worst;
+}
+
+// The notebooks and the report of each sweep (issue #20).
+struct Analysis {
+  int code = 0;
+  double notebook_seconds = 0;
+  std::vector<std::string> reports, notebook_dirs;
+};
+
+Analysis runAnalysis(const ReproduceArgs& args, const std::vector<std::string>& dirs,
+                     const std::string& tables, const std::string& figures) {
+  Analysis analysis;
+  for (const std::string& dir : dirs) {
+    const std::string out =
+        dirs.size() == 1 ? figures : (fs::path(args.figures) / fs::path(dir).filename()).string();
+    cli::NotebooksRequest notebooks;
+    notebooks.dir = dir;
+    notebooks.out = out;
+    notebooks.jobs = args.jobs;
+    const auto nb_start = std::chrono::steady_clock::now();
+    const int nb_code = cli::runNotebooks(notebooks);
+    analysis.notebook_seconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - nb_start).count();
+    if (nb_code == 0) analysis.notebook_dirs.push_back(out);
+    cli::ReportRequest report;
+    report.dir = dir;
+    report.out = out;
+    report.tables = tables;
+    report.figures = figures;
+    report.check = cli::ReportRequest::Check::kIfAvailable;
+    const int report_code = cli::runReport(report);
+    if (report_code == 0) analysis.reports.push_back((fs::path(out) / "report.html").string());
+    analysis.code = std::max({analysis.code, nb_code, report_code});
+  }
+  return analysis;
+}
+
+int runReproduce(const ReproduceArgs& args) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<std::string> files =
+      args.quick ? std::vector<std::string>{"quick.toml"}
+                 : std::vector<std::string>{"paper_vo.toml", "paper_vio.toml"};
+  std::vector<std::string> dirs;
+  const int worst = runSweeps(args, files, &dirs);
+  if (worst == 130) return worst;
 
   const std::string name = args.quick ? "quick" : "paper";
   experiment::TablesRequest tables;
@@ -110,33 +153,8 @@ int runReproduce(const ReproduceArgs& args) {
   plot.dirs = dirs;
   plot.out = (fs::path(args.figures) / name).string();
   const int plot_code = experiment::runPlot(plot);
-
-  // The notebooks and the report of each sweep (issue #20).
-  int analysis_code = 0;
-  double notebook_seconds = 0;
-  std::vector<std::string> reports, notebook_dirs;
-  for (const std::string& dir : !args.no_analysis ? dirs : std::vector<std::string>{}) {
-    const std::string out =
-        dirs.size() == 1 ? plot.out : (fs::path(args.figures) / fs::path(dir).filename()).string();
-    cli::NotebooksRequest notebooks;
-    notebooks.dir = dir;
-    notebooks.out = out;
-    notebooks.jobs = args.jobs;
-    const auto nb_start = std::chrono::steady_clock::now();
-    const int nb_code = cli::runNotebooks(notebooks);
-    notebook_seconds +=
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - nb_start).count();
-    if (nb_code == 0) notebook_dirs.push_back(out);
-    cli::ReportRequest report;
-    report.dir = dir;
-    report.out = out;
-    report.tables = tables.out;
-    report.figures = plot.out;
-    report.check = cli::ReportRequest::Check::kIfAvailable;
-    const int report_code = cli::runReport(report);
-    if (report_code == 0) reports.push_back((fs::path(out) / "report.html").string());
-    analysis_code = std::max({analysis_code, nb_code, report_code});
-  }
+  const Analysis analysis =
+      runAnalysis(args, args.no_analysis ? std::vector<std::string>{} : dirs, tables.out, plot.out);
 
   const double minutes =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 60.0;
@@ -149,13 +167,15 @@ int runReproduce(const ReproduceArgs& args) {
              plot_code == 0 ? "  (fig1, fig4-fig7 as PNG and PDF)" : "  (NOT drawn, see above)");
   if (!args.no_analysis) {
     fmt::print("  notebooks {}  ({}; executed in {:.0f} s)\n",
-               notebook_dirs.empty() ? std::string("NOT executed, see above")
-                                     : fmt::format("{}", fmt::join(notebook_dirs, ", ")),
-               "sweep.html, precision.html, runs/<id>.html and .ipynb", notebook_seconds);
-    fmt::print("  report   {}\n", reports.empty() ? std::string("NOT written, see above")
-                                                  : fmt::format("{}", fmt::join(reports, ", ")));
+               analysis.notebook_dirs.empty()
+                   ? std::string("NOT executed, see above")
+                   : fmt::format("{}", fmt::join(analysis.notebook_dirs, ", ")),
+               "sweep.html, precision.html, runs/<id>.html and .ipynb", analysis.notebook_seconds);
+    fmt::print("  report   {}\n", analysis.reports.empty()
+                                      ? std::string("NOT written, see above")
+                                      : fmt::format("{}", fmt::join(analysis.reports, ", ")));
   }
-  return std::max({worst, plot_code, analysis_code});
+  return std::max({worst, plot_code, analysis.code});
 }
 
 const bool kRegistered = cli::registerCommand(

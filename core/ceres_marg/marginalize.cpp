@@ -216,68 +216,61 @@ bool parseMethod(const std::string& text, Method* method) {
   return false;
 }
 
-MarginalizationSummary marginalize(ceres::Problem* problem, const std::vector<double*>& blocks,
-                                   const MarginalizationOptions& options) {
-  const Clock::time_point start = Clock::now();
-  MarginalizationSummary summary;
-  summary.method = options.method;
-  summary.threshold_mode = options.threshold_mode;
-  summary.threshold = options.threshold;
+namespace {
 
-  // 1. Checks that need nothing but the problem's bookkeeping.
-  if (problem == nullptr) {
-    summary.status = invalid("problem is null");
-    return summary;
-  }
-  if (blocks.empty()) {
-    summary.status = invalid("no parameter block to marginalize");
-    return summary;
-  }
+// 1. Checks that need nothing but the problem's bookkeeping; fills marg_set and the marginalized
+//    size.
+Status checkMarginalized(ceres::Problem* problem, const std::vector<double*>& blocks,
+                         const MarginalizationOptions& options, MarginalizationSummary* summary,
+                         std::unordered_set<const double*>* marg_set) {
+  if (problem == nullptr) return invalid("problem is null");
+  if (blocks.empty()) return invalid("no parameter block to marginalize");
   if (!(options.threshold >= 0) || !std::isfinite(options.threshold)) {
-    summary.status =
-        invalid(fmt::format("rank threshold {} is not a finite value >= 0", options.threshold));
-    return summary;
+    return invalid(fmt::format("rank threshold {} is not a finite value >= 0", options.threshold));
   }
-  std::unordered_set<const double*> marg_set;
   for (std::size_t i = 0; i < blocks.size(); ++i) {
     double* block = blocks[i];
     if (block == nullptr || !problem->HasParameterBlock(block)) {
-      summary.status = invalid(fmt::format("block #{} ({}) is not a parameter block of the problem",
-                                           i, static_cast<const void*>(block)));
-      return summary;
+      return invalid(fmt::format("block #{} ({}) is not a parameter block of the problem", i,
+                                 static_cast<const void*>(block)));
     }
-    if (!marg_set.insert(block).second) {
-      summary.status = invalid(fmt::format("block #{} is listed twice", i));
-      return summary;
-    }
+    if (!marg_set->insert(block).second)
+      return invalid(fmt::format("block #{} is listed twice", i));
     if (problem->IsParameterBlockConstant(block)) {
-      summary.status = invalid(fmt::format(
+      return invalid(fmt::format(
           "block #{} is constant: a constant block cannot be marginalized (make it variable, or "
           "keep it)",
           i));
-      return summary;
     }
     for (int k = 0; k < problem->ParameterBlockSize(block); ++k) {
       if (problem->GetParameterLowerBound(block, k) > -std::numeric_limits<double>::max() ||
           problem->GetParameterUpperBound(block, k) < std::numeric_limits<double>::max()) {
-        summary.status = invalid(fmt::format(
+        return invalid(fmt::format(
             "block #{} has a bound on coordinate {}: marginalization drops constraints on x_m "
             "(primer §5.4); remove the bounds first",
             i, k));
-        return summary;
       }
     }
-    summary.marginalized_dim += problem->ParameterBlockTangentSize(block);
+    summary->marginalized_dim += problem->ParameterBlockTangentSize(block);
   }
-  summary.marginalized_blocks = static_cast<int>(blocks.size());
+  summary->marginalized_blocks = static_cast<int>(blocks.size());
+  return Status::Ok();
+}
 
-  // 2. ∂x_m and the Markov blanket, in a deterministic order (residual blocks as the problem
-  //    lists them, blanket blocks by first appearance).
+// ∂x_m and the Markov blanket.
+struct Blanket {
+  std::vector<ceres::ResidualBlockId> residuals;
+  std::vector<double*> blocks;
+  std::unordered_set<const double*> set;
+};
+
+// 2. In a deterministic order: residual blocks as the problem lists them, blanket blocks by first
+//    appearance.
+Blanket findBlanket(ceres::Problem* problem, const std::unordered_set<const double*>& marg_set,
+                    MarginalizationSummary* summary) {
   std::vector<ceres::ResidualBlockId> all_residuals;
   problem->GetResidualBlocks(&all_residuals);
-  std::vector<ceres::ResidualBlockId> residuals;
-  std::vector<double*> blanket;
-  std::unordered_set<const double*> blanket_set;
+  Blanket b;
   std::unordered_set<const double*> constant_set;
   std::vector<double*> params;
   for (ceres::ResidualBlockId id : all_residuals) {
@@ -285,105 +278,131 @@ MarginalizationSummary marginalize(ceres::Problem* problem, const std::vector<do
     bool involves_marg = false;
     for (double* p : params) involves_marg = involves_marg || marg_set.count(p) > 0;
     if (!involves_marg) continue;
-    residuals.push_back(id);
+    b.residuals.push_back(id);
     for (double* p : params) {
       if (marg_set.count(p) > 0) continue;
       if (problem->IsParameterBlockConstant(p)) {
         constant_set.insert(p);
-      } else if (blanket_set.insert(p).second) {
-        blanket.push_back(p);
+      } else if (b.set.insert(p).second) {
+        b.blocks.push_back(p);
       }
     }
   }
-  summary.removed_residual_blocks = static_cast<int>(residuals.size());
-  summary.blanket_blocks = static_cast<int>(blanket.size());
-  summary.constant_blanket_blocks = static_cast<int>(constant_set.size());
-  summary.blanket = blanket;
+  summary->removed_residual_blocks = static_cast<int>(b.residuals.size());
+  summary->blanket_blocks = static_cast<int>(b.blocks.size());
+  summary->constant_blanket_blocks = static_cast<int>(constant_set.size());
+  summary->blanket = b.blocks;
+  return b;
+}
 
-  // 3. The blanket's manifolds and linearization points.
-  std::vector<std::unique_ptr<BlockDifference>> differences;
-  std::vector<std::vector<double>> x_lin;
-  for (std::size_t k = 0; k < blanket.size(); ++k) {
-    double* block = blanket[k];
+// 3. The blanket's manifolds and linearization points.
+Status blanketLinearizationPoints(ceres::Problem* problem, const Blanket& blanket,
+                                  const MarginalizationOptions& options,
+                                  MarginalizationSummary* summary,
+                                  std::vector<std::unique_ptr<BlockDifference>>* differences,
+                                  std::vector<std::vector<double>>* x_lin) {
+  for (std::size_t k = 0; k < blanket.blocks.size(); ++k) {
+    double* block = blanket.blocks[k];
     const int size = problem->ParameterBlockSize(block);
     std::string what;
     std::unique_ptr<BlockDifference> difference =
         makeBlockDifference(problem->GetManifold(block), size, &what);
-    if (difference == nullptr) {
-      summary.status = invalid(fmt::format("Markov blanket block #{}: {}", k, what));
-      return summary;
-    }
-    summary.blanket_dim += difference->tangentSize();
-    differences.push_back(std::move(difference));
+    if (difference == nullptr) return invalid(fmt::format("Markov blanket block #{}: {}", k, what));
+    summary->blanket_dim += difference->tangentSize();
+    differences->push_back(std::move(difference));
     const auto it = options.linearization_points.find(block);
     if (it != options.linearization_points.end()) {
       if (static_cast<int>(it->second.size()) != size) {
-        summary.status = invalid(
+        return invalid(
             fmt::format("linearization point of blanket block #{} has {} values, the block has {}",
                         k, it->second.size(), size));
-        return summary;
       }
-      x_lin.push_back(it->second);
+      x_lin->push_back(it->second);
     } else {
-      x_lin.emplace_back(block, block + size);
+      x_lin->emplace_back(block, block + size);
     }
   }
   for (const auto& [block, values] : options.linearization_points) {
-    if (blanket_set.count(block) == 0) {
-      summary.status =
-          invalid("a linearization point is given for a block that is not in the Markov blanket");
-      return summary;
+    if (blanket.set.count(block) == 0) {
+      return invalid(
+          "a linearization point is given for a block that is not in the Markov blanket");
     }
   }
+  return Status::Ok();
+}
 
-  // 4. Linearization: f and [J_m | J_b] of ∂x_m, robustified (Triggs), in the tangent spaces.
+// 4. Linearization: f and [J_m | J_b] of ∂x_m, robustified (Triggs), in the tangent spaces.
+Status linearize(ceres::Problem* problem, const std::vector<double*>& blocks,
+                 const Blanket& blanket, const MarginalizationOptions& options,
+                 MarginalizationSummary* summary, VecXd* f, ceres::CRSMatrix* crs) {
   const Clock::time_point eval_start = Clock::now();
   ceres::Problem::EvaluateOptions eval;
   eval.parameter_blocks = blocks;
-  eval.parameter_blocks.insert(eval.parameter_blocks.end(), blanket.begin(), blanket.end());
-  eval.residual_blocks = residuals;
+  eval.parameter_blocks.insert(eval.parameter_blocks.end(), blanket.blocks.begin(),
+                               blanket.blocks.end());
+  eval.residual_blocks = blanket.residuals;
   eval.apply_loss_function = true;
   std::vector<double> f_values;
-  ceres::CRSMatrix crs;
   bool evaluated = false;
   {
-    const ValueSwap swap(options.linearization_points, blanket);
-    evaluated = problem->Evaluate(eval, nullptr, &f_values, nullptr, &crs);
+    const ValueSwap swap(options.linearization_points, blanket.blocks);
+    evaluated = problem->Evaluate(eval, nullptr, &f_values, nullptr, crs);
   }
-  summary.evaluate_ms = msSince(eval_start);
+  summary->evaluate_ms = msSince(eval_start);
   if (!evaluated) {
-    summary.status = Status::Error(
+    return Status::Error(
         Status::Code::kNotFinite,
         "marginalize: Ceres could not evaluate the residual blocks of the marginalized variables "
         "(a cost function failed or returned a non-finite residual or Jacobian)");
-    return summary;
   }
-  const VecXd f =
-      Eigen::Map<const VecXd>(f_values.data(), static_cast<Eigen::Index>(f_values.size()));
-  bool finite = f.allFinite();
-  for (double v : crs.values) finite = finite && std::isfinite(v);
+  *f = Eigen::Map<const VecXd>(f_values.data(), static_cast<Eigen::Index>(f_values.size()));
+  bool finite = f->allFinite();
+  for (double v : crs->values) finite = finite && std::isfinite(v);
   if (!finite) {
-    summary.status = Status::Error(Status::Code::kNotFinite,
-                                   "marginalize: non-finite residual or Jacobian at the "
-                                   "linearization point");
-    return summary;
+    return Status::Error(Status::Code::kNotFinite,
+                         "marginalize: non-finite residual or Jacobian at the "
+                         "linearization point");
   }
-  summary.residuals = crs.num_rows;
-  const int n_m = summary.marginalized_dim;
+  summary->residuals = crs->num_rows;
+  return Status::Ok();
+}
 
-  // 5. The square-root prior.
-  const Clock::time_point factor_start = Clock::now();
-  SqrtPriorResult prior;
-  if (options.method == Method::kSparseSchur) {
-    prior = viaSparseSchur(crs, f, n_m, options);
-  } else {
-    MatXd J = MatXd::Zero(crs.num_rows, crs.num_cols);
-    for (int row = 0; row < crs.num_rows; ++row) {
-      for (int k = crs.rows[row]; k < crs.rows[row + 1]; ++k) J(row, crs.cols[k]) = crs.values[k];
-    }
-    prior =
-        options.method == Method::kQr ? viaQr(J, f, n_m, options) : viaSchur(J, f, n_m, options);
+// 5. The square-root prior by the chosen method.
+SqrtPriorResult squareRootPrior(const ceres::CRSMatrix& crs, const VecXd& f, int n_m,
+                                const MarginalizationOptions& options) {
+  if (options.method == Method::kSparseSchur) return viaSparseSchur(crs, f, n_m, options);
+  MatXd J = MatXd::Zero(crs.num_rows, crs.num_cols);
+  for (int row = 0; row < crs.num_rows; ++row) {
+    for (int k = crs.rows[row]; k < crs.rows[row + 1]; ++k) J(row, crs.cols[k]) = crs.values[k];
   }
+  return options.method == Method::kQr ? viaQr(J, f, n_m, options) : viaSchur(J, f, n_m, options);
+}
+
+}  // namespace
+
+MarginalizationSummary marginalize(ceres::Problem* problem, const std::vector<double*>& blocks,
+                                   const MarginalizationOptions& options) {
+  const Clock::time_point start = Clock::now();
+  MarginalizationSummary summary;
+  summary.method = options.method;
+  summary.threshold_mode = options.threshold_mode;
+  summary.threshold = options.threshold;
+  std::unordered_set<const double*> marg_set;
+  summary.status = checkMarginalized(problem, blocks, options, &summary, &marg_set);
+  if (!summary.status.ok()) return summary;
+  const Blanket blanket = findBlanket(problem, marg_set, &summary);
+  std::vector<std::unique_ptr<BlockDifference>> differences;
+  std::vector<std::vector<double>> x_lin;
+  summary.status =
+      blanketLinearizationPoints(problem, blanket, options, &summary, &differences, &x_lin);
+  if (!summary.status.ok()) return summary;
+  VecXd f;
+  ceres::CRSMatrix crs;
+  summary.status = linearize(problem, blocks, blanket, options, &summary, &f, &crs);
+  if (!summary.status.ok()) return summary;
+
+  const Clock::time_point factor_start = Clock::now();
+  SqrtPriorResult prior = squareRootPrior(crs, f, summary.marginalized_dim, options);
   summary.factorize_ms = msSince(factor_start);
   if (!prior.status.ok()) {
     summary.status =
@@ -403,7 +422,7 @@ MarginalizationSummary marginalize(ceres::Problem* problem, const std::vector<do
     auto* cost = new MarginalizationPriorCost(std::move(differences), std::move(x_lin),
                                               std::move(prior.R), std::move(prior.r));
     summary.prior_cost = cost;
-    summary.prior_block = problem->AddResidualBlock(cost, nullptr, blanket);
+    summary.prior_block = problem->AddResidualBlock(cost, nullptr, blanket.blocks);
   }
   summary.total_ms = msSince(start);
   return summary;

@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace marglab {
 
@@ -34,5 +35,20 @@ class UsageError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+// One thing wrong with a run's input: a usage error (a command-line option; `message` names it)
+// or an input error at a file and line (empty file: about no file). Validators collect every
+// problem, then throwProblems reports them together.
+enum class ProblemKind { kUsage, kInput };
+struct Problem {
+  ProblemKind kind = ProblemKind::kInput;
+  std::string file;
+  int line = 0;
+  std::string message;
+};
+
+// Throws for problems.front() — UsageError(message), or InputError(file, line, message) — with
+// every further problem on its own line ("  also: ..."). Precondition: !problems.empty().
+[[noreturn]] void throwProblems(const std::vector<Problem>& problems);
 
 }  // namespace marglab

@@ -483,25 +483,34 @@ std::vector<ConfigProblem> EstimatorConfig::problems() const {
   return out;
 }
 
-void EstimatorConfig::validate() const {
-  const std::vector<ConfigProblem> list = problems();
-  if (list.empty()) return;
-  const ConfigProblem& first = list.front();
-  std::string message = first.message;
-  if (!first.related.empty()) {
-    std::vector<std::string> where;
-    for (const std::string& key : first.related) {
-      const auto it = origins.find(key);
-      where.push_back(key + " from " +
-                      (it == origins.end() ? "the default" : it->second.describe()));
+std::vector<Problem> EstimatorConfig::locatedProblems() const {
+  std::vector<Problem> out;
+  for (const ConfigProblem& p : problems()) {
+    std::string message = p.message;
+    if (!p.related.empty()) {
+      std::vector<std::string> where;
+      for (const std::string& key : p.related) {
+        const auto it = origins.find(key);
+        where.push_back(key + " from " +
+                        (it == origins.end() ? "the default" : it->second.describe()));
+      }
+      message += fmt::format(" ({})", fmt::join(where, ", "));
     }
-    message += fmt::format(" ({})", fmt::join(where, ", "));
+    const auto it = origins.find(p.key);
+    if (it == origins.end()) {
+      out.push_back({ProblemKind::kInput, "config", 0, message});
+    } else if (!it->second.option.empty()) {
+      out.push_back({ProblemKind::kUsage, "", 0, it->second.option + ": " + message});
+    } else {
+      out.push_back({ProblemKind::kInput, it->second.file, it->second.line, message});
+    }
   }
-  const auto it = origins.find(first.key);
-  if (it == origins.end()) throw InputError("config", 0, message);
-  if (!it->second.option.empty())
-    throw UsageError(fmt::format("{}: {}", it->second.option, message));
-  throw InputError(it->second.file, it->second.line, message);
+  return out;
+}
+
+void EstimatorConfig::validate() const {
+  const std::vector<Problem> list = locatedProblems();
+  if (!list.empty()) throwProblems(list);
 }
 
 std::string EstimatorConfig::checkValueText(const std::string& key, const std::string& text) {

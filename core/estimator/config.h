@@ -48,6 +48,7 @@
 #include <string>
 #include <vector>
 
+#include "core/common/error.h"
 #include "core/frontend/frontend_options.h"
 #include "core/imu/noise_profile.h"
 #include "core/linalg/flat_qr.h"
@@ -193,9 +194,11 @@ struct EstimatorConfig {
   // Every invalid value (range, finiteness) and violated relation of the whole config; empty when
   // it is valid.
   std::vector<ConfigProblem> problems() const;
-  // Throws for the first problem: UsageError when the offending value came from a command-line
-  // option, else InputError naming the TOML file and line it came from (line 0, file "config",
-  // for a default or a value set in code).
+  // The same, each with where its value came from: the command-line option (a usage error naming
+  // it), else the TOML file and line (file "config", line 0, for a default or a value set in code);
+  // a relation's message names every key involved with its origin.
+  std::vector<Problem> locatedProblems() const;
+  // throwProblems(locatedProblems()) unless it is empty: every problem in one error.
   void validate() const;
 
   // A command-line value for `key` checked against the key's range; "" when it is accepted, else

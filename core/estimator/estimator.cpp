@@ -20,13 +20,6 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-// The policy's lower bounds: a keyframe at most every frame, at least two VIO states.
-EstimatorConfig effectiveConfig(EstimatorConfig config) {
-  config.min_frames_after_kf = std::max(config.min_frames_after_kf, 1);
-  config.max_states = std::max(config.max_states, 2);
-  return config;
-}
-
 }  // namespace
 
 int MargEvent::numPoses() const {
@@ -41,7 +34,7 @@ SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorConfig& co
                                                        const StereoRig<double>& rig,
                                                        const SE3<double>& T_w_i_initial,
                                                        std::optional<ImuSetup> imu)
-    : config_(effectiveConfig(config)),
+    : config_(config),
       variant_(variant),
       window_(config, rig, std::move(imu)),
       policy_(config_),

@@ -219,15 +219,16 @@ class Parser {
 
   // The merged config of one run (config_file, [group.config], the override): each value was
   // checked against its range where it was read; here the relations between keys
-  // (docs/design.md §9), reported at the line of the group or override.
+  // (docs/design.md §9), every one reported at the line of the group or override.
   void checkMergedConfig(const std::string& config_toml, int line, const std::string& where) const {
     if (config_toml.empty()) return;
     EstimatorConfig probe;
     probe.loadTomlString(config_toml, "config");
     const std::vector<ConfigProblem> problems = probe.problems();
-    if (!problems.empty()) {
-      throw InputError(name_, line, where + ": config: " + problems.front().message);
-    }
+    if (problems.empty()) return;
+    std::string message = where + ": config: " + problems.front().message;
+    for (std::size_t i = 1; i < problems.size(); ++i) message += "; also: " + problems[i].message;
+    throw InputError(name_, line, message);
   }
 
   std::string resolveDataset(const toml::node& node) const {

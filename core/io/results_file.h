@@ -3,86 +3,16 @@
 // ResultsWriter, read by eigdump / tables / plots through ResultsReader, and from Python with h5py
 // or pandas (tools/scripts/check_results.py validates a file independently).
 //
-// Schema, schema_version = 2 (all times in seconds unless the name ends in _ns; t_ns are int64
-// nanoseconds of the dataset clock; positions in metres, world frame of the estimate / GT).
-// Version 2 added /sparsify, the marg_strategy attribute, precision "mixed", /frontend and the
-// frontend attribute; files of version 1 are read as runs with marg_strategy discard, simulated
-// tracks and no /sparsify or /frontend rows.
-//
-// /  attributes
-//   schema_version  int64   2
-//   marglab_version str     MARGLAB_VERSION_STRING;  git_sha str  MARGLAB_GIT_SHA (build time)
-//   created_utc     str     ISO-8601, e.g. "2024-05-01T12:34:56Z"
-//   dataset, sequence, variant, precision ("f32"|"f64"|"mixed"), mode ("vo"|"vio")   str
-//   seed            int64   simulation seed (bit pattern of the uint64)
-//   config_toml     str     the full effective estimator config (TOML)
-//   qr_threshold_mode str ("absolute"|"relative"|""), qr_threshold f64 (the value used, NaN: n/a)
-//   status          str     "ok" | "failed"
-//   failure_frame   int64   row of /frames where the run failed, −1 when ok
-//   failure_reason  str     "" when ok
-//   failure_kind    str     "numerical" | "tracking" ("" when ok; absent in older files: a failed
-//                           run's kind is "numerical"). tracking: the run lost the scene
-//                           (core/pipeline/run.h), without reference to ground truth
-//   marg_strategy   str     "discard" | "dense" | "nfr" (absent in older files: "discard")
-//   frontend        str     "images" | "simulated" | "tracks": where the feature tracks came from
-//                           (core/frontend/track_source.h; absent in older files: "simulated")
-//   isa             str     "sse2" | "avx2" | "avx512": the instruction set of the kernels
-//                           (core/linalg/isa.h; absent in older files, built for SSE2 by default)
-//   + RunMetadata::extra (str)
-// /frames  one row per processed frame (extendible, chunked along time):
-//   t_ns int64 (n) · is_keyframe uint8 (n) · n_landmarks, n_observations, lm_iterations int32 (n)
-//   cost_initial, cost_final f64 (n)       ½‖r‖² of the window before / after this frame's LM
-//   t_opt_s, t_marg_s f64 (n)              wall time of optimization / marginalization [s]
-//   p_est f64 (n,3)  estimated position of this frame right after its optimize + marginalize
-//   q_est f64 (n,4)  its orientation, quaternion in order x y z w (attribute "order")
-//   p_gt  f64 (n,3)  ground-truth position at t_ns (interpolated), NaN rows when none
-//   ate_error f64 (n) ‖p_gt − (R p_est + t)‖ after the final alignment (see /summary), NaN for
-//                    rows without GT or with non-finite p_est. Written by finish(): the writer
-//                    keeps p_est / p_gt in memory (48 bytes per frame) and aligns once at the end.
-// /marg  one row per marginalization event:
-//   frame_index int64   row of /frames of the frame whose processing marginalized
-//   t_ns int64          its timestamp
-//   prior_cols, prior_rows, rank, n_negative int32   n, rows of J_m (= n for squared storage),
-//                        numerical rank and #λ < −τ of H_m (core/diagnostics/prior_analysis.h)
-//   sigma_min, sigma_max, eig_tolerance f64          λ_min, λ_max, τ
-//   dEm f64 (m,7)       ΔE_m along x, y, z, roll, pitch, yaw, random (attribute "columns")
-// /marg/eigenvalues     ragged: values f64 [K] + offsets int64 [M+1]; event k's ascending
-//                       eigenvalues are values[offsets[k]:offsets[k+1]]
-// /marg/priors/<k>/     optional, the full double prior of event k (k = row of /marg):
-//   H_m (n,n), b_m (n), and for square-root storage J_m (rows,n), r_m (rows);
-//   layout_kind int32 (0 pose, 1 velocity, 2 bias_gyro, 3 bias_accel; attribute "kind_names"),
-//   layout_frame_id int64, layout_offset int32, layout_dim int32 — one row per variable block;
-//   attribute storage "sqrt"|"sq".
-// /sparsify  one row per keyframe marginalization of a run with marg_strategy dense or nfr (the
-//            group exists, with zero rows, for every run; Hsiung et al. 2018, Fig. 6b):
-//   frame_index, t_ns int64       as in /marg
-//   blanket_cols int32            columns of the dense prior Λ_t over the Markov blanket
-//   n_blanket_poses, n_blanket_landmarks int32
-//   nnz_dense int64               structural non-zeros of Λ_t (both triangles)
-//   nnz_sparse int64              of Λ_s = H_sᵀ Λ_r H_s (nfr) — equal to nnz_dense when kept dense
-//   kld f64                       D_KL(Λ_t ‖ Λ_s) [nats] (eq. 10); NaN when kept dense
-//   recovered uint8               1: the recovered factors replaced the prior; 0: kept dense
-//                                 (strategy dense, or nfr fell back — reason in the run log)
-//   t_schur_s, t_recovery_s, t_insert_s f64   wall time of the marginalization (Schur / flat QR)
-//                                 of the event, of the information recovery (eq. 16), and of
-//                                 inserting the factors into the window
-// /frontend  one row per frame the track source produced (zero rows when the writer was given
-//            none; absent in older files): for images,
-//            every tracked image, including those before the first frame with ground truth
-//            (rows before /frames' first t_ns); for simulated / track-file runs, the frames of
-//            the stream, with counts recomputed from it:
-//   t_ns int64                    frame timestamp
-//   n_features int32              observations of the frame (tracked + new)
-//   n_tracked, n_new int32        continued from the previous frame / detected in this frame
-//   n_stereo int32                with a right match
-//   t_frontend_s f64              front-end wall time (tracking, detection, stereo,
-//                                 undistortion; image decoding excluded), NaN when not measured
-// /summary  attributes
-//   ate_rmse f64 [m] (NaN without GT), n_ate_pairs, n_frames, n_marg int64,
-//   duration_s f64 (last − first t_ns of /frames), t_opt_total_s, t_marg_total_s f64,
-//   wall_time_s f64 (RunSummary, or t_opt_total_s + t_marg_total_s when not given),
-//   realtime_factor f64 = duration_s / wall_time_s (> 1: faster than real time),
-//   R_gt_est f64[9] (row-major), t_gt_est f64[3]: the alignment p_gt ≈ R p_est + t.
+// Schema, schema_version = 2: every root attribute, dataset and /summary attribute, with its type,
+// unit and description, is one row of the tables in core/io/results_schema.{h,cpp}; docs/design.md
+// §6 and tools/scripts/results_schema.json (the Python side) are generated from them. Version 2
+// added /sparsify, the marg_strategy attribute, precision "mixed", /frontend and the frontend
+// attribute; files of version 1 are read as runs with marg_strategy discard, simulated tracks and
+// no /sparsify or /frontend rows. Not in the tables: RunMetadata::extra (more root strings) and
+// the optional full priors /marg/priors/<k>/ (appendPriorMatrices: H_m (n,n), b_m (n), for
+// square-root storage J_m (rows,n) and r_m (rows); layout_kind int32 (attribute "kind_names"),
+// layout_frame_id int64, layout_offset int32, layout_dim int32, one row per variable block;
+// attribute storage "sqrt"|"sq").
 //
 // Atomicity: the file is written under a temporary name and renamed onto the path by finish()
 // (h5::File::commit). A ResultsWriter destroyed without finish() (exception, crash path) leaves
@@ -137,6 +67,8 @@ struct FrameRecord {
   Eigen::Vector3d p_est = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_est = Eigen::Quaterniond::Identity();
   Eigen::Vector3d p_gt = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  // Written by finish() (the alignment needs every frame); appendFrame ignores it.
+  double ate_error = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct MargRecord {
@@ -281,7 +213,8 @@ class ResultsReader {
   explicit ResultsReader(const std::string& path);
   const std::string& path() const { return path_; }
   const RunInfo& info() const { return info_; }
-  FrameColumns frames() const;
+  std::vector<FrameRecord> frameRecords() const;
+  FrameColumns frames() const;  // the same rows as columns
   std::size_t margCount() const;
   std::vector<MargRecord> margs(bool with_eigenvalues = true) const;
   MargRecord marg(std::size_t k) const;  // with eigenvalues; InputError when k ≥ margCount()

@@ -252,13 +252,15 @@ void recordFrame(int k, const TrackFrame& frame, const FrameResult& result, Fram
 }
 
 template <typename Scalar>
-RunOutcome runWith(const RunOptions& options, TrackSource& source, const EstimatorConfig& config) {
+RunOutcome runWith(const RunOptions& options, TrackSource& source) {
+  const EstimatorConfig& config = options.config;
   const Sequence& sequence = source.sequence;
   const TrajectoryFunction& trajectory = *source.trajectory;
   RunOutcome outcome;
   outcome.frontend = source.frontend;
   const bool vio = options.mode == RunMode::kVio;
   outcome.vio = vio;
+  outcome.marg_strategy = config.marg_strategy;
   const SE3<double> T_b_c0 = cameraExtrinsic(sequence.calib.cam0);
   // VIO estimates the body (IMU) frame, VO the left camera: the ATE compares like with like.
   const Trajectory gt_est = vio ? sequence.gt : cameraGroundTruth(sequence.gt, T_b_c0);
@@ -348,49 +350,75 @@ std::string tumPathFor(const std::string& results_path) {
   return base + ".tum";
 }
 
-RunOutcome runSequence(const RunOptions& options) {
-  TrackSource source = obtainTracks(trackSourceOptions(options));
-  const Sequence& sequence = source.sequence;
-  EstimatorConfig config = options.config;
+RunOptions resolveRunOptions(const RunOptions& options, const Sequence& sequence,
+                             bool has_ground_truth) {
+  RunOptions resolved = options;
+  EstimatorConfig& config = resolved.config;
   config.frontend = resolveFrontendOptions(config.frontend, sequence.kind);
   if (config.min_frames_after_kf < 0)
     config.min_frames_after_kf = sequence.defaults.min_frames_after_kf;
   if (config.max_position_error_m < 0) {
     config.max_position_error_m = sequence.defaults.max_position_error_m;
   }
-  RunOptions resolved = options;
   if (resolved.mode == RunMode::kAuto) {
     // Without ground truth there is no initial velocity and gravity direction: VO.
-    resolved.mode = sequence.kind == DatasetKind::kKitti || !source.has_ground_truth
-                        ? RunMode::kVo
-                        : RunMode::kVio;
+    resolved.mode =
+        sequence.kind == DatasetKind::kKitti || !has_ground_truth ? RunMode::kVo : RunMode::kVio;
   }
-  if (resolved.mode == RunMode::kVio && !source.has_ground_truth) {
-    throw InputError(sequence.directory, 0,
-                     "VIO starts from the ground-truth state at its first frame, and this "
-                     "sequence has no ground truth (use --mode vo)");
+  const std::vector<Problem> problems = runProblems(resolved, sequence, has_ground_truth);
+  if (!problems.empty()) throwProblems(problems);
+  return resolved;
+}
+
+std::vector<Problem> runProblems(const RunOptions& options, const Sequence& sequence,
+                                 bool has_ground_truth) {
+  std::vector<Problem> out = options.config.locatedProblems();
+  const auto usage = [&out](std::string message) {
+    out.push_back({ProblemKind::kUsage, "", 0, std::move(message)});
+  };
+  if (!options.tracks_file.empty() && options.frontend != FrontendKind::kAuto) {
+    usage(
+        fmt::format("--tracks FILE and --frontend {} both say where the tracks come from: give "
+                    "one of them",
+                    options.frontend == FrontendKind::kImages ? "images" : "simulated"));
   }
-  if (resolved.mode == RunMode::kVio && sequence.kind == DatasetKind::kKitti) {
-    throw InputError(sequence.directory, 0,
-                     "KITTI odometry has no IMU: VIO needs EuRoC or TUM-VI (use --mode vo)");
-  }
-  if (resolved.mode == RunMode::kVo && resolved.imu == ImuSource::kReal) {
-    throw UsageError("--imu real needs VIO (--mode vio)");
-  }
-  if (config.marg_strategy != MargStrategy::kDiscard) {
-    if (resolved.mode == RunMode::kVo) {
-      throw UsageError(fmt::format("marginalization strategy {} needs VIO (EuRoC or TUM-VI)",
-                                   toString(config.marg_strategy)));
+  // A window the run can never reach would be captured silently never.
+  const int frames =
+      options.max_frames > 0 ? options.max_frames : static_cast<int>(sequence.cam_t_ns.size());
+  for (const int frame : options.dump_windows) {
+    if (frame >= frames) {
+      usage(fmt::format("--dump-windows {}: the run has {} frames ({}), expected indices below",
+                        frame, frames, options.max_frames > 0 ? "--frames" : sequence.name));
     }
-    // A captured window holds hosted landmarks and a prior over frame states only.
-    if (!options.dump_windows.empty()) {
-      throw UsageError("window capture (--dump-windows) needs marginalization strategy discard");
-    }
   }
-  if (options.variant.floatState()) {
-    return runWith<float>(resolved, source, config);
+  const bool vio = options.mode == RunMode::kVio;
+  if (vio && !has_ground_truth) {
+    out.push_back({ProblemKind::kInput, sequence.directory, 0,
+                   "VIO starts from the ground-truth state at its first frame, and this sequence "
+                   "has no ground truth (use --mode vo)"});
   }
-  return runWith<double>(resolved, source, config);
+  if (vio && sequence.kind == DatasetKind::kKitti) {
+    out.push_back({ProblemKind::kInput, sequence.directory, 0,
+                   "KITTI odometry has no IMU: VIO needs EuRoC or TUM-VI (use --mode vo)"});
+  }
+  if (!vio && options.imu == ImuSource::kReal) usage("--imu real needs VIO (--mode vio)");
+  const MargStrategy strategy = options.config.marg_strategy;
+  if (strategy != MargStrategy::kDiscard && !vio) {
+    usage(
+        fmt::format("marginalization strategy {} needs VIO (EuRoC or TUM-VI)", toString(strategy)));
+  }
+  // A captured window holds hosted landmarks and a prior over frame states only.
+  if (strategy != MargStrategy::kDiscard && !options.dump_windows.empty()) {
+    usage("window capture (--dump-windows) needs marginalization strategy discard");
+  }
+  return out;
+}
+
+RunOutcome runSequence(const RunOptions& options) {
+  TrackSource source = obtainTracks(trackSourceOptions(options));
+  const RunOptions resolved = resolveRunOptions(options, source.sequence, source.has_ground_truth);
+  if (options.variant.floatState()) return runWith<float>(resolved, source);
+  return runWith<double>(resolved, source);
 }
 
 }  // namespace marglab

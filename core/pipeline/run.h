@@ -41,6 +41,10 @@ enum class RunMode { kAuto, kVo, kVio };
 // The IMU of a VIO run: synthesized from the spline (default), or the sequence's recording.
 enum class ImuSource { kSynthetic, kReal };
 
+// Everything a run is given: dataset, variant, config (defaults < --config FILE < options, each
+// key's origin recorded) and the command line's other choices. runSequence resolves it once
+// against the sequence (resolveRunOptions) and validates it once (runProblems); every step after
+// that reads the resolved options only.
 struct RunOptions {
   std::string dataset;  // "kitti/10", "euroc/MH_01_easy", or a folder in original layout
   Variant variant;
@@ -68,6 +72,7 @@ struct RunOptions {
 struct RunOutcome {
   RunStatus status = RunStatus::kOk;
   bool vio = false;  // the mode that ran
+  MargStrategy marg_strategy = MargStrategy::kDiscard;
   std::int64_t failure_frame = -1;
   std::string failure_reason;
   std::string failure_kind;  // "numerical" | "tracking" (tracking_monitor.h); "" when ok
@@ -79,16 +84,33 @@ struct RunOutcome {
   std::int64_t n_keyframe_events = 0;  // /sparsify rows (strategies dense, nfr)
 };
 
-// Throws InputError for bad input (unknown dataset, sequence without trajectory, unwritable
-// output); numerical failure is a result (status failed), not an exception.
+// Every problem of resolved options (IsValid-style; empty: valid), in one list: the config's
+// ranges and relations (EstimatorConfig::locatedProblems) and the relations between the options
+// and with the sequence — --tracks with --frontend, --dump-windows within the run's frames and
+// only with strategy discard, VIO only with ground truth and not on KITTI, --imu real and
+// strategies other than discard only with VIO.
+std::vector<Problem> runProblems(const RunOptions& options, const Sequence& sequence,
+                                 bool has_ground_truth);
+
+// The options with what depends on the sequence filled in — mode auto → vo | vio, the config's
+// dataset defaults (keyframe spacing, position bound, front-end settings) — then validated: every
+// problem of runProblems in one error (throwProblems: UsageError or InputError).
+RunOptions resolveRunOptions(const RunOptions& options, const Sequence& sequence,
+                             bool has_ground_truth);
+
+// Obtains the tracks, resolves and validates the options (resolveRunOptions) and runs. Throws
+// InputError for bad input (unknown dataset, sequence without trajectory, unwritable output) and
+// UsageError / InputError for invalid options; numerical failure is a result (status failed), not
+// an exception.
 RunOutcome runSequence(const RunOptions& options);
 
 // The IMU stream and first state of a VIO run, and what they are (provenance: root attributes
-// imu, initial_biases, initial_state, imu_noise). The densities are those of
-// options.config.imu_noise_profile, for the synthetic IMU and the estimator's weights alike. The
-// first state is the ground truth at t0_ns (pose and velocity from the trajectory) with zero
-// biases, or the recorded ground-truth biases for the real IMU where the sequence has them — the
-// same for every variant. Throws InputError (a profile without calibration, too few real samples).
+// imu, initial_biases, initial_state, imu_noise). `options` are resolved (resolveRunOptions).
+// The densities are those of options.config.imu_noise_profile, for the synthetic IMU and the
+// estimator's weights alike. The first state is the ground truth at t0_ns (pose and velocity from
+// the trajectory) with zero biases, or the recorded ground-truth biases for the real IMU where the
+// sequence has them — the same for every variant. Throws InputError (a profile without calibration,
+// too few real samples).
 ImuSetup vioImuSetup(const RunOptions& options, const Sequence& sequence,
                      const TrajectoryFunction& trajectory, std::int64_t t0_ns,
                      std::map<std::string, std::string>* provenance);

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <unordered_set>
@@ -94,9 +95,92 @@ void writeTracksHdf5(const std::string& path, const TrackStream& stream, bool wi
   file.commit();
 }
 
+namespace {
+
+// The /observations columns of a track file (one row per observation, offsets per frame), with
+// their lengths checked against each other.
+struct ObservationColumns {
+  std::vector<int64_t> t_ns, offsets, track_id, landmark_id;
+  std::vector<double> u0, v0, u1, v1;
+  std::vector<uint8_t> has_right, is_outlier;
+};
+
+ObservationColumns readObservationColumns(const h5::File& file,
+                                          const std::function<void(const std::string&)>& fail) {
+  ObservationColumns c;
+  c.t_ns = file.readVector<int64_t>("frames/t_ns");
+  const h5::Group obs = file.openGroup("observations");
+  c.offsets = obs.readVector<int64_t>("offsets");
+  c.track_id = obs.readVector<int64_t>("track_id");
+  c.u0 = obs.readVector<double>("u0");
+  c.v0 = obs.readVector<double>("v0");
+  c.has_right = obs.readVector<uint8_t>("has_right");
+  c.u1 = obs.readVector<double>("u1");
+  c.v1 = obs.readVector<double>("v1");
+  const std::size_t K = c.track_id.size();
+  c.landmark_id = obs.exists("landmark_id") ? obs.readVector<int64_t>("landmark_id")
+                                            : std::vector<int64_t>(K, -1);
+  c.is_outlier =
+      obs.exists("is_outlier") ? obs.readVector<uint8_t>("is_outlier") : std::vector<uint8_t>(K, 0);
+
+  if (c.offsets.size() != c.t_ns.size() + 1) {
+    fail(fmt::format("/observations/offsets has {} entries, expected {} (frames + 1)",
+                     c.offsets.size(), c.t_ns.size() + 1));
+  }
+  const std::pair<const char*, std::size_t> columns[] = {{"u0", c.u0.size()},
+                                                         {"v0", c.v0.size()},
+                                                         {"has_right", c.has_right.size()},
+                                                         {"u1", c.u1.size()},
+                                                         {"v1", c.v1.size()},
+                                                         {"landmark_id", c.landmark_id.size()},
+                                                         {"is_outlier", c.is_outlier.size()}};
+  for (const auto& [name, size] : columns) {
+    if (size != K) {
+      fail(fmt::format("/observations/{} has {} rows, track_id has {}", name, size, K));
+    }
+  }
+  if (c.offsets.front() != 0 || c.offsets.back() != static_cast<int64_t>(K)) {
+    fail(fmt::format("/observations/offsets must start at 0 and end at {}", K));
+  }
+  return c;
+}
+
+// Observation row k, checked: finite left pixel, right pixel finite exactly when has_right, a
+// landmark id within /landmarks_w (n_landmarks; 0: the file has none).
+StereoObservation observationAt(const ObservationColumns& c, std::size_t k, std::size_t n_landmarks,
+                                const std::function<void(const std::string&)>& fail) {
+  if (!std::isfinite(c.u0[k]) || !std::isfinite(c.v0[k])) {
+    fail(fmt::format("/observations row {}: u0, v0 must be finite", k));
+  }
+  if (c.has_right[k] > 1) fail(fmt::format("/observations/has_right[{}] is not 0/1", k));
+  const bool right_finite = std::isfinite(c.u1[k]) && std::isfinite(c.v1[k]);
+  const bool right_nan = std::isnan(c.u1[k]) && std::isnan(c.v1[k]);
+  if (c.has_right[k] ? !right_finite : !right_nan) {
+    fail(
+        fmt::format("/observations row {}: u1, v1 must be finite when has_right = 1 and NaN "
+                    "when 0",
+                    k));
+  }
+  StereoObservation o;
+  o.track_id = c.track_id[k];
+  o.uv0 = Eigen::Vector2d(c.u0[k], c.v0[k]);
+  o.has_right = c.has_right[k] != 0;
+  if (o.has_right) o.uv1 = Eigen::Vector2d(c.u1[k], c.v1[k]);
+  o.landmark_id = c.landmark_id[k];
+  o.is_outlier = c.is_outlier[k] != 0;
+  if (n_landmarks > 0 && o.landmark_id >= static_cast<int64_t>(n_landmarks)) {
+    fail(fmt::format("/observations/landmark_id[{}] = {} beyond /landmarks_w", k, o.landmark_id));
+  }
+  return o;
+}
+
+}  // namespace
+
 TrackStream readTracksHdf5(const std::string& path) {
   const h5::File file = h5::File::openReadOnly(path);
-  auto fail = [&](const std::string& what) { throw InputError(path, 0, what); };
+  const std::function<void(const std::string&)> fail = [&](const std::string& what) {
+    throw InputError(path, 0, what);
+  };
   if (!file.hasAttr("format") || file.attr<std::string>("format") != kTrackFormatName) {
     fail(fmt::format("not a track file: attribute format = \"{}\" expected", kTrackFormatName));
   }
@@ -108,41 +192,10 @@ TrackStream readTracksHdf5(const std::string& path) {
   TrackStream stream;
   if (file.hasAttr("sequence")) stream.sequence = file.attr<std::string>("sequence");
   if (file.hasAttr("seed")) stream.seed = static_cast<uint64_t>(file.attr<int64_t>("seed"));
-
-  const auto t_ns = file.readVector<int64_t>("frames/t_ns");
-  const h5::Group obs = file.openGroup("observations");
-  const auto offsets = obs.readVector<int64_t>("offsets");
-  const auto track_id = obs.readVector<int64_t>("track_id");
-  const auto u0 = obs.readVector<double>("u0");
-  const auto v0 = obs.readVector<double>("v0");
-  const auto has_right = obs.readVector<uint8_t>("has_right");
-  const auto u1 = obs.readVector<double>("u1");
-  const auto v1 = obs.readVector<double>("v1");
-  const std::size_t K = track_id.size();
-  const auto landmark_id = obs.exists("landmark_id") ? obs.readVector<int64_t>("landmark_id")
-                                                     : std::vector<int64_t>(K, -1);
-  const auto is_outlier =
-      obs.exists("is_outlier") ? obs.readVector<uint8_t>("is_outlier") : std::vector<uint8_t>(K, 0);
-
-  if (offsets.size() != t_ns.size() + 1) {
-    fail(fmt::format("/observations/offsets has {} entries, expected {} (frames + 1)",
-                     offsets.size(), t_ns.size() + 1));
-  }
-  const std::pair<const char*, std::size_t> columns[] = {{"u0", u0.size()},
-                                                         {"v0", v0.size()},
-                                                         {"has_right", has_right.size()},
-                                                         {"u1", u1.size()},
-                                                         {"v1", v1.size()},
-                                                         {"landmark_id", landmark_id.size()},
-                                                         {"is_outlier", is_outlier.size()}};
-  for (const auto& [name, size] : columns) {
-    if (size != K) {
-      fail(fmt::format("/observations/{} has {} rows, track_id has {}", name, size, K));
-    }
-  }
-  if (offsets.front() != 0 || offsets.back() != static_cast<int64_t>(K)) {
-    fail(fmt::format("/observations/offsets must start at 0 and end at {}", K));
-  }
+  const ObservationColumns c = readObservationColumns(file, fail);
+  const std::vector<int64_t>& t_ns = c.t_ns;
+  const std::vector<int64_t>& offsets = c.offsets;
+  const std::size_t K = c.track_id.size();
 
   if (file.exists("landmarks_w")) {
     const auto xyz = file.readMatrix<double>("landmarks_w");
@@ -164,31 +217,7 @@ TrackStream readTracksHdf5(const std::string& path) {
     frame.t_ns = t_ns[i];
     for (auto k = static_cast<std::size_t>(offsets[i]);
          k < static_cast<std::size_t>(offsets[i + 1]); ++k) {
-      if (!std::isfinite(u0[k]) || !std::isfinite(v0[k])) {
-        fail(fmt::format("/observations row {}: u0, v0 must be finite", k));
-      }
-      if (has_right[k] > 1) fail(fmt::format("/observations/has_right[{}] is not 0/1", k));
-      const bool right_finite = std::isfinite(u1[k]) && std::isfinite(v1[k]);
-      const bool right_nan = std::isnan(u1[k]) && std::isnan(v1[k]);
-      if (has_right[k] ? !right_finite : !right_nan) {
-        fail(
-            fmt::format("/observations row {}: u1, v1 must be finite when has_right = 1 and NaN "
-                        "when 0",
-                        k));
-      }
-      StereoObservation o;
-      o.track_id = track_id[k];
-      o.uv0 = Eigen::Vector2d(u0[k], v0[k]);
-      o.has_right = has_right[k] != 0;
-      if (o.has_right) o.uv1 = Eigen::Vector2d(u1[k], v1[k]);
-      o.landmark_id = landmark_id[k];
-      o.is_outlier = is_outlier[k] != 0;
-      if (!stream.landmarks_w.empty() &&
-          o.landmark_id >= static_cast<int64_t>(stream.landmarks_w.size())) {
-        fail(fmt::format("/observations/landmark_id[{}] = {} beyond /landmarks_w", k,
-                         o.landmark_id));
-      }
-      frame.observations.push_back(o);
+      frame.observations.push_back(observationAt(c, k, stream.landmarks_w.size(), fail));
     }
     validateFrame(path, frame, [&](std::size_t k) {
       return std::make_pair(0, fmt::format("/observations row {}: ", offsets[i] + k));

@@ -194,17 +194,85 @@ Cloud indoorPoints(const std::vector<PathSample>& path, const WorldOptions& o, S
   return cloud;
 }
 
-Cloud streetPoints(const std::vector<PathSample>& path, const WorldOptions& o, SimRandom& rng) {
-  // Stations every station_spacing metres of arc length.
+// Stations every station_spacing metres of arc length.
+std::vector<const PathSample*> streetStations(const std::vector<PathSample>& path, double spacing) {
   std::vector<const PathSample*> stations{&path.front()};
   double arc = 0;
   for (std::size_t i = 1; i < path.size(); ++i) {
     arc += (path[i].p_w - path[i - 1].p_w).norm();
-    if (arc >= o.station_spacing) {
+    if (arc >= spacing) {
       stations.push_back(&path[i]);
       arc = 0;
     }
   }
+  return stations;
+}
+
+// The street between two stations: forward f and left l in the plane normal to up u, the ground
+// point g below the camera, and the length of the section.
+struct StreetSection {
+  Eigen::Vector3d f, l, u, g;
+  double step = 0;
+};
+
+struct Building {
+  double remaining = 0;  // [m] until the next building starts
+  double offset = 0;     // 0: gap
+};
+
+// One side's building along a section (sign +1: left, −1: right): a new building or gap where the
+// last one ended, its wall and facade points. Returns the ground's extent on that side.
+double addBuildingSide(Building& b, double sign, const StreetSection& sec, const WorldOptions& o,
+                       const PathIndex& index, SimRandom& rng, Cloud* cloud) {
+  const Eigen::Vector3d &f = sec.f, &l = sec.l, &u = sec.u, &g = sec.g;
+  if (b.remaining <= 0) {
+    b.remaining = rng.uniform(o.building_length_min, o.building_length_max);
+    b.offset = rng.bernoulli(o.facade_gap_probability)
+                   ? 0.0
+                   : rng.uniform(o.facade_offset_min, o.facade_offset_max);
+  }
+  b.remaining -= sec.step;
+  if (b.offset <= 0) return o.ground_half_width;
+  // The wall occludes only where it is away from the path (as its points).
+  const WallSegment wall{g + sign * b.offset * l, g + sign * b.offset * l + sec.step * f};
+  if (!index.near(wall.a_w) && !index.near(wall.b_w) && !index.near(0.5 * (wall.a_w + wall.b_w))) {
+    cloud->walls.push_back(wall);
+  }
+  const auto n = static_cast<int64_t>(std::llround(sec.step * o.facade_height * o.facade_density));
+  for (int64_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d q = g + sign * b.offset * l + rng.uniform(0, o.facade_height) * u +
+                              rng.uniform(0, sec.step) * f;
+    if (!index.near(q)) cloud->add(q, -sign * l);
+  }
+  return std::min(b.offset, o.ground_half_width);
+}
+
+// The ground between the two sides' extents and the far points of a section.
+void addGroundAndFarPoints(const StreetSection& sec, const double ground_extent[2],
+                           const WorldOptions& o, const PathIndex& index, SimRandom& rng,
+                           Cloud* cloud) {
+  const Eigen::Vector3d &f = sec.f, &l = sec.l, &u = sec.u, &g = sec.g;
+  const double width = ground_extent[0] + ground_extent[1];
+  const auto n_ground = static_cast<int64_t>(std::llround(sec.step * width * o.ground_density));
+  for (int64_t i = 0; i < n_ground; ++i) {
+    cloud->add(
+        g + rng.uniform(-ground_extent[1], ground_extent[0]) * l + rng.uniform(0, sec.step) * f, u);
+  }
+  // Far points: a Poisson-like count with the requested mean (floor + Bernoulli remainder).
+  const double mean_far = o.far_points_per_station * sec.step / o.station_spacing;
+  const auto n_far =
+      static_cast<int64_t>(mean_far) + (rng.bernoulli(mean_far - std::floor(mean_far)) ? 1 : 0);
+  for (int64_t i = 0; i < n_far; ++i) {
+    const double r = rng.uniform(o.far_min, o.far_max);
+    const double phi = rng.uniform(0, 2 * SimRandom::kPi);
+    const Eigen::Vector3d q =
+        g + r * (std::cos(phi) * f + std::sin(phi) * l) + rng.uniform(0, o.far_height) * u;
+    if (!index.near(q)) cloud->add(q, Eigen::Vector3d::Zero());
+  }
+}
+
+Cloud streetPoints(const std::vector<PathSample>& path, const WorldOptions& o, SimRandom& rng) {
+  const std::vector<const PathSample*> stations = streetStations(path, o.station_spacing);
   double length = 0;
   for (std::size_t k = 1; k < stations.size(); ++k) {
     length += (stations[k]->p_w - stations[k - 1]->p_w).norm();
@@ -218,68 +286,23 @@ Cloud streetPoints(const std::vector<PathSample>& path, const WorldOptions& o, S
   const PathIndex index(path, o.path_clearance, true, mean_up);
 
   Cloud cloud;
-  struct Building {
-    double remaining = 0;  // [m] until the next building starts
-    double offset = 0;     // 0: gap
-  };
   Building side[2];
   for (std::size_t k = 0; k + 1 < stations.size(); ++k) {
+    StreetSection sec;
     const Eigen::Vector3d p = stations[k]->p_w;
-    const Eigen::Vector3d u = (stations[k]->R_w_b * o.up_b).normalized();
-    Eigen::Vector3d f = stations[k + 1]->p_w - p;
-    const double step = f.norm();
-    f -= u.dot(f) * u;
-    if (!(f.norm() > 1e-6 * std::max(step, 1.0))) continue;
-    f.normalize();
-    const Eigen::Vector3d l = u.cross(f);
-    const Eigen::Vector3d g = p - o.camera_height * u;
-
+    sec.u = (stations[k]->R_w_b * o.up_b).normalized();
+    sec.f = stations[k + 1]->p_w - p;
+    sec.step = sec.f.norm();
+    sec.f -= sec.u.dot(sec.f) * sec.u;
+    if (!(sec.f.norm() > 1e-6 * std::max(sec.step, 1.0))) continue;
+    sec.f.normalize();
+    sec.l = sec.u.cross(sec.f);
+    sec.g = p - o.camera_height * sec.u;
     double ground_extent[2];
     for (int s = 0; s < 2; ++s) {
-      Building& b = side[s];
-      if (b.remaining <= 0) {
-        b.remaining = rng.uniform(o.building_length_min, o.building_length_max);
-        b.offset = rng.bernoulli(o.facade_gap_probability)
-                       ? 0.0
-                       : rng.uniform(o.facade_offset_min, o.facade_offset_max);
-      }
-      b.remaining -= step;
-      const double sign = s == 0 ? 1.0 : -1.0;
-      ground_extent[s] =
-          b.offset > 0 ? std::min(b.offset, o.ground_half_width) : o.ground_half_width;
-      if (b.offset > 0) {
-        // The wall occludes only where it is away from the path (as its points).
-        const WallSegment wall{g + sign * b.offset * l, g + sign * b.offset * l + step * f};
-        if (!index.near(wall.a_w) && !index.near(wall.b_w) &&
-            !index.near(0.5 * (wall.a_w + wall.b_w))) {
-          cloud.walls.push_back(wall);
-        }
-        const auto n =
-            static_cast<int64_t>(std::llround(step * o.facade_height * o.facade_density));
-        for (int64_t i = 0; i < n; ++i) {
-          const Eigen::Vector3d q = g + sign * b.offset * l + rng.uniform(0, o.facade_height) * u +
-                                    rng.uniform(0, step) * f;
-          if (!index.near(q)) cloud.add(q, -sign * l);
-        }
-      }
+      ground_extent[s] = addBuildingSide(side[s], s == 0 ? 1.0 : -1.0, sec, o, index, rng, &cloud);
     }
-    const double width = ground_extent[0] + ground_extent[1];
-    const auto n_ground = static_cast<int64_t>(std::llround(step * width * o.ground_density));
-    for (int64_t i = 0; i < n_ground; ++i) {
-      cloud.add(g + rng.uniform(-ground_extent[1], ground_extent[0]) * l + rng.uniform(0, step) * f,
-                u);
-    }
-    // Far points: a Poisson-like count with the requested mean (floor + Bernoulli remainder).
-    const double mean_far = o.far_points_per_station * step / o.station_spacing;
-    const auto n_far =
-        static_cast<int64_t>(mean_far) + (rng.bernoulli(mean_far - std::floor(mean_far)) ? 1 : 0);
-    for (int64_t i = 0; i < n_far; ++i) {
-      const double r = rng.uniform(o.far_min, o.far_max);
-      const double phi = rng.uniform(0, 2 * SimRandom::kPi);
-      const Eigen::Vector3d q =
-          g + r * (std::cos(phi) * f + std::sin(phi) * l) + rng.uniform(0, o.far_height) * u;
-      if (!index.near(q)) cloud.add(q, Eigen::Vector3d::Zero());
-    }
+    addGroundAndFarPoints(sec, ground_extent, o, index, rng, &cloud);
   }
   return cloud;
 }

@@ -337,6 +337,23 @@ TEST_F(RunInputs, UnboundedCountsAreUsageErrors) {
   EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
 }
 
+// The run's options are validated in one place (resolveRunOptions), which reports every problem:
+// here the strategy nfr, which needs VIO (KITTI runs VO), and window capture, which needs discard.
+TEST_F(RunInputs, EveryProblemOfTheOptionsIsReported) {
+  const auto result = runCli(
+      "run --dataset kitti/05 --variant ns-qr-sqrt-f64 --frames 5 "
+      "--marg-strategy nfr --dump-windows 1 -o " +
+      quote(dir_ / "x.h5"));
+  EXPECT_EQ(result.exit_code, 2) << result.output;
+  EXPECT_NE(result.output.find("marginalization strategy nfr needs VIO"), std::string::npos)
+      << result.output;
+  EXPECT_NE(result.output.find("also: window capture (--dump-windows) needs marginalization "
+                               "strategy discard"),
+            std::string::npos)
+      << result.output;
+  EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
+}
+
 // Minor item of issue #32: `datasets simulate` refused euroc/V1_01_easy_images ("no trajectory")
 // though `run --frontend simulated` uses the ground truth of its shipped recording.
 TEST_F(RunInputs, SimulateUsesTheGroundTruthRunUses) {

@@ -230,6 +230,33 @@ TEST(ConfigValidation, LambdaOrderIsARelationNamingTheFileLine) {
   }
 }
 
+// Every problem is reported, not only the first: two violated relations from one file, and a
+// command-line value on top.
+TEST(ConfigValidation, TwoProblemsAtOnceAreBothReported) {
+  EstimatorConfig config;
+  config.loadTomlString(
+      "[lm]\nlambda_min = 10\nlambda_max = 1\n[marginalization]\nnfr_rigid_deflation = true\n",
+      "two.toml");
+  ASSERT_EQ(config.locatedProblems().size(), 2u);
+  try {
+    config.validate();
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 2) << e.what();
+    EXPECT_TRUE(contains(e.what(), "expected lambda_min <= lambda_init <= lambda_max")) << e.what();
+    EXPECT_TRUE(contains(e.what(),
+                         "\n  also: two.toml:5: marginalization.nfr_rigid_deflation = "
+                         "true with strategy = \"discard\""))
+        << e.what();
+  }
+  config.lm_threads = 0;
+  config.setOrigin("lm.threads", "--threads");
+  const std::vector<Problem> problems = config.locatedProblems();
+  ASSERT_EQ(problems.size(), 3u);
+  EXPECT_EQ(problems[0].kind, ProblemKind::kUsage);
+  EXPECT_EQ(problems[0].message, "--threads: lm.threads = 0: expected an integer in [1, 256]");
+}
+
 TEST(ConfigValidation, RelativeQrThresholdMustBeBelowOne) {
   EstimatorConfig config;
   config.loadTomlString("[marginalization]\nqr_threshold_mode = \"relative\"\nqr_threshold = 1\n",

@@ -48,6 +48,11 @@ TEST(SweepConfigValues, RelationOfTheMergedConfigNamesTheOverride) {
   // Without overrides: the group's line.
   expectRejected(std::string(kHead) + "[group.config]\nlm = { lambda_min = 10, lambda_max = 1 }\n",
                  2, "group 'g': config: lm.lambda_min = 10");
+  // Two relations at once: both are reported.
+  expectRejected(std::string(kHead) +
+                     "[group.config]\nlm = { lambda_min = 10, lambda_max = 1 }\n"
+                     "marginalization = { nfr_rigid_deflation = true }\n",
+                 2, "; also: marginalization.nfr_rigid_deflation = true");
   // The same keys in a valid order pass.
   EXPECT_NO_THROW(parseSweep(std::string(kHead) + "[group.config]\nlm = { lambda_min = 1e-5 }\n",
                              "sweep.toml", "/nonexistent"));

@@ -3,23 +3,25 @@
 
 Usage: check_results.py RUN.h5
 
-Checks that every attribute and dataset of the schema exists with consistent shapes, that the
-ragged /marg/eigenvalues agree with /marg (one ascending row of prior_cols values per event), that
+Checks that every attribute and dataset of the schema exists with consistent shapes, that the ragged
+/marg/eigenvalues agree with /marg (one ascending row of prior_cols values per event), that
 /sparsify agrees with the marg_strategy attribute (equal column lengths, rows only for dense / nfr,
-frame_index within /frames, nnz_sparse <= nnz_dense and KLD >= 0 where the prior was recovered,
-KLD NaN where it was kept dense, the optional info_dense / info_sparse both (rows, 7) and equal
-where it was kept dense), that /frontend agrees with the frontend attribute (images /
-simulated / tracks; equal column lengths, t_ns strictly increasing and, unless it has zero rows,
-containing every /frames t_ns, n_features = n_tracked + n_new, 0 <= n_stereo <= n_features, t_frontend_s finite and >= 0 for
-images; both absent in files written before the front-end existed), that the isa attribute, when
-present, names an ISA (sse2 / avx2 / avx512), and recomputes the ATE from /frames (p_est vs p_gt, rows where both are finite) with a numpy
-Umeyama/Kabsch alignment without scale (reflection fix diag(1, 1, det(U V^T))), comparing it with
-/summary ate_rmse and /frames/ate_error. Prints "OK ..." and exits 0, or lists every problem and
-exits 1 (2 for usage errors).
+frame_index within /frames, nnz_sparse <= nnz_dense and KLD >= 0 where the prior was recovered, KLD
+NaN where it was kept dense, the optional info_dense / info_sparse both (rows, 7) and equal where it
+was kept dense), that /frontend agrees with the frontend attribute (images / simulated / tracks;
+equal column lengths, t_ns strictly increasing and, unless it has zero rows, containing every
+/frames t_ns, n_features = n_tracked + n_new, 0 <= n_stereo <= n_features, t_frontend_s finite and
+>= 0 for images; both absent in files written before the front-end existed), that every attribute
+with a fixed set of values (status, isa, mode, ...) has one of them, and recomputes the ATE from
+/frames (p_est vs p_gt, rows where both are finite) with a numpy Umeyama/Kabsch alignment without
+scale (reflection fix diag(1, 1, det(U V^T))), comparing it with /summary ate_rmse and
+/frames/ate_error. Prints "OK ..." and exits 0, or lists every problem and exits 1 (2 for usage
+errors).
 
-The schema's names come from marglab_results.py (the one place they are listed on the Python
-side); the checks themselves read the file with h5py directly and recompute everything they
-compare, independently of the C++ writer and of that reader. Needs only numpy and h5py.
+The schema's names and allowed attribute values come from marglab_results.py, which reads them from
+results_schema.json (generated from the C++ tables, core/io/results_schema.cpp); the checks
+themselves read the file with h5py directly and recompute everything they compare, independently of
+the C++ writer and of that reader. Needs only numpy and h5py.
 """
 import os
 import sys
@@ -28,13 +30,12 @@ import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from marglab_results import (FRAME_1D, FRONTEND_1D, FRONTEND_KINDS, MARG_1D,  # noqa: E402
-                             MARG_STRATEGIES, ROOT_ATTRS, SCHEMA_VERSIONS, SPARSIFY_1D,
-                             SPARSIFY_INFO,
-                             SUMMARY_ATTRS, decode)
+from marglab_results import (ATTR_VALUES, FRAME_1D, FRONTEND_1D, FRONTEND_KINDS,  # noqa: E402
+                             MARG_1D, MARG_STRATEGIES, ROOT_ATTRS, SCHEMA_VERSIONS, SPARSIFY_1D,
+                             SPARSIFY_INFO, SUMMARY_ATTRS, decode)
+import marglab_results  # noqa: E402
 
-FRAME_2D = {"p_est": 3, "q_est": 4, "p_gt": 3}
-ISAS = ("sse2", "avx2", "avx512")  # the isa attribute (absent in files written before it existed)
+FRAME_2D = {name: len(axes) for name, axes in marglab_results.FRAME_2D.items()}
 
 
 def umeyama(src, dst):
@@ -165,10 +166,10 @@ def check_file(path):
         if version not in SCHEMA_VERSIONS:
             problems.append(f"schema_version {version} is not one of "
                             f"{', '.join(map(str, SCHEMA_VERSIONS))}")
-        if decode(f.attrs.get("status")) not in ("ok", "failed"):
-            problems.append(f"status {f.attrs.get('status')!r} is neither ok nor failed")
-        if "isa" in f.attrs and decode(f.attrs["isa"]) not in ISAS:
-            problems.append(f"isa {f.attrs['isa']!r} is not one of {', '.join(ISAS)}")
+        for name, allowed in ATTR_VALUES.items():  # status, isa, ... (absent: checked above)
+            if name in f.attrs and decode(f.attrs[name]) not in allowed:
+                problems.append(f"{name} {f.attrs[name]!r} is not one of "
+                                f"{', '.join(map(repr, allowed))}")
         for group in ["frames", "marg", "marg/eigenvalues", "summary"]:
             if group not in f:
                 problems.append(f"missing group /{group}")

@@ -20,6 +20,7 @@ schema lives in one place on the Python side.
 Needs numpy, h5py and pandas (Debian: python3-numpy python3-h5py python3-pandas).
 """
 import csv
+import json
 import os
 
 import h5py
@@ -32,30 +33,42 @@ except ImportError:  # check_results.py and plot_paper.py need only numpy and h5
 
 # ---- the schema ---------------------------------------------------------------------------------
 
-SCHEMA_VERSIONS = (1, 2)  # 2: /sparsify, marg_strategy, precision mixed, /frontend + `frontend`
-ROOT_ATTRS = ["schema_version", "marglab_version", "git_sha", "created_utc", "dataset",
-              "sequence", "variant", "precision", "seed", "config_toml", "status",
-              "failure_frame", "failure_reason"]
-FRAME_1D = ["t_ns", "is_keyframe", "n_landmarks", "n_observations", "lm_iterations",
-            "cost_initial", "cost_final", "t_opt_s", "t_marg_s", "ate_error"]
-FRAME_2D = {"p_est": "xyz", "q_est": "xyzw", "p_gt": "xyz"}
-MARG_1D = ["frame_index", "t_ns", "prior_cols", "prior_rows", "rank", "sigma_min", "sigma_max",
-           "n_negative"]
-MARG_OPTIONAL_1D = ["eig_tolerance"]
-DEM_DIRECTIONS = ["x", "y", "z", "roll", "pitch", "yaw", "random"]
+# Every name, type and shape comes from results_schema.json, written by `marglab schema --json`
+# from the C++ tables (core/io/results_schema.cpp); test/io fails when the file is out of date.
+with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "results_schema.json")) as _f:
+    SCHEMA = json.load(_f)
+_GROUPS = {g["name"]: g["columns"] for g in SCHEMA["groups"]}
+_ATTRS = {a["name"]: a for a in SCHEMA["root_attributes"]}
+
+
+def _group_columns(group, rows, required=True):
+    """Names of a group's one-value-per-row (rows=False: (n, k)) columns, required or optional."""
+    return [c["name"] for c in _GROUPS[group]
+            if (c["width"] == 0) == rows and c["width"] >= 0 and c["required"] == required]
+
+
+SCHEMA_VERSIONS = tuple(SCHEMA["readable_versions"])
+ROOT_ATTRS = [a["name"] for a in SCHEMA["root_attributes"] if a["required"]]
+# Allowed values of the root string attributes that have a fixed set (status, isa, ...).
+ATTR_VALUES = {a["name"]: tuple(a["values"]) for a in SCHEMA["root_attributes"] if a["values"]}
+FRAME_1D = _group_columns("frames", rows=True)
+FRAME_2D = {c["name"]: c["axes"] for c in _GROUPS["frames"] if c["width"] > 0}
+MARG_1D = _group_columns("marg", rows=True)
+MARG_OPTIONAL_1D = _group_columns("marg", rows=True, required=False)
+DEM_DIRECTIONS = next(c["axes"] for c in _GROUPS["marg"] if c["name"] == "dEm")
 # Optional (m, 7) columns of /sparsify, along DEM_DIRECTIONS: εᵀΛε of the dense and sparsified prior.
-SPARSIFY_INFO = ["info_dense", "info_sparse"]
-SPARSIFY_1D = ["frame_index", "t_ns", "blanket_cols", "n_blanket_poses", "n_blanket_landmarks",
-               "nnz_dense", "nnz_sparse", "kld", "recovered", "t_schur_s", "t_recovery_s",
-               "t_insert_s"]
-FRONTEND_1D = ["t_ns", "n_features", "n_tracked", "n_new", "n_stereo", "t_frontend_s"]
-FRONTEND_KINDS = ("images", "simulated", "tracks")
-MARG_STRATEGIES = ("discard", "dense", "nfr")
-SUMMARY_ATTRS = ["ate_rmse", "n_frames", "duration_s", "t_opt_total_s", "t_marg_total_s",
-                 "realtime_factor"]
-# The /summary values copied into a sweep table (read_sweep), as tables.cpp reads them.
-SUMMARY_COLUMNS = ["ate_rmse", "n_ate_pairs", "n_frames", "n_marg", "duration_s",
-                   "t_opt_total_s", "t_marg_total_s", "wall_time_s", "realtime_factor"]
+SPARSIFY_INFO = _group_columns("sparsify", rows=False, required=False)
+SPARSIFY_1D = _group_columns("sparsify", rows=True)
+FRONTEND_1D = _group_columns("frontend", rows=True)
+FRONTEND_KINDS = ATTR_VALUES["frontend"]
+MARG_STRATEGIES = ATTR_VALUES["marg_strategy"]
+SUMMARY_ATTRS = [a["name"] for a in SCHEMA["summary_attributes"]]
+# The scalar /summary values, copied into a sweep table (read_sweep) as tables.cpp reads them.
+SUMMARY_COLUMNS = [a["name"] for a in SCHEMA["summary_attributes"] if "[" not in a["type"]]
+# The kind of number of every dataset, keyed by (group, name): integer ("iub": any width, as
+# HDF5 converts on reading, so files from other tools with int64 counts read too) or float ("f").
+_KINDS = {"int64": "iub", "int32": "iub", "uint8": "iub", "f64": "f"}
+KINDS = {(g["name"], c["name"]): _KINDS[c["type"]] for g in SCHEMA["groups"] for c in g["columns"]}
 
 # Variants as the paper names them (Demmel et al., Tables 1-3).
 HEADLINE = ["ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64", "sc-sc-sq-f32"]
@@ -111,6 +124,11 @@ def _columns(group, names, n, where, optional=False):
                 continue
             raise SchemaError("%s: missing %s/%s" % (group.file.filename, where, name))
         data = group[name][:]
+        kinds = KINDS.get((where.strip("/"), name))
+        if kinds is not None and data.dtype.kind not in kinds:
+            raise SchemaError("%s: %s/%s is %s, the schema says %s"
+                              % (group.file.filename, where, name, data.dtype,
+                                 "a float" if kinds == "f" else "an integer"))
         if data.shape != (n,):
             raise SchemaError("%s: %s/%s has shape %s, expected (%d,)"
                               % (group.file.filename, where, name, data.shape, n))
