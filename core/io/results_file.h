@@ -60,6 +60,10 @@ struct FrameRecord {
   int n_landmarks = 0;
   int n_observations = 0;
   int lm_iterations = 0;
+  // The tracking monitor's inputs (core/pipeline/tracking_monitor.h); 0 in older files.
+  int n_connected = 0;
+  int n_checked = 0;
+  int n_inconsistent = 0;
   double cost_initial = 0.0;
   double cost_final = 0.0;
   double t_opt_s = 0.0;

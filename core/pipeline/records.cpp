@@ -9,6 +9,9 @@ FrameRecord toFrameRecord(const FrameResult& result) {
   record.n_landmarks = result.n_landmarks;
   record.n_observations = result.n_observations;
   record.lm_iterations = result.lm_iterations;
+  record.n_connected = result.n_connected;
+  record.n_checked = result.n_checked;
+  record.n_inconsistent = result.n_inconsistent;
   record.cost_initial = result.cost_initial;
   record.cost_final = result.cost_final;
   record.t_opt_s = result.t_opt_s;
