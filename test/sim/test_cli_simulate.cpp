@@ -55,9 +55,9 @@ TEST(CliSimulate, RealisticProfile) {
   const CliResult r = runCli(base + "--profile realistic -o '" + realistic + "'");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("sim_profiles/realistic_kitti.toml)"), std::string::npos) << r.output;
-  const CliResult euroc = runCli(
-      "datasets simulate --dataset euroc/V1_01_easy --frames 5 --profile realistic -o '" +
-      dir.file("euroc.h5") + "'");
+  const CliResult euroc =
+      runCli("datasets simulate --dataset euroc/V1_01_easy --frames 5 --profile realistic -o '" +
+             dir.file("euroc.h5") + "'");
   ASSERT_EQ(euroc.exit_code, 0) << euroc.output;
   EXPECT_NE(euroc.output.find("sim_profiles/realistic_euroc.toml)"), std::string::npos)
       << euroc.output;

@@ -210,10 +210,10 @@ TEST(RealisticProfileFile, FamilySelectsItsFile) {
 // The simulation a run uses applies its family's file and records which one in the results file's
 // provenance (sim_profile), so a results file names the profile it was simulated with.
 TEST(RealisticProfileFile, SimulationRecordsItsFamilysFile) {
-  for (const auto& [dataset, file] :
-       std::vector<std::pair<std::string, std::string>>{{"kitti/04", "realistic_kitti.toml"},
-                                                        {"euroc/V1_01_easy", "realistic_euroc.toml"},
-                                                        {"tumvi/room1", "realistic_euroc.toml"}}) {
+  for (const auto& [dataset, file] : std::vector<std::pair<std::string, std::string>>{
+           {"kitti/04", "realistic_kitti.toml"},
+           {"euroc/V1_01_easy", "realistic_euroc.toml"},
+           {"tumvi/room1", "realistic_euroc.toml"}}) {
     TrackSourceOptions options;
     options.dataset = dataset;
     options.frontend = FrontendKind::kSimulated;

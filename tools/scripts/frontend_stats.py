@@ -7,13 +7,14 @@ its /frames p_est, q_est) and the stereo calibration: EuRoC mav0/cam*/sensor.yam
 pinhole intrinsics of the undistorted image the tracks are in), or a KITTI sequence folder's
 calib.txt (rectified P0, P1: body = cam0, cam1 at x = +b with b = -P1[0,3] / P1[0,0]); the KITTI
 ground truth is the folder's poses.txt (T_w_c0 per line) at its times.txt. --right-cx-shift adds
-to cam1's cx, i.e. to every predicted disparity: a known rectification bias (results/real_kitti06,
-KITTI 06 disparities 0.22 px too small) is then not counted as front-end noise. Each track's landmark is
-triangulated at those poses (Gauss-Newton on all its cam0 and cam1 pixels, Huber-weighted so that
-a wrong association does not drag the point); --refine-poses rounds then refine each frame's pose
-on its pixels and re-triangulate (a bundle adjustment by blocks: the converged estimate), so that
-the poses' own error (mocap noise; the VIO estimate's yaw drift) is not counted as front-end
-noise. The residuals r = uv - pi(T_w_c^-1 p_w) give:
+to cam1's cx for the first source (the real frames), i.e. to every predicted disparity: a known
+rectification bias (results/real_kitti06: KITTI 06 disparities 0.22 px too small) is then not
+counted as front-end noise. Each track's landmark is triangulated at those poses (Gauss-Newton on
+all its cam0 and cam1 pixels, Huber-weighted so that a wrong association does not drag the point);
+--refine-poses rounds then refine each frame's pose on its pixels and re-triangulate (a bundle
+adjustment by blocks: the converged estimate), so that the poses' own error (mocap noise; the VIO
+estimate's yaw drift) is not counted as front-end noise. The residuals r = uv - pi(T_w_c^-1 p_w)
+give:
   residuals   quantiles of |r| per coordinate and of the norm, robust sigma (1.4826 MAD), excess
               kurtosis, a Student-t fit (nu, scale) against a Gaussian (log-likelihood);
   outliers    share of observations whose cam0 or cam1 residual norm exceeds --outlier-px;
