@@ -182,8 +182,10 @@ CommandRun setupSimulate(CLI::App& app) {
     const TrajectorySpline spline = TrajectorySpline::fromSequence(seq);
     SimulationOptions sim = defaultSimulationOptions(seq, options->seed);
     sim.tracker.max_frames = options->frames;
+    std::string profile_path;  // the realistic profile of the dataset's family, printed below
     if (options->profile == "realistic") {
-      applyRealisticProfile(readRealisticProfile(defaultRealisticProfilePath()), &sim.tracker);
+      profile_path = realisticProfilePath(seq.kind);
+      applyRealisticProfile(readRealisticProfile(profile_path), &sim.tracker);
     }
     if (options->no_noise) {
       sim.tracker.noise = false;
@@ -199,6 +201,7 @@ CommandRun setupSimulate(CLI::App& app) {
     const Distribution& l = s.track_length;
     fmt::print("sequence            {} (seed {}{})\n", seq.name, options->seed,
                options->no_noise ? ", no noise" : "");
+    if (!profile_path.empty()) fmt::print("profile             realistic ({})\n", profile_path);
     fmt::print("frames              {}\n", s.frames);
     fmt::print("landmarks           {} world points\n", stream.landmarks_w.size());
     fmt::print("features per frame  mean {:.1f}  median {:.0f}  min {:.0f}  max {:.0f}\n", f.mean,

@@ -84,7 +84,7 @@ void simulate(const TrackSourceOptions& options, TrackSource* source) {
   if (options.max_frames > 0) simulation.tracker.max_frames = options.max_frames;
   std::string profile = toString(options.sim_profile);
   if (options.sim_profile == SimProfile::kRealistic) {
-    const std::string path = defaultRealisticProfilePath();
+    const std::string path = realisticProfilePath(seq.kind);
     applyRealisticProfile(readRealisticProfile(path), &simulation.tracker);
     profile += " (" + path + ")";
   }

@@ -107,8 +107,9 @@ RealisticProfile readRealisticProfile(const std::string& path) {
   return profile;
 }
 
-std::string defaultRealisticProfilePath() {
-  return (std::filesystem::path(datasetsRoot()) / "sim_profiles" / "realistic_euroc.toml").string();
+std::string realisticProfilePath(DatasetKind kind) {
+  const char* file = kind == DatasetKind::kKitti ? "realistic_kitti.toml" : "realistic_euroc.toml";
+  return (std::filesystem::path(datasetsRoot()) / "sim_profiles" / file).string();
 }
 
 void applyRealisticProfile(const RealisticProfile& profile, TrackerOptions* options) {

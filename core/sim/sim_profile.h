@@ -3,8 +3,18 @@
 //   ideal      isotropic Gaussian pixel noise σ = 0.5 px, 1 % outliers displaced 5–20 px, no
 //              drift, a track in every free grid cell (the defaults of TrackerOptions). It
 //              isolates the numerics from the front-end and stays the default.
-//   realistic  calibrated on real frames by tools/scripts/frontend_stats.py, which writes
-//              datasets/sim_profiles/realistic_euroc.toml:
+//   realistic  calibrated on real frames by tools/scripts/frontend_stats.py, one file per dataset
+//              family (realisticProfilePath), because a front-end's noise, track life and stereo
+//              share depend on the camera, the scene and the motion:
+//                realistic_euroc.toml  EuRoC and TUM-VI runs; measured on the 74 real EuRoC
+//                                      V1_01 frames inside the ground truth (static: the MAV
+//                                      stands, so track loss is not measured there);
+//                realistic_kitti.toml  KITTI runs; measured on the 51 real moving KITTI 06 frames
+//                                      (datasets/kitti/06_images, 60 m of driving), with the right
+//                                      camera's cx + 0.22 px so that the rectification's
+//                                      disparity bias (results/real_kitti06) is not taken as
+//                                      pixel noise (results/frontend_stats/README.md).
+//              Each file holds:
 //                noise     per coordinate scale_px · t_ν (Student-t; heavier tails than a
 //                          Gaussian), drawn as t_ν = z / √(g / (ν/2)), z ~ N(0, 1),
 //                          g ~ Gamma(ν/2, 1) (Marsaglia–Tsang; shape < 1 by Gamma(a + 1) U^{1/a});
@@ -18,6 +28,7 @@
 
 #include <string>
 
+#include "core/data/types.h"
 #include "core/sim/feature_tracker.h"
 
 namespace marglab {
@@ -43,8 +54,10 @@ struct RealisticProfile {
 // and values outside their ranges (ν > 0, scales ≥ 0, probabilities in [0, 1], min ≤ max).
 RealisticProfile readRealisticProfile(const std::string& path);
 
-// datasets/sim_profiles/realistic_euroc.toml under datasetsRoot().
-std::string defaultRealisticProfilePath();
+// The realistic profile of a dataset family under datasetsRoot(): sim_profiles/realistic_kitti.toml
+// for KITTI, sim_profiles/realistic_euroc.toml for EuRoC and TUM-VI (TUM-VI has no real frames of
+// its own shipped; its indoor handheld stereo is closer to EuRoC's than to a car's).
+std::string realisticProfilePath(DatasetKind kind);
 
 // The tracker options of the realistic profile: the noise, drift, outlier and tracking fields from
 // the file (the ideal profile is TrackerOptions as they are).

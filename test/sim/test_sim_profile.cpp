@@ -9,11 +9,14 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
 #include "core/estimator/config.h"
+#include "core/frontend/track_source.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/sim_profile.h"
 #include "sim_test_utils.h"
@@ -158,7 +161,7 @@ TEST_F(RealisticTracks, StudentNoiseAndCellFill) {
 
 TEST_F(RealisticTracks, DeterministicForASeed) {
   TrackerOptions tracker = options_.tracker;
-  applyRealisticProfile(readRealisticProfile(defaultRealisticProfilePath()), &tracker);
+  applyRealisticProfile(readRealisticProfile(realisticProfilePath(DatasetKind::kEuroc)), &tracker);
   const TrackStream a = simulate(tracker, 8), b = simulate(tracker, 8), c = simulate(tracker, 9);
   ASSERT_EQ(a.frames.size(), b.frames.size());
   bool same_c = a.frames.size() == c.frames.size();
@@ -175,14 +178,56 @@ TEST_F(RealisticTracks, DeterministicForASeed) {
   EXPECT_FALSE(same_c);
 }
 
-// The shipped profile reads and lies in its ranges; its values are the calibrated ones
-// (results/frontend_stats/frontend_stats.json), not checked here against constants.
-TEST(RealisticProfileFile, ShippedProfileReads) {
-  const RealisticProfile p = readRealisticProfile(defaultRealisticProfilePath());
-  EXPECT_GT(p.nu, 0);
-  EXPECT_GT(p.scale_px, 0);
-  EXPECT_LE(p.outlier_min_px, p.outlier_max_px);
-  EXPECT_GT(p.cell_fill_probability, 0);
+// Each family's shipped profile reads and lies in its ranges; its values are the calibrated ones
+// (results/frontend_stats/frontend_stats.json, results/frontend_stats/kitti06/), not checked here
+// against constants.
+TEST(RealisticProfileFile, ShippedProfilesRead) {
+  for (DatasetKind kind : {DatasetKind::kEuroc, DatasetKind::kKitti}) {
+    const RealisticProfile p = readRealisticProfile(realisticProfilePath(kind));
+    EXPECT_GT(p.nu, 0) << datasetKindName(kind);
+    EXPECT_GT(p.scale_px, 0) << datasetKindName(kind);
+    EXPECT_LE(p.outlier_min_px, p.outlier_max_px) << datasetKindName(kind);
+    EXPECT_GT(p.cell_fill_probability, 0) << datasetKindName(kind);
+  }
+}
+
+// KITTI runs take the profile measured on KITTI frames, EuRoC and TUM-VI the EuRoC one; the two
+// files are distinct calibrations (the moving KITTI clip measures track loss, the static EuRoC one
+// cannot and keeps the ideal 0.03).
+TEST(RealisticProfileFile, FamilySelectsItsFile) {
+  namespace fs = std::filesystem;
+  EXPECT_EQ(fs::path(realisticProfilePath(DatasetKind::kKitti)).filename(), "realistic_kitti.toml");
+  EXPECT_EQ(fs::path(realisticProfilePath(DatasetKind::kEuroc)).filename(), "realistic_euroc.toml");
+  EXPECT_EQ(fs::path(realisticProfilePath(DatasetKind::kTumvi)).filename(), "realistic_euroc.toml");
+  EXPECT_EQ(fs::path(realisticProfilePath(DatasetKind::kKitti)).parent_path(),
+            fs::path(datasetsRoot()) / "sim_profiles");
+  const RealisticProfile kitti = readRealisticProfile(realisticProfilePath(DatasetKind::kKitti));
+  const RealisticProfile euroc = readRealisticProfile(realisticProfilePath(DatasetKind::kEuroc));
+  EXPECT_NE(kitti.scale_px, euroc.scale_px);
+  EXPECT_NE(kitti.loss_probability, euroc.loss_probability);
+}
+
+// The simulation a run uses applies its family's file and records which one in the results file's
+// provenance (sim_profile), so a results file names the profile it was simulated with.
+TEST(RealisticProfileFile, SimulationRecordsItsFamilysFile) {
+  for (const auto& [dataset, file] : std::vector<std::pair<std::string, std::string>>{
+           {"kitti/04", "realistic_kitti.toml"},
+           {"euroc/V1_01_easy", "realistic_euroc.toml"},
+           {"tumvi/room1", "realistic_euroc.toml"}}) {
+    TrackSourceOptions options;
+    options.dataset = dataset;
+    options.frontend = FrontendKind::kSimulated;
+    options.max_frames = 3;
+    options.sim_profile = SimProfile::kRealistic;
+    const TrackSource source = obtainTracks(options);
+    std::string recorded;
+    for (const auto& [key, value] : source.provenance) {
+      if (key == "sim_profile") recorded = value;
+    }
+    EXPECT_EQ(recorded.rfind("realistic (", 0), 0u) << dataset << ": " << recorded;
+    EXPECT_NE(recorded.find("sim_profiles/" + file + ")"), std::string::npos)
+        << dataset << ": " << recorded;
+  }
 }
 
 std::string writeProfile(const std::string& text) {

@@ -3,20 +3,26 @@
 
 For each source (real image tracks, simulated tracks) the script reads the track file (HDF5,
 core/sim/track_io.h), the run's results file (its frames; with --gt their ground-truth poses, else
-its /frames p_est, q_est) and the stereo calibration (EuRoC mav0/cam*/sensor.yaml: T_BS and the
-pinhole intrinsics of the undistorted image the tracks are in). Each track's landmark is
-triangulated at those poses (Gauss-Newton on all its cam0 and cam1 pixels, Huber-weighted so that
-a wrong association does not drag the point); --refine-poses rounds then refine each frame's pose
-on its pixels and re-triangulate (a bundle adjustment by blocks: the converged estimate), so that
-the poses' own error (mocap noise; the VIO estimate's yaw drift) is not counted as front-end
-noise. The residuals r = uv - pi(T_w_c^-1 p_w) give:
+its /frames p_est, q_est) and the stereo calibration: EuRoC mav0/cam*/sensor.yaml (T_BS and the
+pinhole intrinsics of the undistorted image the tracks are in), or a KITTI sequence folder's
+calib.txt (rectified P0, P1: body = cam0, cam1 at x = +b with b = -P1[0,3] / P1[0,0]); the KITTI
+ground truth is the folder's poses.txt (T_w_c0 per line) at its times.txt. --right-cx-shift adds
+to cam1's cx for the first source (the real frames), i.e. to every predicted disparity: a known
+rectification bias (results/real_kitti06: KITTI 06 disparities 0.22 px too small) is then not
+counted as front-end noise. Each track's landmark is triangulated at those poses (Gauss-Newton on
+all its cam0 and cam1 pixels, Huber-weighted so that a wrong association does not drag the point);
+--refine-poses rounds then refine each frame's pose on its pixels and re-triangulate (a bundle
+adjustment by blocks: the converged estimate), so that the poses' own error (mocap noise; the VIO
+estimate's yaw drift) is not counted as front-end noise. The residuals r = uv - pi(T_w_c^-1 p_w)
+give:
   residuals   quantiles of |r| per coordinate and of the norm, robust sigma (1.4826 MAD), excess
               kurtosis, a Student-t fit (nu, scale) against a Gaussian (log-likelihood);
   outliers    share of observations whose cam0 or cam1 residual norm exceeds --outlier-px;
   drift       the variogram of a track's cam0 residual, E[(r(k+L) - r(k))^2] = 2 s_w^2 + L q
               per coordinate (white noise s_w plus a random walk of step sqrt(q) per frame);
   tracks      length (frames per track id, censored by the clip), loss hazard per frame,
-              features per frame, stereo share, depth at the first observation.
+              the share of tracks continued from one frame to the next, features per frame,
+              stereo share, depth at the first observation.
 With --profile-out it writes the `realistic` simulator profile calibrated on the first source
 against the second (docs/design.md §5). Output: frontend_stats.json and frontend_stats.md in --out.
 """
@@ -60,6 +66,30 @@ def read_sensor_yaml(path):
     if T.size != 16 or len(K) != 4:
         fail(f"{path}: expected 16 T_BS values and 4 intrinsics")
     return T.reshape(4, 4), K
+
+
+def read_kitti_calib(path, right_cx_shift_px):
+    """(T_b_c0, K0), (T_b_c1, K1) of a KITTI calib.txt (rectified P0, P1; body = cam0)."""
+    P = {}
+    try:
+        for n, line in enumerate(open(path, encoding="utf-8"), 1):
+            key, _, rest = line.partition(":")
+            if key.strip() in ("P0", "P1"):
+                values = [float(x) for x in rest.split()]
+                if len(values) != 12:
+                    fail(f"{path}:{n}: expected 12 numbers after {key.strip()}:")
+                P[key.strip()] = np.array(values).reshape(3, 4)
+    except OSError as e:
+        fail(f"{path}: cannot read ({e.strerror})")
+    except ValueError:
+        fail(f"{path}:{n}: expected numbers")
+    if set(P) != {"P0", "P1"}:
+        fail(f"{path}: expected lines P0: and P1:")
+    K = [[M[0, 0], M[1, 1], M[0, 2], M[1, 2]] for M in (P["P0"], P["P1"])]
+    K[1][2] += right_cx_shift_px
+    T_b_c1 = np.eye(4)
+    T_b_c1[0, 3] = -(P["P1"][0, 3] - P["P0"][0, 3]) / P["P1"][0, 0]
+    return (np.eye(4), K[0]), (T_b_c1, K[1])
 
 
 def quat_to_R(q):
@@ -109,6 +139,25 @@ def read_gt_poses(path, t_ns):
     return quat_to_R(q / np.linalg.norm(q, axis=1, keepdims=True)), p
 
 
+def read_kitti_poses(path, t_ns):
+    """Camera-0 poses (R_w_c0, p_w_c0) at the frame times t_ns from a KITTI poses.txt (3x4 T_w_c0
+    per line) and the times.txt beside it (seconds): the runs' frames are its frames."""
+    times = os.path.join(os.path.dirname(path), "times.txt")
+    try:
+        T = np.loadtxt(path, ndmin=2)
+        t = np.round(np.loadtxt(times, ndmin=1) * 1e9).astype(np.int64)
+    except (OSError, ValueError) as e:
+        fail(f"{path}: not a readable KITTI poses.txt with times.txt beside it ({e})")
+    if T.shape[1] != 12 or len(T) != len(t):
+        fail(f"{path}: expected 12 columns and one line per line of {times}")
+    row = {int(x): i for i, x in enumerate(t)}
+    missing = [int(x) for x in t_ns if int(x) not in row]
+    if missing:
+        fail(f"{times}: no frame at the run's t_ns {missing[0]}")
+    T = T[[row[int(x)] for x in t_ns]].reshape(-1, 3, 4)
+    return T[:, :, :3], T[:, :, 3]
+
+
 def read_tracks(path):
     try:
         with h5py.File(path, "r") as f:
@@ -124,9 +173,16 @@ def read_tracks(path):
 
 
 class Rig:
-    def __init__(self, mav0):
-        (self.T_b_c0, self.K0) = read_sensor_yaml(os.path.join(mav0, "cam0", "sensor.yaml"))
-        (self.T_b_c1, self.K1) = read_sensor_yaml(os.path.join(mav0, "cam1", "sensor.yaml"))
+    def __init__(self, folder, right_cx_shift_px=0.0):
+        """EuRoC mav0 folder (cam0/1 sensor.yaml) or KITTI sequence folder (calib.txt)."""
+        kitti = os.path.join(folder, "calib.txt")
+        if os.path.isfile(kitti):
+            (self.T_b_c0, self.K0), (self.T_b_c1, self.K1) = read_kitti_calib(
+                kitti, right_cx_shift_px)
+            return
+        (self.T_b_c0, self.K0) = read_sensor_yaml(os.path.join(folder, "cam0", "sensor.yaml"))
+        (self.T_b_c1, self.K1) = read_sensor_yaml(os.path.join(folder, "cam1", "sensor.yaml"))
+        self.K1[2] += right_cx_shift_px
 
     def cameras(self, R_w_s, p_w_s, mode):
         """Per frame (R_c_w, p_w_c) of cam0 and cam1 from the run's state poses."""
@@ -430,21 +486,27 @@ def track_stats(tracks, run_t):
     lengths = np.array([b - a + 1 for a, b in seen.values()])
     ended = sum(1 for _, b in seen.values() if b < len(frames) - 1)
     total = int(np.sum(per_frame))
+    continued = total - len(seen)  # frame-to-frame transitions a track survived
     return {
         "frames": len(frames), "tracks": len(seen),
         "features_per_frame": distribution(per_frame),
         "track_length_frames": distribution(lengths),
         "alive_at_last_frame_share": float(1 - ended / max(len(seen), 1)),
         "loss_hazard_per_frame": float(ended / max(total - len(seen), 1)),
+        # censored geometric: continuations / (continuations + ends), what the simulator's
+        # per-frame survival (1 - loss) times the geometric visibility reproduces
+        "continued_share_per_frame": float(continued / max(continued + ended, 1)),
         "stereo_share": float(stereo / max(total, 1)),
     }
 
 
 def source_stats(name, tracks_path, run_path, rig, args):
+    KS[0], KS[1] = rig.K0, rig.K1
     tracks = read_tracks(tracks_path)
     run = read_run(run_path)
     if args.gt:  # the ground truth's body poses at the run's frames replace its estimate
-        run = (run[0], *read_gt_poses(args.gt, run[0]), "vio")
+        read = read_kitti_poses if os.path.basename(args.gt).startswith("poses") else read_gt_poses
+        run = (run[0], *read(args.gt, run[0]), "vio")
     outlier_px = args.outlier_px
     res = track_residuals(tracks, run, rig, args.refine_poses)
     if len(res["tid"]) == 0:
@@ -482,6 +544,10 @@ def realistic_profile(real, ideal, clip_motion_m, min_motion_m):
     geometric_stereo = ideal["stereo_share"] / (1 - IDEAL["stereo_failure_probability"])
     fill = (real["features_per_frame"]["q50"] / ideal["features_per_frame"]["q50"])
     moving = clip_motion_m >= min_motion_m
+    # The simulator's survival is (1 - loss) times the geometric one (a landmark leaving the view),
+    # which the ideal simulation of the same frames measures: its continued share over 1 - 0.03.
+    geometric_survival = ideal["continued_share_per_frame"] / (1 - IDEAL["loss_probability"])
+    loss = 1 - real["continued_share_per_frame"] / max(geometric_survival, 1e-9)
     onorm = res["outlier_norm_px"]
     return {
         "noise": {"nu": fit["nu"], "scale_px": fit["scale_px"]},
@@ -490,7 +556,7 @@ def realistic_profile(real, ideal, clip_motion_m, min_motion_m):
                      "min_px": max(onorm.get("q10", 5.0), res["outlier_px"]),
                      "max_px": max(onorm.get("q90", 20.0), res["outlier_px"] + 1)},
         "tracking": {
-            "loss_probability": real["loss_hazard_per_frame"] if moving
+            "loss_probability": min(max(loss, 0.0), 0.95) if moving
             else IDEAL["loss_probability"],
             "stereo_failure_probability": min(max(1 - stereo / geometric_stereo, 0.0), 0.95),
             "cell_fill_probability": min(fill, 1.0),
@@ -500,17 +566,18 @@ def realistic_profile(real, ideal, clip_motion_m, min_motion_m):
     }
 
 
-def profile_toml(profile, command):
+def profile_toml(profile, command, out):
     n, d, o, t = (profile[k] for k in ("noise", "drift", "outliers", "tracking"))
     notes = profile["notes"]
-    loss_note = ("measured loss hazard" if notes["loss_measured"] else
+    loss_note = ("real continued share / the ideal simulation's geometric one"
+                 if notes["loss_measured"] else
                  f"the ideal value: the clip moves {notes['clip_motion_m']:.3f} m, too little "
                  "to measure track loss under motion")
     return f"""# The simulator's `realistic` profile (docs/design.md §5, core/sim/sim_profile.h), calibrated
 # on real frames. Written by tools/scripts/frontend_stats.py; do not edit by hand:
 #   {command}
 # Measured on the front-end's tracks at the ground-truth poses of the run's frames, refined with the
-# landmarks (bundle adjustment by blocks); results/frontend_stats/frontend_stats.md has every
+# landmarks (bundle adjustment by blocks); {out}/frontend_stats.md has every
 # measurement and the ideal simulation of the same frames beside it.
 
 [noise]  # per pixel coordinate: scale * Student-t(nu), fitted to the inlier residuals
@@ -565,6 +632,7 @@ def markdown(sources, command, profile):
             s["track_length_frames"]["q90"]))),
         md_row("tracks alive at the last frame", g(lambda s: s["alive_at_last_frame_share"])),
         md_row("loss hazard per frame", g(lambda s: s["loss_hazard_per_frame"])),
+        md_row("continued share per frame", g(lambda s: s["continued_share_per_frame"])),
         md_row("depth [m], median (p10–p90)", g(lambda s: "{:.2f} ({:.2f}–{:.2f})".format(
             s["depth_m"]["q50"], s["depth_m"]["q10"], s["depth_m"]["q90"]))),
         md_row("\\|r\\| per coordinate [px]: p50 / p90 / p95 / p99 / p99.9", g(lambda s: " / ".join(
@@ -606,9 +674,14 @@ def parse_args():
                     metavar=("NAME", "TRACKS_H5", "RUN_H5"),
                     help="a track file and the results file of a run on it (repeatable; the "
                          "profile is calibrated on the first against the second)")
-    ap.add_argument("--calib", required=True, help="EuRoC mav0 folder (cam0/1 sensor.yaml)")
-    ap.add_argument("--gt", help="TUM ground truth of the body: evaluate at its poses instead of "
-                    "the run's estimate")
+    ap.add_argument("--calib", required=True,
+                    help="EuRoC mav0 folder (cam0/1 sensor.yaml) or KITTI folder (calib.txt)")
+    ap.add_argument("--right-cx-shift", type=float, default=0.0, metavar="PX",
+                    help="add PX to cam1's cx (every predicted disparity) for the first source "
+                         "(the real frames), e.g. a measured rectification bias "
+                         "(tools/scripts/stereo_bias.py)")
+    ap.add_argument("--gt", help="TUM ground truth of the body, or a KITTI poses.txt (times.txt "
+                    "beside it): evaluate at its poses instead of the run's estimate")
     ap.add_argument("--refine-poses", type=int, default=3, metavar="N",
                     help="alternations of per-frame pose refinement and triangulation (0: none)")
     ap.add_argument("--outlier-px", type=float, default=5.0)
@@ -621,14 +694,15 @@ def parse_args():
 
 def main():
     args = parse_args()
-    rig = Rig(args.calib)
-    KS[0], KS[1] = rig.K0, rig.K1
+    # The shift corrects the real frames' rectification; simulated tracks use the exact one.
+    rigs = [Rig(args.calib, args.right_cx_shift if i == 0 else 0.0)
+            for i in range(len(args.source))]
     # Inputs by file name (they live in a scratch folder; results/frontend_stats/README.md makes
     # them), repository paths as given.
     sources = {p for s in args.source for p in s[1:]}
     command = "tools/scripts/frontend_stats.py " + " ".join(
         os.path.basename(a) if a in sources else a for a in sys.argv[1:])
-    sources = [source_stats(n, t, r, rig, args) for n, t, r in args.source]
+    sources = [source_stats(n, t, r, rig, args) for (n, t, r), rig in zip(args.source, rigs)]
     profile_text = None
     if args.profile_out:
         if len(sources) < 2:
@@ -638,7 +712,7 @@ def main():
         motion = clip_motion(args.source[0][2])
         profile = realistic_profile(sources[0], sources[1], motion, args.min_motion_m)
         sources[0]["realistic_profile"] = profile
-        profile_text = profile_toml(profile, command)
+        profile_text = profile_toml(profile, command, args.out)
         write_text(args.profile_out, profile_text)
     os.makedirs(args.out, exist_ok=True)
     write_text(os.path.join(args.out, "frontend_stats.json"),
