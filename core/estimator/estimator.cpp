@@ -246,6 +246,7 @@ void SlidingWindowEstimator<Scalar>::initializeGaugePrior(int64_t frame_id) {
   }
   prior.setSqrt(std::move(J), VecX<Scalar>::Zero(m));
   prior.setHessian(std::move(H), VecX<Scalar>::Zero(n), Scalar(0));
+  prior.precondition();
 }
 
 template <typename Scalar>
@@ -268,6 +269,7 @@ std::unique_ptr<Linearization<Scalar>> SlidingWindowEstimator<Scalar>::makeVaria
   typename Linearization<Scalar>::Options options;
   options.damp_landmarks = config_.lm_landmark_damping;
   options.lambda_min = static_cast<Scalar>(config_.lambda_min);
+  options.preconditioning = preconditioningOf(variant_.storage);
   return makeLinearization<Scalar>(variant_, options);
 }
 

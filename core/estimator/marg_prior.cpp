@@ -57,11 +57,13 @@ VecX<Scalar> MargPrior<Scalar>::delta(const std::function<SE3<Scalar>(int64_t)>&
 
 template <typename Scalar>
 MatX<Scalar> MargPrior<Scalar>::hessianAtAnchor() const {
+  if (scaled()) return scaling.unscaled(hessian.H);
   return storage == PriorStorage::kSqrt ? MatX<Scalar>(sqrt.J.transpose() * sqrt.J) : hessian.H;
 }
 
 template <typename Scalar>
 VecX<Scalar> MargPrior<Scalar>::gradientAtAnchor() const {
+  if (scaled()) return scaling.unscaledGradient(hessian.b);
   return storage == PriorStorage::kSqrt ? VecX<Scalar>(sqrt.J.transpose() * sqrt.r) : hessian.b;
 }
 
@@ -76,12 +78,32 @@ void MargPrior<Scalar>::setHessian(MatX<Scalar> H, VecX<Scalar> b, Scalar c) {
   hessian.H = std::move(H);
   hessian.b = std::move(b);
   hessian.c = c;
+  scaling = BlockScaling<Scalar>();
+}
+
+template <typename Scalar>
+void MargPrior<Scalar>::setScaledHessian(MatX<Scalar> H_s, VecX<Scalar> b_s, Scalar c,
+                                         BlockScaling<Scalar> P) {
+  setHessian(std::move(H_s), std::move(b_s), c);
+  scaling = std::move(P);
+}
+
+template <typename Scalar>
+void MargPrior<Scalar>::precondition() {
+  const Preconditioning kind = preconditioningOf(storage);
+  if (kind == Preconditioning::kNone || empty() || scaled()) return;
+  BlockScaling<Scalar> P = BlockScaling<Scalar>::fromHessian(hessian.H, kind);
+  setScaledHessian(P.scaled(hessian.H), P.scaledGradient(hessian.b), hessian.c, P);
 }
 
 template <typename Scalar>
 Scalar MargPrior<Scalar>::cost(const VecX<Scalar>& d) const {
   if (empty()) return Scalar(0);
   if (storage == PriorStorage::kSqrt) return Scalar(0.5) * (sqrt.r + sqrt.J * d).squaredNorm();
+  if (scaled()) {
+    const VecX<Scalar> y = scaling.toScaled(d);
+    return Scalar(0.5) * y.dot(hessian.H * y) + hessian.b.dot(y) + hessian.c;
+  }
   return Scalar(0.5) * d.dot(hessian.H * d) + hessian.b.dot(d) + hessian.c;
 }
 
@@ -90,6 +112,9 @@ void MargPrior<Scalar>::linearize(const VecX<Scalar>& d, MatX<Scalar>* H, VecX<S
   if (storage == PriorStorage::kSqrt) {
     *H = sqrt.J.transpose() * sqrt.J;
     *b = sqrt.J.transpose() * (sqrt.r + sqrt.J * d);
+  } else if (scaled()) {
+    *H = scaling.unscaled(hessian.H);
+    *b = scaling.unscaledGradient(hessian.b + hessian.H * scaling.toScaled(d));
   } else {
     *H = hessian.H;
     *b = hessian.b + hessian.H * d;
@@ -109,6 +134,10 @@ Scalar MargPrior<Scalar>::costChange(const VecX<Scalar>& d, const VecX<Scalar>& 
     const VecX<Scalar> r0 = sqrt.r + sqrt.J * d;
     const VecX<Scalar> J_step = sqrt.J * step;
     return r0.dot(J_step) + Scalar(0.5) * J_step.squaredNorm();
+  }
+  if (scaled()) {
+    const VecX<Scalar> y = scaling.toScaled(d), t = scaling.toScaled(step);
+    return (hessian.b + hessian.H * y).dot(t) + Scalar(0.5) * t.dot(hessian.H * t);
   }
   return (hessian.b + hessian.H * d).dot(step) + Scalar(0.5) * step.dot(hessian.H * step);
 }

@@ -8,6 +8,11 @@
 //                       Hessian with a pseudo-inverse of H_μμ (eqs. 22–23);
 //   storage  sqrt | sq  prior stored as (J_m, r_m) (eq. 4) or (H_m, b_m) (eq. 3); `sc` + `sqrt`
 //                       factorizes the new prior by LDLT (√D Lᵀ P); `qr` requires `sqrt`;
+//            sqp | sqj  Hessian storage preconditioned (docs/preconditioned_storage.md): the prior
+//                       kept as (Q, Ĥ_m, b̂_m) with H_m = Qᵀ Ĥ_m Q, and every factorization of the
+//                       marginalization and of the LM step run on the preconditioned matrix;
+//                       sqp = 3×3 block Jacobi per physical quantity (our reading of PC-SRIF,
+//                       Ke et al. 2024), sqj = point Jacobi with power-of-two scales; `sc` only;
 //   precision f32 | f64 the scalar type of the whole estimator;
 //             mixed     (ns only) landmark linearization storage and elimination in f32, reduced
 //                       system, prior and marginalization in f64 (core/estimator/linearization.h).
@@ -21,7 +26,10 @@ namespace marglab {
 
 enum class OptElimination { kNullspace, kSchur };
 enum class MargMethod { kQr, kSchur };
-enum class PriorStorage { kSqrt, kHessian };
+enum class PriorStorage { kSqrt, kHessian, kHessianBlockJacobi, kHessianJacobi };
+
+// Every storage but kSqrt keeps (H_m, b_m, c), the preconditioned ones in scaled coordinates.
+constexpr bool hessianStorage(PriorStorage s) { return s != PriorStorage::kSqrt; }
 enum class Precision { kF32, kF64, kMixed };
 
 struct Variant {
