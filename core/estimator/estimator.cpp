@@ -558,7 +558,7 @@ MargEvent SlidingWindowEstimator<Scalar>::shadowEvent() const {
   shadow_prior_.gaugeLayout(&event.layout, &event.state);
   // Gauge directions at the linearization points: the prior's nullspace lies there (FEJ).
   const VecX<Scalar> delta = window_.priorDelta(shadow_prior_);
-  if (shadow_prior_.storage == PriorStorage::kSqrt) {
+  if (sqrtStorage(shadow_prior_.storage)) {
     MatX<Scalar> J;
     VecX<Scalar> r;
     shadow_prior_.sqrtRows(delta, &J, &r);

@@ -10,7 +10,7 @@ namespace marglab {
 template <typename Scalar>
 int MargPrior<Scalar>::rows() const {
   if (empty()) return 0;
-  return storage == PriorStorage::kSqrt ? static_cast<int>(sqrt.J.rows()) : cols();
+  return sqrtStorage(storage) ? static_cast<int>(sqrt.J.rows()) : cols();
 }
 
 template <typename Scalar>
@@ -58,13 +58,13 @@ VecX<Scalar> MargPrior<Scalar>::delta(const std::function<SE3<Scalar>(int64_t)>&
 template <typename Scalar>
 MatX<Scalar> MargPrior<Scalar>::hessianAtAnchor() const {
   if (scaled()) return scaling.unscaled(hessian.H);
-  return storage == PriorStorage::kSqrt ? MatX<Scalar>(sqrt.J.transpose() * sqrt.J) : hessian.H;
+  return sqrtStorage(storage) ? MatX<Scalar>(sqrt.J.transpose() * sqrt.J) : hessian.H;
 }
 
 template <typename Scalar>
 VecX<Scalar> MargPrior<Scalar>::gradientAtAnchor() const {
   if (scaled()) return scaling.unscaledGradient(hessian.b);
-  return storage == PriorStorage::kSqrt ? VecX<Scalar>(sqrt.J.transpose() * sqrt.r) : hessian.b;
+  return sqrtStorage(storage) ? VecX<Scalar>(sqrt.J.transpose() * sqrt.r) : hessian.b;
 }
 
 template <typename Scalar>
@@ -99,7 +99,7 @@ void MargPrior<Scalar>::precondition() {
 template <typename Scalar>
 Scalar MargPrior<Scalar>::cost(const VecX<Scalar>& d) const {
   if (empty()) return Scalar(0);
-  if (storage == PriorStorage::kSqrt) return Scalar(0.5) * (sqrt.r + sqrt.J * d).squaredNorm();
+  if (sqrtStorage(storage)) return Scalar(0.5) * (sqrt.r + sqrt.J * d).squaredNorm();
   if (scaled()) {
     const VecX<Scalar> y = scaling.toScaled(d);
     return Scalar(0.5) * y.dot(hessian.H * y) + hessian.b.dot(y) + hessian.c;
@@ -109,7 +109,7 @@ Scalar MargPrior<Scalar>::cost(const VecX<Scalar>& d) const {
 
 template <typename Scalar>
 void MargPrior<Scalar>::linearize(const VecX<Scalar>& d, MatX<Scalar>* H, VecX<Scalar>* b) const {
-  if (storage == PriorStorage::kSqrt) {
+  if (sqrtStorage(storage)) {
     *H = sqrt.J.transpose() * sqrt.J;
     *b = sqrt.J.transpose() * (sqrt.r + sqrt.J * d);
   } else if (scaled()) {
@@ -130,7 +130,7 @@ void MargPrior<Scalar>::sqrtRows(const VecX<Scalar>& d, MatX<Scalar>* J, VecX<Sc
 template <typename Scalar>
 Scalar MargPrior<Scalar>::costChange(const VecX<Scalar>& d, const VecX<Scalar>& step) const {
   if (empty()) return Scalar(0);
-  if (storage == PriorStorage::kSqrt) {
+  if (sqrtStorage(storage)) {
     const VecX<Scalar> r0 = sqrt.r + sqrt.J * d;
     const VecX<Scalar> J_step = sqrt.J * step;
     return r0.dot(J_step) + Scalar(0.5) * J_step.squaredNorm();

@@ -49,7 +49,7 @@ struct VarKey {
 
 // The preconditioning a storage applies before its factorizations.
 constexpr Preconditioning preconditioningOf(PriorStorage storage) {
-  return storage == PriorStorage::kHessianBlockJacobi
+  return storage == PriorStorage::kHessianBlockJacobi || storage == PriorStorage::kSqrtBlockJacobi
              ? Preconditioning::kBlockJacobi
              : (storage == PriorStorage::kHessianJacobi ? Preconditioning::kJacobi
                                                         : Preconditioning::kNone);

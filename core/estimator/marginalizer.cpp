@@ -230,8 +230,9 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
 
  private:
   // The preconditioned storages: the marginal over y_κ (δ_κ = P_κ y_κ) is scaled once more by its
-  // own diagonal blocks, y_κ = P₂ z, so that the stored Ĥ_m has a unit-scale diagonal; the shift to
-  // x⁰ and the LDLT for the constant c run on Ĥ_m.
+  // own diagonal blocks, y_κ = P₂ z, so that Ĥ_m has a unit-scale diagonal; the shift to x⁰ and the
+  // LDLT run on Ĥ_m. sqp / sqj store (Ĥ_m, b̂_m, c = ½‖r‖²); sqrtp stores the LDLT's square root
+  // mapped to δ: ½‖r + J_z z‖² with z = Q δ is ½‖r + (J_z Q) δ‖².
   Status storeScaled(HessianPrior<Scalar> marginal, const BlockScaling<Scalar>& P_kept,
                      const VecX<Scalar>& new_delta, MargPrior<Scalar>* next) const {
     const BlockScaling<Scalar> P2 =
@@ -242,8 +243,11 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
     LdltSqrt<Scalar> ldlt = hessianToSqrtLdlt<Scalar>(H_m, b_m);
     if (!ldlt.status.ok()) {
       return Status::Error(ldlt.status.code(),
-                           "the constant of the preconditioned Hessian prior: " +
-                               ldlt.status.message());
+                           "the preconditioned prior's LDLT: " + ldlt.status.message());
+    }
+    if (sqrtStorage(storage_)) {
+      next->setSqrt(P.unscaledRows(ldlt.prior.J), std::move(ldlt.prior.r));
+      return Status::Ok();
     }
     const Scalar c = Scalar(0.5) * ldlt.prior.r.squaredNorm();
     next->setScaledHessian(std::move(H_m), std::move(b_m), c, std::move(P));

@@ -20,6 +20,8 @@ const char* storageName(PriorStorage storage) {
       return "sqp";
     case PriorStorage::kHessianJacobi:
       return "sqj";
+    case PriorStorage::kSqrtBlockJacobi:
+      return "sqrtp";
   }
   return "";
 }
@@ -52,7 +54,7 @@ Variant Variant::parse(const std::string& text) {
   std::stringstream stream(text);
   for (std::string part; std::getline(stream, part, '-');) parts.push_back(part);
   const std::string expected =
-      "expected opt-marg-storage-precision with opt ns|sc, marg qr|sc, storage sqrt|sq|sqp|sqj, "
+      "expected opt-marg-storage-precision with opt ns|sc, marg qr|sc, storage sqrt|sq|sqp|sqj|sqrtp, "
       "precision f32|f64|mixed (e.g. ns-qr-sqrt-f32; mixed needs opt ns)";
   if (parts.size() != 4) {
     throw UsageError(fmt::format("unknown variant '{}': {}", text, expected));
@@ -83,6 +85,8 @@ Variant Variant::parse(const std::string& text) {
     v.storage = PriorStorage::kHessianBlockJacobi;
   } else if (parts[2] == "sqj") {
     v.storage = PriorStorage::kHessianJacobi;
+  } else if (parts[2] == "sqrtp") {
+    v.storage = PriorStorage::kSqrtBlockJacobi;
   } else {
     throw bad("storage '" + parts[2] + "'");
   }

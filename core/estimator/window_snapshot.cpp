@@ -175,8 +175,7 @@ void restoreWindow(const WindowSnapshot& w, PriorStorage storage, Window<Scalar>
     block.sb0 = b.sb0.template cast<Scalar>();
     prior.blocks.push_back(block);
   }
-  if (w.prior_storage == storage ||
-      (w.prior_storage == PriorStorage::kHessian && hessianStorage(storage))) {
+  if (hessianStorage(w.prior_storage) == hessianStorage(storage)) {
     prior.sqrt.J = w.prior_J.template cast<Scalar>();
     prior.sqrt.r = w.prior_r.template cast<Scalar>();
     prior.hessian.H = w.prior_H.template cast<Scalar>();
@@ -191,7 +190,7 @@ void restoreWindow(const WindowSnapshot& w, PriorStorage storage, Window<Scalar>
     throw InputError("", 0, "window: a Hessian prior cannot be replayed with square-root storage");
   }
   const int cols = prior.empty() ? 0 : prior.cols();
-  const bool sqrt_storage = storage == PriorStorage::kSqrt;
+  const bool sqrt_storage = sqrtStorage(storage);
   if (!prior.empty() &&
       (sqrt_storage ? prior.sqrt.J.cols() != cols || prior.sqrt.r.size() != prior.sqrt.J.rows()
                     : prior.hessian.H.cols() != cols || prior.hessian.b.size() != cols)) {

@@ -128,6 +128,19 @@ VecX<Scalar> BlockScaling<Scalar>::unscaledGradient(const VecX<Scalar>& b_s) con
 }
 
 template <typename Scalar>
+MatX<Scalar> BlockScaling<Scalar>::unscaledRows(const MatX<Scalar>& J_s) const {
+  if (static_cast<size_t>(J_s.cols()) != 3 * Q_.size()) {
+    throw std::invalid_argument("BlockScaling: matrix size does not match the scaling");
+  }
+  MatX<Scalar> J = J_s;
+  for (size_t k = 0; k < Q_.size(); ++k) {
+    const Eigen::Index c = static_cast<Eigen::Index>(3 * k);
+    J.middleCols(c, 3) = (J_s.middleCols(c, 3) * Q_[k]).eval();
+  }
+  return J;
+}
+
+template <typename Scalar>
 BlockScaling<Scalar> BlockScaling<Scalar>::tail(int start) const {
   checkColumns(start);
   if (start > size()) throw std::invalid_argument("BlockScaling: tail beyond the end");

@@ -45,6 +45,7 @@ class BlockScaling {
   VecX<Scalar> toScaled(const VecX<Scalar>& delta) const;      // Q δ
   MatX<Scalar> unscaled(const MatX<Scalar>& H_s) const;        // Qᵀ Ĥ Q (symmetric)
   VecX<Scalar> unscaledGradient(const VecX<Scalar>& b_s) const;  // Qᵀ b̂
+  MatX<Scalar> unscaledRows(const MatX<Scalar>& J_s) const;    // J_s Q: rows over y → over δ
 
   // The blocks from column `start` (a multiple of 3) on: the kept part after a marginalization.
   BlockScaling tail(int start) const;

@@ -15,13 +15,17 @@ namespace marglab {
 namespace {
 
 TEST(PreconditionedStorage, VariantNamesRoundTrip) {
-  for (const char* name : {"sc-sc-sqp-f32", "ns-sc-sqp-f32", "sc-sc-sqj-f32", "sc-sc-sqp-f64"}) {
+  for (const char* name :
+       {"sc-sc-sqp-f32", "ns-sc-sqp-f32", "sc-sc-sqj-f32", "sc-sc-sqp-f64", "sc-sc-sqrtp-f32"}) {
     EXPECT_EQ(Variant::parse(name).name(), name);
   }
   EXPECT_EQ(Variant::parse("sc-sc-sqp-f32").storage, PriorStorage::kHessianBlockJacobi);
   EXPECT_EQ(Variant::parse("sc-sc-sqj-f32").storage, PriorStorage::kHessianJacobi);
+  EXPECT_EQ(Variant::parse("sc-sc-sqrtp-f32").storage, PriorStorage::kSqrtBlockJacobi);
+  EXPECT_TRUE(sqrtStorage(PriorStorage::kSqrtBlockJacobi));
   // qr marginalization produces a square-root prior.
   EXPECT_THROW(Variant::parse("ns-qr-sqp-f32"), UsageError);
+  EXPECT_THROW(Variant::parse("ns-qr-sqrtp-f32"), UsageError);
   EXPECT_THROW(Variant::parse("sc-sc-sqx-f32"), UsageError);
 }
 
@@ -102,7 +106,7 @@ double maxPositionError(const test::VioScenario& scenario, const char* variant,
 }
 
 // In double the preconditioning is a change of variables and nothing else: the sqp / sqj runs
-// follow the sq run to rounding.
+// follow the sq run, the sqrtp run the sqrt run, to rounding.
 TEST(PreconditionedStorage, DoublePrecisionRunsFollowTheHessianStorage) {
   const test::VioScenario scenario(10.0, 12.0);
   std::vector<Eigen::Vector3d> sq, sqp, sqj;
@@ -115,6 +119,16 @@ TEST(PreconditionedStorage, DoublePrecisionRunsFollowTheHessianStorage) {
     EXPECT_LT((sqp[i] - sq[i]).norm(), 1e-6) << i;
     EXPECT_LT((sqj[i] - sq[i]).norm(), 1e-6) << i;
   }
+  std::vector<Eigen::Vector3d> sqrt, sqrtp;
+  maxPositionError<double>(scenario, "sc-sc-sqrt-f64", &sqrt);
+  maxPositionError<double>(scenario, "sc-sc-sqrtp-f64", &sqrtp);
+  ASSERT_EQ(sqrt.size(), sqrtp.size());
+  // The square root is the LDLT of the new prior with negative pivots clamped; at the first
+  // marginalizations the f64 prior's κ over its observable directions is ≈ 3e16 > 1/ε_f64
+  // (docs/preconditioned_storage.md §3), so which pivots are clamped depends on the scaling:
+  // 1.2 µm here, against 0.3 nm between the unclamped sq and sqrt. Bound: 10 µm, 1e-3 of the
+  // 1 cm these runs keep to the truth.
+  for (size_t i = 0; i < sqrt.size(); ++i) EXPECT_LT((sqrtp[i] - sqrt[i]).norm(), 1e-5) << i;
 }
 
 TEST(PreconditionedStorage, SinglePrecisionRunTracksTheTruth) {
@@ -122,6 +136,7 @@ TEST(PreconditionedStorage, SinglePrecisionRunTracksTheTruth) {
   EXPECT_GT(scenario.stream.frames.size(), 100u);
   EXPECT_LT(maxPositionError<float>(scenario, "sc-sc-sqp-f32"), 0.05);
   EXPECT_LT(maxPositionError<float>(scenario, "ns-sc-sqp-f32"), 0.05);
+  EXPECT_LT(maxPositionError<float>(scenario, "sc-sc-sqrtp-f32"), 0.05);
 }
 
 }  // namespace
