@@ -2,7 +2,7 @@
 """Conditioning of the stored marginalization priors of runs, unscaled and preconditioned
 (docs/preconditioned_storage.md, issue #31 §3).
 
-Usage: preconditioned_conditioning.py --out CSV RUN.h5 [RUN.h5 ...]
+Usage: preconditioned_conditioning.py --out CSV [--plot PNG] RUN.h5 [RUN.h5 ...]
 
 For every prior a run stored (/marg/priors/<k>/H_m: the gauge-free shadow prior, in the variables'
 own units; `marglab run --store-prior-every 1` stores every one), in double precision:
@@ -17,7 +17,8 @@ eigenvalue relative to the largest (0 for an exact PSD prior; ε-sized from roun
 prior that a factorization sees as indefinite).
 
 The CSV has one row per stored prior: run, mode, event, frame, n, and for each scaling
-lambda_max, lambda_obs_min, kappa, neg. Independent of the C++ implementation of the scalings
+lambda_max, lambda_obs_min, kappa, neg. --plot: κ and −neg of the block-scaled priors against the
+frame, one line per run (log axes; `neg` ≥ 0 drawn at 1e-17). Independent of the C++ implementation of the scalings
 (core/linalg/preconditioner.cpp): numpy only.
 """
 import argparse
@@ -31,6 +32,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import atomic_save  # noqa: E402
 
 GAUGE_DIM = {"vio": 4, "vo": 6}
+# Row layout: run, mode, event, frame, n, then (λ_max, λ_obs_min, κ, neg) per scaling.
+BLOCK_KAPPA = 5 + 4 * 2 + 2
+BLOCK_NEG = BLOCK_KAPPA + 1
 
 
 def jacobi(H):
@@ -89,19 +93,45 @@ def rows_of(path):
     return out
 
 
+def plot(rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for run in dict.fromkeys(r[0] for r in rows):
+        mine = [r for r in rows if r[0] == run]
+        frame = [r[3] for r in mine]
+        top.plot(frame, [r[BLOCK_KAPPA] for r in mine], label=run)
+        bottom.plot(frame, [max(-r[BLOCK_NEG], 1e-17) for r in mine], label=run)
+    top.set_yscale("log")
+    bottom.set_yscale("log")
+    top.set_ylabel("κ of the 3×3-block-scaled prior")
+    bottom.set_ylabel("−λ_min / λ_max (block-scaled)")
+    bottom.axhline(np.finfo(np.float32).eps, color="0.5", ls=":", lw=1)
+    bottom.set_xlabel("frame")
+    top.legend(fontsize=8)
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    atomic_save.savefig(fig, path, dpi=110)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("runs", nargs="+")
     parser.add_argument("--out", required=True)
+    parser.add_argument("--plot")
     args = parser.parse_args()
     header = ["run", "mode", "event", "frame", "n"]
     for s in ("unscaled", "jacobi", "block"):
         header += [s + "_lambda_max", s + "_lambda_obs_min", s + "_kappa", s + "_neg"]
     lines = [",".join(header)]
-    for path in args.runs:
-        for row in rows_of(path):
-            lines.append(",".join(v if isinstance(v, str) else ("%d" % v if isinstance(v, int)
-                                                                 else "%.6g" % v) for v in row))
+    rows = [row for path in args.runs for row in rows_of(path)]
+    if args.plot:
+        plot(rows, args.plot)
+    for row in rows:
+        lines.append(",".join(v if isinstance(v, str) else ("%d" % v if isinstance(v, int)
+                                                             else "%.6g" % v) for v in row))
     atomic_save.write_text(args.out, "\n".join(lines) + "\n")
 
 
