@@ -57,14 +57,14 @@ VecX<Scalar> MargPrior<Scalar>::delta(const std::function<SE3<Scalar>(int64_t)>&
 
 template <typename Scalar>
 MatX<Scalar> MargPrior<Scalar>::hessianAtAnchor() const {
-  if (scaled()) return scaling.unscaled(hessian.H);
-  return sqrtStorage(storage) ? MatX<Scalar>(sqrt.J.transpose() * sqrt.J) : hessian.H;
+  if (sqrtStorage(storage)) return sqrt.J.transpose() * sqrt.J;
+  return scaled() ? scaling.unscaled(hessian.H) : hessian.H;
 }
 
 template <typename Scalar>
 VecX<Scalar> MargPrior<Scalar>::gradientAtAnchor() const {
-  if (scaled()) return scaling.unscaledGradient(hessian.b);
-  return sqrtStorage(storage) ? VecX<Scalar>(sqrt.J.transpose() * sqrt.r) : hessian.b;
+  if (sqrtStorage(storage)) return sqrt.J.transpose() * sqrt.r;
+  return scaled() ? scaling.unscaledGradient(hessian.b) : hessian.b;
 }
 
 template <typename Scalar>
@@ -91,7 +91,7 @@ void MargPrior<Scalar>::setScaledHessian(MatX<Scalar> H_s, VecX<Scalar> b_s, Sca
 template <typename Scalar>
 void MargPrior<Scalar>::precondition() {
   const Preconditioning kind = preconditioningOf(storage);
-  if (kind == Preconditioning::kNone || empty() || scaled()) return;
+  if (kind == Preconditioning::kNone || !hessianStorage(storage) || empty() || scaled()) return;
   BlockScaling<Scalar> P = BlockScaling<Scalar>::fromHessian(hessian.H, kind);
   setScaledHessian(P.scaled(hessian.H), P.scaledGradient(hessian.b), hessian.c, P);
 }

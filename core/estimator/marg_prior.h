@@ -97,7 +97,8 @@ struct MargPrior {
   void setHessian(MatX<Scalar> H, VecX<Scalar> b, Scalar c);
   void setScaledHessian(MatX<Scalar> H_s, VecX<Scalar> b_s, Scalar c, BlockScaling<Scalar> P);
   // An unscaled Hessian prior moved to the scaled form of the storage's preconditioning (a window
-  // restored from a snapshot); nothing for the other storages.
+  // restored from a snapshot, the initial gauge prior); nothing for the other storages (sqrtp's
+  // preconditioning acts in its marginalization, its stored J is unscaled).
   void precondition();
   // E_m at δ.
   Scalar cost(const VecX<Scalar>& delta) const;

@@ -2,6 +2,7 @@
 """Table "Preconditioned Hessian storage" (issue #31 §3, docs/preconditioned_storage.md).
 
 Usage: preconditioned_table.py --new DIR [DIR ...] --base DIR [DIR ...] --out DIR
+                               [--sqrtp DIR --ablation DIR [DIR ...]]
 
 --new: sweep folders of experiments/preconditioned_subset.toml (one per seed); --base: the
 committed folders of the same seeds with the baselines (results/paper_seeds_sK). Writes
@@ -14,6 +15,11 @@ of n failed (table_common.seed_cell); "fail at" the frames where the failed runs
 prior over a run (/marg sigma_min, sigma_max; the exact prior has 0 there, rounding gives ±ε,
 an indefinite prior below −ε), median over the seeds whose results file is present (the HDF5
 runs are not committed: "–" without them).
+
+preconditioned_sqrtp.md / .csv (with --sqrtp, the folder of experiments/preconditioned_sqrtp.toml,
+and --ablation, sweep folders holding ns-qr-sqrt-f32 and sc-sc-sqrt-f32 of the same seed, e.g.
+results/paper_vio results/paper_vo): the square-root prior made by the preconditioned LDLT against
+the same LDLT without preconditioning and against √-f32, whole sequences.
 
 preconditioned_timing.md / .csv: per short-group run that finished ok, the optimization time per
 LM iteration (Σ /frames t_opt_s ÷ Σ lm_iterations) and the time per marginalization (Σ t_marg_s
@@ -43,7 +49,8 @@ def read_index(folder):
         rows = list(csv.DictReader(f))
     for r in rows:
         r["_folder"] = folder
-    return rows
+    # Runs still pending or running (a sweep under way) are left out.
+    return [r for r in rows if r["status"] in ("ok", "failed")]
 
 
 def worst_ratio(row):
@@ -60,7 +67,8 @@ def cells(runs):
     ok = [float(r["ate_rmse"]) for r in runs if r["status"] == "ok"]
     failed = [r for r in runs if r["status"] != "ok"]
     ate = tc.seed_cell(ok, len(failed), len(runs), 4) if runs else "–"
-    frames = ", ".join(sorted((r["failure_frame"] for r in failed), key=int)) or "–"
+    frames = ", ".join(sorted((r["failure_frame"] or "?" for r in failed),
+                              key=lambda f: int(f) if f.isdigit() else -1)) or "–"
     ratios = [x for x in (worst_ratio(r) for r in runs) if x is not None]
     ratio = f"{statistics.median(ratios):.1e}" if ratios else "–"
     return ate, frames, ratio
@@ -128,6 +136,23 @@ def timing_table(new):
     return rows
 
 
+def sqrtp_table(sqrtp, ablation):
+    datasets = sorted({r["dataset"] for r in sqrtp}, key=lambda d: (d.startswith("kitti"), d))
+    seeds = {r["seed"] for r in sqrtp}
+    ablation = [r for r in ablation if r["seed"] in seeds]
+    rows = [["sequence", "√-f32 (ns-qr-sqrt-f32)", "sc-sc-sqrt-f32", "sc-sc-sqrtp-f32",
+             "sqrtp ÷ √-f32"]]
+    for d in datasets:
+        ref = [r for r in ablation if r["dataset"] == d and r["variant"] == "ns-qr-sqrt-f32"]
+        plain = [r for r in ablation if r["dataset"] == d and r["variant"] == "sc-sc-sqrt-f32"]
+        new = [r for r in sqrtp if r["dataset"] == d]
+        ratio = "–"
+        if len(ref) == len(new) == 1 and ref[0]["status"] == new[0]["status"] == "ok":
+            ratio = f"{float(new[0]['ate_rmse']) / float(ref[0]['ate_rmse']):.2f}"
+        rows.append([short_name(d), cells(ref)[0], cells(plain)[0], cells(new)[0], ratio])
+    return rows
+
+
 def markdown(title, rows, note):
     lines = [f"### {title}", "", "| " + " | ".join(rows[0]) + " |",
              "|" + "|".join("---" for _ in rows[0]) + "|"]
@@ -146,6 +171,8 @@ def main():
     parser.add_argument("--new", nargs="+", required=True)
     parser.add_argument("--base", nargs="+", required=True)
     parser.add_argument("--out", required=True)
+    parser.add_argument("--sqrtp")
+    parser.add_argument("--ablation", nargs="+", default=[])
     args = parser.parse_args()
     new = [r for d in args.new for r in read_index(d)]
     base = [r for d in args.base for r in read_index(d)]
@@ -163,6 +190,14 @@ def main():
     tc.write_text(os.path.join(args.out, "preconditioned_short.md"),
                   markdown("Preconditioned Hessian storage: all new variants, first 600 frames",
                            short, NOTE + " " + where))
+    if args.sqrtp:
+        rows = sqrtp_table(read_index(args.sqrtp), [r for d in args.ablation for r in read_index(d)])
+        tc.write_csv(os.path.join(args.out, "preconditioned_sqrtp.csv"), rows)
+        tc.write_text(os.path.join(args.out, "preconditioned_sqrtp.md"),
+                      markdown("Square-root prior from the preconditioned LDLT (PC-SRIF's "
+                               "pipeline), whole sequences", rows,
+                               "ATE [m]; x: failed. sqrtp: " + args.sqrtp + "; √-f32 and "
+                               "sc-sc-sqrt-f32: " + ", ".join(args.ablation) + " (same seed)."))
     times = timing_table(new)
     tc.write_csv(os.path.join(args.out, "preconditioned_timing.csv"), times)
     tc.write_text(os.path.join(args.out, "preconditioned_timing.md"),
