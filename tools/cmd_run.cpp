@@ -229,7 +229,7 @@ void addRunSubject(CLI::App& sub, RunArgs& args) {
       ->required();
   sub.add_option("--variant", args.variant,
                  "opt-marg-storage-precision, e.g. ns-qr-sqrt-f32 (opt ns|sc, marg qr|sc, "
-                 "storage sqrt|sq, precision f32|f64|mixed)")
+                 "storage sqrt|sq|sqp|sqj|sqrtp, precision f32|f64|mixed)")
       ->required();
   sub.add_option("--isa", args.isa,
                  "Instruction set of the kernels (auto: the widest this CPU has); recorded in "

@@ -249,6 +249,7 @@ void SlidingWindowEstimator<Scalar>::initializeGaugePrior(int64_t frame_id) {
   }
   prior.setSqrt(std::move(J), VecX<Scalar>::Zero(m));
   prior.setHessian(std::move(H), VecX<Scalar>::Zero(n), Scalar(0));
+  prior.precondition();
 }
 
 template <typename Scalar>
@@ -271,6 +272,7 @@ std::unique_ptr<Linearization<Scalar>> SlidingWindowEstimator<Scalar>::makeVaria
   typename Linearization<Scalar>::Options options;
   options.damp_landmarks = config_.lm_landmark_damping;
   options.lambda_min = static_cast<Scalar>(config_.lambda_min);
+  options.preconditioning = preconditioningOf(variant_.storage);
   return makeLinearization<Scalar>(variant_, options);
 }
 
@@ -561,7 +563,7 @@ MargEvent SlidingWindowEstimator<Scalar>::shadowEvent() const {
   shadow_prior_.gaugeLayout(&event.layout, &event.state);
   // Gauge directions at the linearization points: the prior's nullspace lies there (FEJ).
   const VecX<Scalar> delta = window_.priorDelta(shadow_prior_);
-  if (shadow_prior_.storage == PriorStorage::kSqrt) {
+  if (sqrtStorage(shadow_prior_.storage)) {
     MatX<Scalar> J;
     VecX<Scalar> r;
     shadow_prior_.sqrtRows(delta, &J, &r);

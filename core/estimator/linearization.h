@@ -12,7 +12,8 @@
 //                      once per linearization; a landmark that cannot be eliminated then stays fixed
 //                      in this iteration;
 //   solve(λ)           the reduced system with the landmarks damped for λ (when landmark damping is
-//                      on), its damped LDLT solve H_ii += max(λ H_ii, λ_min), the landmarks'
+//                      on), its damped LDLT solve H_ii += max(λ H_ii, λ_min) (preconditioned for
+//                      the storages sqp / sqj: core/linalg/rcs_solve.h), the landmarks'
 //                      back-substitution, and the change of the undamped linearized energy along
 //                      the step (the LM gain ratio's denominator).
 //
@@ -33,6 +34,7 @@
 #include "core/common/status.h"
 #include "core/estimator/variant.h"
 #include "core/estimator/window.h"
+#include "core/linalg/preconditioner.h"
 
 namespace marglab {
 
@@ -51,6 +53,8 @@ class Linearization {
   struct Options {
     bool damp_landmarks = false;  // LM damping on the landmarks too (not the paper's setting)
     Scalar lambda_min = 0;
+    // Of the damped reduced system before its LDLT (storages sqp / sqj).
+    Preconditioning preconditioning = Preconditioning::kNone;
   };
   virtual ~Linearization() = default;
 

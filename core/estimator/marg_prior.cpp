@@ -10,7 +10,7 @@ namespace marglab {
 template <typename Scalar>
 int MargPrior<Scalar>::rows() const {
   if (empty()) return 0;
-  return storage == PriorStorage::kSqrt ? static_cast<int>(sqrt.J.rows()) : cols();
+  return sqrtStorage(storage) ? static_cast<int>(sqrt.J.rows()) : cols();
 }
 
 template <typename Scalar>
@@ -57,12 +57,14 @@ VecX<Scalar> MargPrior<Scalar>::delta(const std::function<SE3<Scalar>(int64_t)>&
 
 template <typename Scalar>
 MatX<Scalar> MargPrior<Scalar>::hessianAtAnchor() const {
-  return storage == PriorStorage::kSqrt ? MatX<Scalar>(sqrt.J.transpose() * sqrt.J) : hessian.H;
+  if (sqrtStorage(storage)) return sqrt.J.transpose() * sqrt.J;
+  return scaled() ? scaling.unscaled(hessian.H) : hessian.H;
 }
 
 template <typename Scalar>
 VecX<Scalar> MargPrior<Scalar>::gradientAtAnchor() const {
-  return storage == PriorStorage::kSqrt ? VecX<Scalar>(sqrt.J.transpose() * sqrt.r) : hessian.b;
+  if (sqrtStorage(storage)) return sqrt.J.transpose() * sqrt.r;
+  return scaled() ? scaling.unscaledGradient(hessian.b) : hessian.b;
 }
 
 template <typename Scalar>
@@ -76,20 +78,43 @@ void MargPrior<Scalar>::setHessian(MatX<Scalar> H, VecX<Scalar> b, Scalar c) {
   hessian.H = std::move(H);
   hessian.b = std::move(b);
   hessian.c = c;
+  scaling = BlockScaling<Scalar>();
+}
+
+template <typename Scalar>
+void MargPrior<Scalar>::setScaledHessian(MatX<Scalar> H_s, VecX<Scalar> b_s, Scalar c,
+                                         BlockScaling<Scalar> P) {
+  setHessian(std::move(H_s), std::move(b_s), c);
+  scaling = std::move(P);
+}
+
+template <typename Scalar>
+void MargPrior<Scalar>::precondition() {
+  const Preconditioning kind = preconditioningOf(storage);
+  if (kind == Preconditioning::kNone || !hessianStorage(storage) || empty() || scaled()) return;
+  BlockScaling<Scalar> P = BlockScaling<Scalar>::fromHessian(hessian.H, kind);
+  setScaledHessian(P.scaled(hessian.H), P.scaledGradient(hessian.b), hessian.c, P);
 }
 
 template <typename Scalar>
 Scalar MargPrior<Scalar>::cost(const VecX<Scalar>& d) const {
   if (empty()) return Scalar(0);
-  if (storage == PriorStorage::kSqrt) return Scalar(0.5) * (sqrt.r + sqrt.J * d).squaredNorm();
+  if (sqrtStorage(storage)) return Scalar(0.5) * (sqrt.r + sqrt.J * d).squaredNorm();
+  if (scaled()) {
+    const VecX<Scalar> y = scaling.toScaled(d);
+    return Scalar(0.5) * y.dot(hessian.H * y) + hessian.b.dot(y) + hessian.c;
+  }
   return Scalar(0.5) * d.dot(hessian.H * d) + hessian.b.dot(d) + hessian.c;
 }
 
 template <typename Scalar>
 void MargPrior<Scalar>::linearize(const VecX<Scalar>& d, MatX<Scalar>* H, VecX<Scalar>* b) const {
-  if (storage == PriorStorage::kSqrt) {
+  if (sqrtStorage(storage)) {
     *H = sqrt.J.transpose() * sqrt.J;
     *b = sqrt.J.transpose() * (sqrt.r + sqrt.J * d);
+  } else if (scaled()) {
+    *H = scaling.unscaled(hessian.H);
+    *b = scaling.unscaledGradient(hessian.b + hessian.H * scaling.toScaled(d));
   } else {
     *H = hessian.H;
     *b = hessian.b + hessian.H * d;
@@ -105,10 +130,14 @@ void MargPrior<Scalar>::sqrtRows(const VecX<Scalar>& d, MatX<Scalar>* J, VecX<Sc
 template <typename Scalar>
 Scalar MargPrior<Scalar>::costChange(const VecX<Scalar>& d, const VecX<Scalar>& step) const {
   if (empty()) return Scalar(0);
-  if (storage == PriorStorage::kSqrt) {
+  if (sqrtStorage(storage)) {
     const VecX<Scalar> r0 = sqrt.r + sqrt.J * d;
     const VecX<Scalar> J_step = sqrt.J * step;
     return r0.dot(J_step) + Scalar(0.5) * J_step.squaredNorm();
+  }
+  if (scaled()) {
+    const VecX<Scalar> y = scaling.toScaled(d), t = scaling.toScaled(step);
+    return (hessian.b + hessian.H * y).dot(t) + Scalar(0.5) * t.dot(hessian.H * t);
   }
   return (hessian.b + hessian.H * d).dot(step) + Scalar(0.5) * step.dot(hessian.H * step);
 }

@@ -5,7 +5,10 @@
 // strategy landmarks as world points (3 dof, additive) — in one of two storages:
 //   square root (eq. 4):  E_m(x) = ½ ‖r_m + J_m δ‖²,
 //   Hessian     (eq. 3):  E_m(x) = ½ δᵀ H_m δ + b_mᵀ δ,          δ = x ⊟ x⁰,
-// where x⁰ are the first-estimate linearization points of the prior's variables. The shift of
+// where x⁰ are the first-estimate linearization points of the prior's variables. The
+// preconditioned Hessian storages (sqp, sqj; core/linalg/preconditioner.h) keep the same E_m in
+// scaled coordinates y = Q δ:  E_m = ½ yᵀ Ĥ_m y + b̂_mᵀ y + c, i.e. H_m = Qᵀ Ĥ_m Q, b_m = Qᵀ b̂_m,
+// with `hessian` holding (Ĥ_m, b̂_m, c) and `scaling` the P (and Q = P⁻¹) of the layout. The shift of
 // the expansion point (eq. 6: r' = r_m + J_m δ, b' = b_m + H_m δ) is applied on the fly from the
 // stored (r_m, b_m) and x⁰, so the stored prior never changes between marginalizations.
 
@@ -17,6 +20,7 @@
 #include "core/diagnostics/gauge.h"
 #include "core/estimator/variant.h"
 #include "core/geometry/se3.h"
+#include "core/linalg/preconditioner.h"
 #include "core/linalg/schur.h"
 
 namespace marglab {
@@ -43,6 +47,14 @@ struct VarKey {
   bool operator==(const VarKey& o) const { return frame_id == o.frame_id && block == o.block; }
 };
 
+// The preconditioning a storage applies before its factorizations.
+constexpr Preconditioning preconditioningOf(PriorStorage storage) {
+  return storage == PriorStorage::kHessianBlockJacobi || storage == PriorStorage::kSqrtBlockJacobi
+             ? Preconditioning::kBlockJacobi
+             : (storage == PriorStorage::kHessianJacobi ? Preconditioning::kJacobi
+                                                        : Preconditioning::kNone);
+}
+
 template <typename Scalar>
 struct MargPrior {
   using Vec9S = Vec<Scalar, kSpeedBiasDim>;
@@ -57,7 +69,8 @@ struct MargPrior {
   PriorStorage storage = PriorStorage::kSqrt;
   std::vector<Block> blocks;     // variable layout, in column order
   SqrtPrior<Scalar> sqrt;        // used when storage == kSqrt
-  HessianPrior<Scalar> hessian;  // used when storage == kHessian
+  HessianPrior<Scalar> hessian;  // used by every Hessian storage (scaled for sqp, sqj)
+  BlockScaling<Scalar> scaling;  // sqp, sqj: y = Q δ of `hessian`; empty otherwise
 
   bool empty() const { return blocks.empty(); }
   int cols() const;
@@ -74,12 +87,19 @@ struct MargPrior {
   VecX<Scalar> delta(const std::function<SE3<Scalar>(int64_t)>& pose_of,
                      const std::function<Vec9S(int64_t)>& speed_bias_of,
                      const std::function<Vec3<Scalar>(int64_t)>& point_of = {}) const;
-  // The stored expansion at δ = 0: Hessian JᵀJ | H_m and gradient Jᵀr | b_m.
+  bool scaled() const { return !scaling.empty(); }
+  // The stored expansion at δ = 0: Hessian JᵀJ | H_m and gradient Jᵀr | b_m (unscaled).
   MatX<Scalar> hessianAtAnchor() const;
   VecX<Scalar> gradientAtAnchor() const;
-  // Replaces the stored expansion (the layout stays).
+  // Replaces the stored expansion (the layout stays); setHessian clears the scaling, setScaledHessian
+  // stores (Ĥ_m, b̂_m, c) with their scaling.
   void setSqrt(MatX<Scalar> J, VecX<Scalar> r);
   void setHessian(MatX<Scalar> H, VecX<Scalar> b, Scalar c);
+  void setScaledHessian(MatX<Scalar> H_s, VecX<Scalar> b_s, Scalar c, BlockScaling<Scalar> P);
+  // An unscaled Hessian prior moved to the scaled form of the storage's preconditioning (a window
+  // restored from a snapshot, the initial gauge prior); nothing for the other storages (sqrtp's
+  // preconditioning acts in its marginalization, its stored J is unscaled).
+  void precondition();
   // E_m at δ.
   Scalar cost(const VecX<Scalar>& delta) const;
   // Gradient and Hessian at δ: b = Jᵀ(r + Jδ), H = JᵀJ  |  b = b_m + H_m δ, H = H_m.

@@ -209,15 +209,51 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
     }
     for (const RowBlock<Scalar>& d : p.direct) addRows(d, d.vars, p.column_of, H, b);
     if (!prior->empty()) addPrior(*prior, p.old_delta, p.column_of, H, b);
-    SchurMarginalization<Scalar> sc = schurMarginalize<Scalar>(H, b, p.n_marg);
-    if (!sc.status.ok()) return sc.status;
-    Status s = store(std::move(sc.prior), p.new_delta, &p.next);
+    const Preconditioning kind = preconditioningOf(storage_);
+    Status s;
+    if (kind == Preconditioning::kNone) {
+      SchurMarginalization<Scalar> sc = schurMarginalize<Scalar>(H, b, p.n_marg);
+      if (!sc.status.ok()) return sc.status;
+      s = store(std::move(sc.prior), p.new_delta, &p.next);
+    } else {
+      // δ = P y over [μ | κ]: the pseudo-inverse of Ĥ_μμ and the Schur complement in y.
+      const BlockScaling<Scalar> P = BlockScaling<Scalar>::fromHessian(H, kind);
+      SchurMarginalization<Scalar> sc =
+          schurMarginalize<Scalar>(P.scaled(H), P.scaledGradient(b), p.n_marg);
+      if (!sc.status.ok()) return sc.status;
+      s = storeScaled(std::move(sc.prior), P.tail(p.n_marg), p.new_delta, &p.next);
+    }
     if (!s.ok()) return s;
     *prior = std::move(p.next);
     return Status::Ok();
   }
 
  private:
+  // The preconditioned storages: the marginal over y_κ (δ_κ = P_κ y_κ) is scaled once more by its
+  // own diagonal blocks, y_κ = P₂ z, so that Ĥ_m has a unit-scale diagonal; the shift to x⁰ and the
+  // LDLT run on Ĥ_m. sqp / sqj store (Ĥ_m, b̂_m, c = ½‖r‖²); sqrtp stores the LDLT's square root
+  // mapped to δ: ½‖r + J_z z‖² with z = Q δ is ½‖r + (J_z Q) δ‖².
+  Status storeScaled(HessianPrior<Scalar> marginal, const BlockScaling<Scalar>& P_kept,
+                     const VecX<Scalar>& new_delta, MargPrior<Scalar>* next) const {
+    const BlockScaling<Scalar> P2 =
+        BlockScaling<Scalar>::fromHessian(marginal.H, preconditioningOf(storage_));
+    BlockScaling<Scalar> P = P_kept.then(P2);
+    MatX<Scalar> H_m = P2.scaled(marginal.H);
+    VecX<Scalar> b_m = P2.scaledGradient(marginal.b) - H_m * P.toScaled(new_delta);
+    LdltSqrt<Scalar> ldlt = hessianToSqrtLdlt<Scalar>(H_m, b_m);
+    if (!ldlt.status.ok()) {
+      return Status::Error(ldlt.status.code(),
+                           "the preconditioned prior's LDLT: " + ldlt.status.message());
+    }
+    if (sqrtStorage(storage_)) {
+      next->setSqrt(P.unscaledRows(ldlt.prior.J), std::move(ldlt.prior.r));
+      return Status::Ok();
+    }
+    const Scalar c = Scalar(0.5) * ldlt.prior.r.squaredNorm();
+    next->setScaledHessian(std::move(H_m), std::move(b_m), c, std::move(P));
+    return Status::Ok();
+  }
+
   // The prior anchored at x⁰ in the storage. Its square root ½‖r + Jδ‖² is the LDLT of H; a
   // Hessian prior keeps its value at δ = 0 as the constant c = ½ b_mᵀ H⁺ b_m, so that both
   // storages are the same function and the flat QR's (rows without Jacobian carry no constant

@@ -8,10 +8,29 @@
 
 namespace marglab {
 
+namespace {
+
+const char* storageName(PriorStorage storage) {
+  switch (storage) {
+    case PriorStorage::kSqrt:
+      return "sqrt";
+    case PriorStorage::kHessian:
+      return "sq";
+    case PriorStorage::kHessianBlockJacobi:
+      return "sqp";
+    case PriorStorage::kHessianJacobi:
+      return "sqj";
+    case PriorStorage::kSqrtBlockJacobi:
+      return "sqrtp";
+  }
+  return "";
+}
+
+}  // namespace
+
 std::string Variant::method() const {
   return fmt::format("{}-{}-{}", opt == OptElimination::kNullspace ? "ns" : "sc",
-                     marg == MargMethod::kQr ? "qr" : "sc",
-                     storage == PriorStorage::kSqrt ? "sqrt" : "sq");
+                     marg == MargMethod::kQr ? "qr" : "sc", storageName(storage));
 }
 
 std::string Variant::precisionName() const {
@@ -35,7 +54,7 @@ Variant Variant::parse(const std::string& text) {
   std::stringstream stream(text);
   for (std::string part; std::getline(stream, part, '-');) parts.push_back(part);
   const std::string expected =
-      "expected opt-marg-storage-precision with opt ns|sc, marg qr|sc, storage sqrt|sq, "
+      "expected opt-marg-storage-precision with opt ns|sc, marg qr|sc, storage sqrt|sq|sqp|sqj|sqrtp, "
       "precision f32|f64|mixed (e.g. ns-qr-sqrt-f32; mixed needs opt ns)";
   if (parts.size() != 4) {
     throw UsageError(fmt::format("unknown variant '{}': {}", text, expected));
@@ -62,6 +81,12 @@ Variant Variant::parse(const std::string& text) {
     v.storage = PriorStorage::kSqrt;
   } else if (parts[2] == "sq") {
     v.storage = PriorStorage::kHessian;
+  } else if (parts[2] == "sqp") {
+    v.storage = PriorStorage::kHessianBlockJacobi;
+  } else if (parts[2] == "sqj") {
+    v.storage = PriorStorage::kHessianJacobi;
+  } else if (parts[2] == "sqrtp") {
+    v.storage = PriorStorage::kSqrtBlockJacobi;
   } else {
     throw bad("storage '" + parts[2] + "'");
   }

@@ -8,6 +8,14 @@
 //                       Hessian with a pseudo-inverse of H_μμ (eqs. 22–23);
 //   storage  sqrt | sq  prior stored as (J_m, r_m) (eq. 4) or (H_m, b_m) (eq. 3); `sc` + `sqrt`
 //                       factorizes the new prior by LDLT (√D Lᵀ P); `qr` requires `sqrt`;
+//            sqp | sqj  Hessian storage preconditioned (docs/preconditioned_storage.md): the prior
+//                       kept as (Q, Ĥ_m, b̂_m) with H_m = Qᵀ Ĥ_m Q, and every factorization of the
+//                       marginalization and of the LM step run on the preconditioned matrix;
+//                       sqp = 3×3 block Jacobi per physical quantity (our reading of PC-SRIF,
+//                       Ke et al. 2024), sqj = point Jacobi with power-of-two scales; `sc` only;
+//            sqrtp      square-root storage whose LDLT (and the LM step's) runs on the block-Jacobi
+//                       preconditioned Hessian: PC-SRIF's own pipeline (preconditioned Cholesky,
+//                       square root stored); `sc` only;
 //   precision f32 | f64 the scalar type of the whole estimator;
 //             mixed     (ns only) landmark linearization storage and elimination in f32, reduced
 //                       system, prior and marginalization in f64 (core/estimator/linearization.h).
@@ -21,7 +29,15 @@ namespace marglab {
 
 enum class OptElimination { kNullspace, kSchur };
 enum class MargMethod { kQr, kSchur };
-enum class PriorStorage { kSqrt, kHessian };
+enum class PriorStorage { kSqrt, kHessian, kHessianBlockJacobi, kHessianJacobi, kSqrtBlockJacobi };
+
+// The Hessian storages keep (H_m, b_m, c), the preconditioned ones in scaled coordinates; the
+// square-root ones (J_m, r_m).
+constexpr bool hessianStorage(PriorStorage s) {
+  return s == PriorStorage::kHessian || s == PriorStorage::kHessianBlockJacobi ||
+         s == PriorStorage::kHessianJacobi;
+}
+constexpr bool sqrtStorage(PriorStorage s) { return !hessianStorage(s); }
 enum class Precision { kF32, kF64, kMixed };
 
 struct Variant {

@@ -104,15 +104,16 @@ WindowSnapshot snapshotOf(const Window<Scalar>& w_in) {
     }
   }
   const MargPrior<Scalar>& prior = w_in.prior;
-  w.prior_storage = prior.storage;
+  // A preconditioned Hessian prior is captured unscaled, as a Hessian prior.
+  w.prior_storage = hessianStorage(prior.storage) ? PriorStorage::kHessian : PriorStorage::kSqrt;
   for (const auto& block : prior.blocks) {
     w.prior_blocks.push_back(
         {block.var, block.offset, widen(block.T0), block.sb0.template cast<double>()});
   }
   w.prior_J = prior.sqrt.J.template cast<double>();
   w.prior_r = prior.sqrt.r.template cast<double>();
-  w.prior_H = prior.hessian.H.template cast<double>();
-  w.prior_b = prior.hessian.b.template cast<double>();
+  w.prior_H = (prior.scaled() ? prior.hessianAtAnchor() : prior.hessian.H).template cast<double>();
+  w.prior_b = (prior.scaled() ? prior.gradientAtAnchor() : prior.hessian.b).template cast<double>();
   w.prior_c = static_cast<double>(prior.hessian.c);
   return w;
 }
@@ -174,7 +175,7 @@ void restoreWindow(const WindowSnapshot& w, PriorStorage storage, Window<Scalar>
     block.sb0 = b.sb0.template cast<Scalar>();
     prior.blocks.push_back(block);
   }
-  if (w.prior_storage == storage) {
+  if (hessianStorage(w.prior_storage) == hessianStorage(storage)) {
     prior.sqrt.J = w.prior_J.template cast<Scalar>();
     prior.sqrt.r = w.prior_r.template cast<Scalar>();
     prior.hessian.H = w.prior_H.template cast<Scalar>();
@@ -189,12 +190,13 @@ void restoreWindow(const WindowSnapshot& w, PriorStorage storage, Window<Scalar>
     throw InputError("", 0, "window: a Hessian prior cannot be replayed with square-root storage");
   }
   const int cols = prior.empty() ? 0 : prior.cols();
-  const bool sqrt_storage = storage == PriorStorage::kSqrt;
+  const bool sqrt_storage = sqrtStorage(storage);
   if (!prior.empty() &&
       (sqrt_storage ? prior.sqrt.J.cols() != cols || prior.sqrt.r.size() != prior.sqrt.J.rows()
                     : prior.hessian.H.cols() != cols || prior.hessian.b.size() != cols)) {
     throw InputError("", 0, "window: prior size does not match its layout");
   }
+  prior.precondition();
 }
 
 #define MARGLAB_INST(S)                                                               \

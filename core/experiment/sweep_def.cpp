@@ -510,6 +510,9 @@ std::vector<std::string> expandVariantEntry(const std::string& entry) {
     for (const Variant& v : paperVariants()) out.push_back(v.name());
   } else if (entry == "headline") {
     out = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64", "sc-sc-sq-f32"};
+  } else if (entry == "preconditioned") {
+    // Issue #31 §3 (docs/preconditioned_storage.md): not paper variants.
+    out = {"sc-sc-sqp-f32", "ns-sc-sqp-f32", "sc-sc-sqj-f32", "sc-sc-sqp-f64", "sc-sc-sqrtp-f32"};
   } else if (entry == "precision") {
     // The square-root method in every precision, mixed included (not a paper column).
     out = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "ns-qr-sqrt-mixed"};
@@ -524,7 +527,7 @@ std::vector<std::string> expandVariantEntry(const std::string& entry) {
       out.push_back(Variant::parse(entry).name());
     } catch (const UsageError& e) {
       throw UsageError(
-          fmt::format("{} (or a set: paper, headline, ablation, precision)", e.what()));
+          fmt::format("{} (or a set: paper, headline, ablation, precision, preconditioned)", e.what()));
     }
   }
   return out;

@@ -16,7 +16,8 @@
 //                                               # (relative to the sweep file)
 //   variants    = ["headline", "sc-qr-sqrt-f32"] # variant names or sets: paper (10), headline (4:
 //                                               # ns-qr-sqrt, sc-sc-sq × f32/f64), ablation (8:
-//                                               # the square-root-storage variants of Tables 4/6)
+//                                               # the square-root-storage variants of Tables 4/6),
+//                                               # preconditioned (docs/preconditioned_storage.md)
 //   seeds       = [1]                           # optional, default [1]
 //   frames      = 600                           # optional, 0 (default): the whole sequence
 //   timeout_s   = 0                             # optional wall-time limit per run (0: none)

@@ -9,7 +9,7 @@ namespace marglab {
 
 template <typename Scalar>
 DampedSolve<Scalar> solveDampedLdlt(MatX<Scalar> H, const VecX<Scalar>& b, Scalar lambda,
-                                    Scalar lambda_min) {
+                                    Scalar lambda_min, Preconditioning preconditioning) {
   DampedSolve<Scalar> result;
   if (!H.allFinite() || !b.allFinite()) {
     result.status = Status::Error(Status::Code::kNotFinite,
@@ -17,16 +17,24 @@ DampedSolve<Scalar> solveDampedLdlt(MatX<Scalar> H, const VecX<Scalar>& b, Scala
     return result;
   }
   for (Eigen::Index i = 0; i < H.rows(); ++i) H(i, i) += lmDamping(H(i, i), lambda, lambda_min);
+  const bool scaled = preconditioning != Preconditioning::kNone;
+  BlockScaling<Scalar> P;
+  if (scaled) {
+    P = BlockScaling<Scalar>::fromHessian(H, preconditioning);
+    H = P.scaled(H);
+  }
   Eigen::LDLT<MatX<Scalar>> ldlt(H);
   if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > Scalar(0)).all()) {
     result.status = Status::Error(
         Status::Code::kSolveFailed,
-        fmt::format("reduced camera system: damped H ({}x{}) is not positive definite "
+        fmt::format("reduced camera system: damped {}H ({}x{}) is not positive definite "
                     "(min LDLT pivot {:.3e})",
-                    H.rows(), H.cols(), ldlt.vectorD().minCoeff()));
+                    scaled ? "preconditioned " : "", H.rows(), H.cols(),
+                    ldlt.vectorD().minCoeff()));
     return result;
   }
-  result.delta = -ldlt.solve(b);
+  result.delta = scaled ? VecX<Scalar>(-P.toDelta(ldlt.solve(P.scaledGradient(b))))
+                        : VecX<Scalar>(-ldlt.solve(b));
   if (!result.delta.allFinite()) {
     result.status =
         Status::Error(Status::Code::kNotFinite, "reduced camera system: non-finite step");
@@ -34,7 +42,8 @@ DampedSolve<Scalar> solveDampedLdlt(MatX<Scalar> H, const VecX<Scalar>& b, Scala
   return result;
 }
 
-#define MARGLAB_INST(S) template DampedSolve<S> solveDampedLdlt<S>(MatX<S>, const VecX<S>&, S, S);
+#define MARGLAB_INST(S) \
+  template DampedSolve<S> solveDampedLdlt<S>(MatX<S>, const VecX<S>&, S, S, Preconditioning);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

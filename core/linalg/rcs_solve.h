@@ -4,9 +4,12 @@
 // solved by LDLT (Eigen's, with diagonal pivoting). The damping rule bounds the step along
 // directions the data does not constrain (gauge, weakly observed variables) instead of letting a
 // singular H fail. Failure — a non-positive pivot, a non-finite step — is returned as a Status.
+// With a preconditioning (core/linalg/preconditioner.h) the damped system is solved as
+// (Pᵀ(H + D)P) y = −Pᵀb, δ = P y, P built from the damped H's 3×3 diagonal blocks.
 
 #include "core/common/eigen_types.h"
 #include "core/common/status.h"
+#include "core/linalg/preconditioner.h"
 
 namespace marglab {
 
@@ -25,6 +28,7 @@ inline Scalar lmDamping(Scalar H_ii, Scalar lambda, Scalar lambda_min) {
 // H is taken by value and damped in place; only its lower triangle is read by the LDLT.
 template <typename Scalar>
 DampedSolve<Scalar> solveDampedLdlt(MatX<Scalar> H, const VecX<Scalar>& b, Scalar lambda,
-                                    Scalar lambda_min);
+                                    Scalar lambda_min,
+                                    Preconditioning preconditioning = Preconditioning::kNone);
 
 }  // namespace marglab

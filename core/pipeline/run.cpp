@@ -167,7 +167,7 @@ void writeMargEvent(const MargEvent& event, int frame_index, std::int64_t t_ns,
   const PriorLayout& layout = event.layout;
   const GaugeState& state = event.state;
   const std::uint64_t seed = config.diagnostics_seed + static_cast<std::uint64_t>(marg_index);
-  const bool sqrt_storage = options.variant.storage == PriorStorage::kSqrt;
+  const bool sqrt_storage = sqrtStorage(options.variant.storage);
   const PriorDiagnostics diagnostics =
       sqrt_storage ? diagnoseSqrtPrior(event.J_m, event.r_m, layout, state, seed)
                    : diagnosePrior(event.H_m, event.b_m, layout, state, seed);

@@ -11,6 +11,7 @@
 #include "common/cli_runner.h"
 #include "core/common/error.h"
 #include "core/estimator/config.h"
+#include "core/estimator/variant.h"
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_index.h"
 
@@ -87,6 +88,10 @@ TEST(SweepDefinition, VariantSetsMatchThePapersColumns) {
   ASSERT_EQ(ablation.size(), 8u);
   for (const std::string& v : ablation) EXPECT_NE(v.find("-sqrt-"), std::string::npos) << v;
   EXPECT_THROW(expandVariantEntry("ns-qr-sq-f32"), UsageError);  // qr requires sqrt storage
+  // Issue #31 §3's set: every name parses back to itself.
+  const auto preconditioned = expandVariantEntry("preconditioned");
+  ASSERT_EQ(preconditioned.size(), 5u);
+  for (const std::string& v : preconditioned) EXPECT_EQ(Variant::parse(v).name(), v);
 }
 
 struct Malformed {
