@@ -167,7 +167,9 @@ void expectRecoveredEvents(const Variant& variant, double max_position_error_m,
   }
   EXPECT_GT(events, 5);
   EXPECT_LT(max_error, max_position_error_m);
-  if (rigid_tol > 0) EXPECT_GT(matched_events, 0);
+  if (rigid_tol > 0) {
+    EXPECT_GT(matched_events, 0);
+  }
 }
 
 TEST(NfrStrategy, EveryKeyframeEventIsSparsifiedQrF64) {

@@ -41,7 +41,7 @@ TYPED_TEST(WindowConsistency, ErrorsArePixelOffsetsOfTheSharedObservations) {
 
   // The observation in frame 1 of p_w, offset by d (pixels).
   auto observed = [&](const Eigen::Vector3d& p_w, const Eigen::Vector2d& d) {
-    Eigen::Vector2d uv;
+    Eigen::Vector2d uv = Eigen::Vector2d::Zero();
     EXPECT_TRUE(rig.cam0.project(T_w_c1.inverse() * p_w, &uv));
     typename W::Observation obs;
     obs.uv0 = (uv + d).cast<Scalar>();

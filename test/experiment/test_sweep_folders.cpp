@@ -204,7 +204,9 @@ TEST_F(SweepFolders, ForeignFolderIsRefusedAndLeftAlone) {
       for (const char* file : {"logs/notes.txt", "runs/data.h5", "configs/a.toml"}) {
         EXPECT_EQ(readText(out / file), "mine\n") << file;
       }
-      if (c.with_sweep_toml) EXPECT_EQ(readText(out / "sweep.toml"), "# mine\n");
+      if (c.with_sweep_toml) {
+        EXPECT_EQ(readText(out / "sweep.toml"), "# mine\n");
+      }
     }
   }
 }
