@@ -33,6 +33,39 @@ SE3<S> exactPose(const SE3<double>& T) {
   return out;
 }
 
+// The IMU part of a snapshot: noise, gravity, the links' linearization biases and the samples their
+// preintegration reads.
+template <typename Scalar>
+void snapshotImu(const Window<Scalar>& w_in, const ImuSetup& imu, WindowSnapshot* out) {
+  WindowSnapshot& w = *out;
+  w.imu_noise = imu.noise;
+  w.imu_sample_period_s = imu.sample_period_s;
+  w.g_w = imu.g_w;
+  int64_t t_min = std::numeric_limits<int64_t>::max(),
+          t_max = std::numeric_limits<int64_t>::min();
+  for (const auto& [from, link] : w_in.imu_links) {
+    const ImuPreintegration<Scalar>& pre = link.factor.preintegration();
+    w.imu_links.push_back({from, link.to, pre.biasGyroLin().template cast<double>(),
+                           pre.biasAccelLin().template cast<double>()});
+    t_min = std::min(t_min, w_in.frames.at(from).t_ns);
+    t_max = std::max(t_max, w_in.frames.at(link.to).t_ns);
+  }
+  // The samples preintegration reads: from the one in force at the first link's start (with a
+  // margin) to the first one at or after the last link's end.
+  const std::vector<int64_t>& t = imu.imu.t_ns;
+  if (!w_in.imu_links.empty() && !t.empty()) {
+    const auto lo_it = std::upper_bound(t.begin(), t.end(), t_min);
+    const auto hi_it = std::upper_bound(t.begin(), t.end(), t_max);
+    const size_t lo = static_cast<size_t>(std::max<std::ptrdiff_t>(0, lo_it - t.begin() - 2));
+    const size_t hi = std::min(t.size() - 1, static_cast<size_t>(hi_it - t.begin()) + 1);
+    for (size_t k = lo; k <= hi; ++k) {
+      w.imu.t_ns.push_back(t[k]);
+      w.imu.gyro.push_back(imu.imu.gyro[k]);
+      w.imu.accel.push_back(imu.imu.accel[k]);
+    }
+  }
+}
+
 }  // namespace
 
 template <typename Scalar>
@@ -75,34 +108,7 @@ WindowSnapshot snapshotOf(const Window<Scalar>& w_in) {
     }
     w.landmarks.push_back(std::move(ls));
   }
-  if (const std::optional<ImuSetup>& imu = w_in.imu()) {
-    w.imu_noise = imu->noise;
-    w.imu_sample_period_s = imu->sample_period_s;
-    w.g_w = imu->g_w;
-    int64_t t_min = std::numeric_limits<int64_t>::max(),
-            t_max = std::numeric_limits<int64_t>::min();
-    for (const auto& [from, link] : w_in.imu_links) {
-      const ImuPreintegration<Scalar>& pre = link.factor.preintegration();
-      w.imu_links.push_back({from, link.to, pre.biasGyroLin().template cast<double>(),
-                             pre.biasAccelLin().template cast<double>()});
-      t_min = std::min(t_min, w_in.frames.at(from).t_ns);
-      t_max = std::max(t_max, w_in.frames.at(link.to).t_ns);
-    }
-    // The samples preintegration reads: from the one in force at the first link's start (with a
-    // margin) to the first one at or after the last link's end.
-    const std::vector<int64_t>& t = imu->imu.t_ns;
-    if (!w_in.imu_links.empty() && !t.empty()) {
-      const auto lo_it = std::upper_bound(t.begin(), t.end(), t_min);
-      const auto hi_it = std::upper_bound(t.begin(), t.end(), t_max);
-      const size_t lo = static_cast<size_t>(std::max<std::ptrdiff_t>(0, lo_it - t.begin() - 2));
-      const size_t hi = std::min(t.size() - 1, static_cast<size_t>(hi_it - t.begin()) + 1);
-      for (size_t k = lo; k <= hi; ++k) {
-        w.imu.t_ns.push_back(t[k]);
-        w.imu.gyro.push_back(imu->imu.gyro[k]);
-        w.imu.accel.push_back(imu->imu.accel[k]);
-      }
-    }
-  }
+  if (const std::optional<ImuSetup>& imu = w_in.imu()) snapshotImu(w_in, *imu, &w);
   const MargPrior<Scalar>& prior = w_in.prior;
   // A preconditioned Hessian prior is captured unscaled, as a Hessian prior.
   w.prior_storage = hessianStorage(prior.storage) ? PriorStorage::kHessian : PriorStorage::kSqrt;
