@@ -8,10 +8,13 @@
 #include <climits>
 #include <filesystem>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "core/bench/bench_report.h"
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
+#include "core/estimator/variant.h"
 #include "core/linalg/isa.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
@@ -28,6 +31,7 @@ struct BenchArgs {
   bool no_runs = false;
   bool quick = false;
   std::string isa = "auto";
+  std::vector<std::string> variants;
 };
 
 std::string selfExe() {
@@ -48,6 +52,7 @@ int runBenchCommand(const BenchArgs& a) {
   std::filesystem::create_directories(a.out);
   o.work_dir = a.out;
   if (!a.no_runs) o.run_exe = selfExe();
+  for (const std::string& v : a.variants) o.variants.push_back(Variant::parse(v));
   const BenchReport report = runBench(o);
   const std::string md = benchMarkdown(report);
   const std::string json = benchJson(report);
@@ -87,6 +92,9 @@ const bool kRegistered = cli::registerCommand(
                       "ISA the CPU has)")
            ->check(CLI::IsMember({"auto", "sse2", "avx2", "avx512"}))
            ->capture_default_str();
+       sub.add_option("--variant", a->variants,
+                      "Also time this variant's LM iteration and marginalization on every window, "
+                      "beside ns-qr-sqrt-f32 (repeatable), e.g. --variant sc-sc-sqp-f32");
        sub.add_flag("--no-runs", a->no_runs, "Skip the whole runs");
        sub.add_flag("--quick", a->quick, "One round, short batches (for tests; noisy)");
        return [a] { return runBenchCommand(*a); };

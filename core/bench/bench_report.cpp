@@ -343,6 +343,10 @@ BenchReport runBench(const BenchOptions& o) {
     timeQrKernel(nw.window, o, t);
     timeToConvergence(nw, o, t);
     r.windows.push_back(t);
+    if (!o.variants.empty()) {
+      r.variants.windows.push_back(nw.name);
+      r.variants.times.push_back(timeVariants(nw.window, o.variants, o.rounds, o.batch_s));
+    }
   }
   progress(o, "single-core peak");
   const FmaPeak p32 = machinePeak(true, 0.3), p64 = machinePeak(false, 0.3);
@@ -616,7 +620,8 @@ std::string targetsMarkdown(const BenchReport& r) {
 }  // namespace
 
 std::string benchMarkdown(const BenchReport& r) {
-  return iterationMarkdown(r) + ceresMarkdown(r) + margEventMarkdown(r) + isaMarkdown(r) +
+  return iterationMarkdown(r) + variantBenchMarkdown(r.variants, r.isa) + ceresMarkdown(r) +
+         margEventMarkdown(r) + isaMarkdown(r) +
          "Flops counted analytically: per block m × (n_p + 4), Σ_k=0..2 2(m−k) + 4(m−k)(n_p + 3 − "
          "k).\n\n" +
          wholeRunsMarkdown(r) + targetsMarkdown(r);
@@ -657,6 +662,7 @@ std::string benchJson(const BenchReport& r) {
   j["date"] = r.date_utc;
   j["isa"] = r.isa;
   j["per_isa"] = isaJson(r);
+  j["variants"] = variantBenchJson(r.variants);
   return j.dump(2);
 }
 

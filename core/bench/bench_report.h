@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/bench/ceres_window.h"
+#include "core/bench/variant_bench.h"
 #include "core/estimator/variant.h"
 
 namespace marglab {
@@ -22,6 +23,8 @@ struct BenchOptions {
   std::string run_exe;      // the marglab executable
   std::string work_dir;     // for the runs' results files
   std::string windows_dir;  // default: <datasets>/windows
+  // Further variants timed beside ns-qr-sqrt-f32 on every window (core/bench/variant_bench.h).
+  std::vector<Variant> variants;
   // Progress lines on stderr.
   bool verbose = false;
 };
@@ -118,6 +121,7 @@ struct BenchReport {
   std::array<double, 3> isa_peak_f32{}, isa_peak_f64{};  // per ISA (0: not supported)
   std::vector<WholeRun> runs;
   int run_frames = 0;
+  VariantBench variants;  // empty unless BenchOptions::variants named some
   // Derived.
   double speedup_ns_f32_over_sc_f64 = 0;
   double speedup_over_ceres_dense_schur = 0;  // per iteration, ns-f64 vs DENSE_SCHUR

@@ -21,7 +21,8 @@ TEST(BenchCli, QuickJsonHasTheIssueKeysAndWritesTheTable) {
   const fs::path dir = fs::temp_directory_path() / "marglab_test_bench_cli";
   fs::remove_all(dir);
   const test::CliResult r =
-      test::runCli("bench --quick --frames 15 --json --out '" + dir.string() + "'");
+      test::runCli("bench --quick --frames 15 --json --variant sc-sc-sqp-f32 --out '" +
+                   dir.string() + "'");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   for (const char* key :
        {"speedup_ns_f32_over_sc_f64", "speedup_over_ceres_dense_schur", "speedup_over_ceres_best",
@@ -52,8 +53,17 @@ TEST(BenchCli, QuickJsonHasTheIssueKeysAndWritesTheTable) {
     EXPECT_NE(table.find(run), std::string::npos) << run << " in " << table;
   }
   EXPECT_NE(table.find("| RTF KITTI 00 ≥ 40× |"), std::string::npos) << table;
+  // The chosen variant beside the reference, in the table and the JSON.
+  EXPECT_NE(table.find("| **all** | sc-sc-sqp-f32 | "), std::string::npos) << table;
+  EXPECT_NE(r.output.find("\"variant\": \"sc-sc-sqp-f32\""), std::string::npos);
   EXPECT_TRUE(fs::exists(dir / "bench.json"));
   fs::remove_all(dir);
+}
+
+TEST(BenchCli, AnUnknownVariantIsAUsageErrorBeforeAnyTiming) {
+  const test::CliResult r = test::runCli("bench --quick --no-runs --variant sc-sc-sqx-f32");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("unknown variant 'sc-sc-sqx-f32'"), std::string::npos) << r.output;
 }
 
 TEST(BenchCli, RunDumpsTheRequestedWindows) {
