@@ -18,6 +18,7 @@
 #include <utility>
 
 #include "core/common/error.h"
+#include "core/estimator/variant.h"
 #include "core/io/results_file.h"
 
 namespace marglab::experiment {
@@ -29,6 +30,14 @@ namespace fs = std::filesystem;
 const std::vector<std::string> kHeadline = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64",
                                             "sc-sc-sq-f32"};
 const std::string kMixed = "ns-qr-sqrt-mixed";
+// Beside the preconditioned storages: the paper's √-f32 and SC-32, and the square root of an
+// unpreconditioned LDLT (what sqrtp preconditions).
+const std::vector<std::string> kPreconditionedReferences = {"ns-qr-sqrt-f32", "sc-sc-sq-f32",
+                                                            "sc-sc-sqrt-f32"};
+// The preconditioned variants' columns in this order (others after them, by name).
+const std::vector<std::string> kPreconditionedOrder = {"sc-sc-sqp-f32", "ns-sc-sqp-f32",
+                                                       "sc-sc-sqj-f32", "sc-sc-sqrtp-f32",
+                                                       "sc-sc-sqp-f64"};
 const char* const kSeedNote =
     "Seeds: mean ± sample standard deviation of the ATE over the seeds whose run finished ok; "
     "`x k/n`: k of the n finished seeds failed (left out of the mean); the paper's value is one "
@@ -198,6 +207,36 @@ TableCell seedCell(const Selection& sel, const std::vector<RunValue>& quantities
     cell.spread.push_back(sampleStd(v));
   }
   return cell;
+}
+
+// A cell of the frames where the failed runs of a selection stopped: their median (kMissing, "–",
+// when none failed).
+TableCell failureFrameCell(const Selection& sel) {
+  TableCell cell;
+  std::vector<double> frames;
+  for (const RunRecord* r : sel.runs) {
+    if (r->state == RunRecord::State::kFailed && r->failure_frame >= 0) {
+      frames.push_back(static_cast<double>(r->failure_frame));
+    }
+  }
+  cell.n_runs = static_cast<int>(frames.size());
+  if (frames.empty()) return cell;
+  std::sort(frames.begin(), frames.end());
+  const std::size_t n = frames.size();
+  cell.state = TableCell::State::kValue;
+  cell.numbers = {n % 2 == 1 ? frames[n / 2] : 0.5 * (frames[n / 2 - 1] + frames[n / 2])};
+  return cell;
+}
+
+// A variant whose prior storage is preconditioned (sqp, sqj, sqrtp: docs/preconditioned_storage.md).
+bool isPreconditioned(const std::string& variant) {
+  try {
+    const PriorStorage s = Variant::parse(variant).storage;
+    return s == PriorStorage::kHessianBlockJacobi || s == PriorStorage::kHessianJacobi ||
+           s == PriorStorage::kSqrtBlockJacobi;
+  } catch (const UsageError&) {
+    return false;
+  }
 }
 
 struct Moments {
@@ -519,6 +558,74 @@ class Builder {
         "seed does to f64); no when larger or when √-f32 failed on a seed; – without two ok "
         "√-f64 seeds. Seeds: `ok/finished` per variant."};
     return claim;
+  }
+
+  // The preconditioned-storage tables (issue #31 §3), made when a run has a preconditioned
+  // storage: per sequence, each such variant beside the references that ran — the ATE with seed
+  // statistics, or (failures) the median frame where the failed seeds stopped.
+  std::optional<Table> preconditioned(bool failures) const {
+    std::vector<std::string> variants, extra;
+    for (const std::string& v : kPreconditionedReferences) {
+      if (hasVariant(v)) variants.push_back(v);
+    }
+    for (const auto& [key, sel] : by_cell_) {
+      if (isPreconditioned(key.column) && !std::count(extra.begin(), extra.end(), key.column)) {
+        extra.push_back(key.column);
+      }
+    }
+    if (extra.empty()) return std::nullopt;
+    const auto rank = [](const std::string& v) {
+      const auto it = std::find(kPreconditionedOrder.begin(), kPreconditionedOrder.end(), v);
+      return std::pair{it - kPreconditionedOrder.begin(), v};
+    };
+    std::sort(extra.begin(), extra.end(),
+              [&](const std::string& a, const std::string& b) { return rank(a) < rank(b); });
+    variants.insert(variants.end(), extra.begin(), extra.end());
+    Table t;
+    t.id = failures ? "preconditioned_failures" : "preconditioned";
+    t.title = failures ? "Preconditioned Hessian storage: median frame where the failed runs stopped"
+                       : "Preconditioned Hessian storage: absolute trajectory error [m]";
+    t.row_header = "sequence";
+    t.quantities = {failures ? "failure_frame" : "ate"};
+    t.has_paper = false;
+    for (const std::string& v : variants) t.columns.push_back({v, v, v, -1, ""});
+    const RunValue ate_m = [](const RunRecord& r) { return r.ate_rmse; };
+    bool any_estimate = false;
+    std::vector<std::string> keys;
+    for (const auto& [family, id] : {std::pair{isVioDataset, "table1"}, {isVoDataset, "table2"}}) {
+      for (const std::string& dataset : rowsFor(family, paperTable(id), extra)) {
+        TableRow row;
+        row.key = dataset;
+        row.label = rowLabel(paperTable(id), dataset, &any_estimate);
+        row.frames = framesLabel(dataset, variants);
+        row.ours_decimals = failures ? 0 : 4;
+        for (const std::string& v : variants) {
+          row.ours.push_back(failures ? failureFrameCell(select(dataset, v))
+                                      : seedCell(select(dataset, v), {ate_m}));
+          row.paper.emplace_back();
+        }
+        if (!failures) markBest(row.ours, 1, row.ours_decimals, false);
+        keys.push_back(dataset);
+        t.rows.push_back(std::move(row));
+      }
+    }
+    t.notes.push_back(
+        "Storages (docs/preconditioned_storage.md): sq = Hessian prior, sqrt = square-root prior; "
+        "sqp = Hessian prior with 3×3 block-Jacobi preconditioning (one block per physical "
+        "quantity), sqj = the same with point-Jacobi scaling, sqrtp = square-root prior made by "
+        "the block-preconditioned LDLT; the preconditioning also scales the LM step's LDLT.");
+    t.notes.push_back(failures
+                          ? "Median over the seeds that failed of the frame where the run stopped "
+                            "(index failure_frame); –: no seed failed, or no run."
+                          : "ATE: results /summary ate_rmse, mean ± sample standard deviation "
+                            "over the seeds whose run finished ok; `x k/n`: k of the n finished "
+                            "seeds failed (left out of the mean).");
+    t.notes.push_back(modeNote(keys) +
+                      " Whole sequences only (runs over the first N frames are left out).");
+    t.notes.push_back(failures ? "No paper values: the paper has no preconditioned storage."
+                               : "Bold: best of the row; x: failed; –: no run. No paper values: "
+                                 "the paper has no preconditioned storage.");
+    return t;
   }
 
   // One ablation column's averages over the sequences (Tables 4 and 6): per sequence the mean
@@ -911,6 +1018,15 @@ std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& p
     add(builder.perSequence(5, false), "Table 5: no KITTI runs");
     why.clear();
     add(builder.ablation(6, isVoDataset, "KITTI", &why), why);
+    // Whole sequences only: a sweep with a short group (first N frames) would otherwise put its
+    // runs beside whole runs in one row.
+    const Builder whole(results, paper, [&o](const RunRecord& r) -> std::optional<std::string> {
+      const double frames = r.row.number("frames");
+      if (r.row.get("override") != o || (std::isfinite(frames) && frames > 0)) return std::nullopt;
+      return r.row.get("variant");
+    });
+    add(whole.preconditioned(false), "");
+    add(whole.preconditioned(true), "");
     sets.push_back(std::move(set));
   }
 

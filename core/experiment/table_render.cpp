@@ -113,17 +113,23 @@ std::string renderMarkdown(const Table& table) {
   const bool frames = std::any_of(table.rows.begin(), table.rows.end(),
                                   [](const TableRow& r) { return !r.frames.empty(); });
   if (frames) out += " frames |";
-  for (const TableColumn& c : table.columns) out += fmt::format(" {} | paper |", c.label_md);
+  for (const TableColumn& c : table.columns) {
+    out += fmt::format(" {} |{}", c.label_md, table.has_paper ? " paper |" : "");
+  }
   out += "\n|---|";
   if (frames) out += "---:|";
-  for (std::size_t i = 0; i < table.columns.size(); ++i) out += "---:|---:|";
+  for (std::size_t i = 0; i < table.columns.size(); ++i) {
+    out += table.has_paper ? "---:|---:|" : "---:|";
+  }
   out += "\n";
   for (const TableRow& row : table.rows) {
     out += "| " + row.label + " |";
     if (frames) out += " " + row.frames + " |";
     for (std::size_t c = 0; c < table.columns.size(); ++c) {
-      out += fmt::format(" {} | {} |", cellMarkdown(row.ours[c], row, table.columns[c], true),
-                         cellMarkdown(row.paper[c], row, table.columns[c], false));
+      out += " " + cellMarkdown(row.ours[c], row, table.columns[c], true) + " |";
+      if (table.has_paper) {
+        out += " " + cellMarkdown(row.paper[c], row, table.columns[c], false) + " |";
+      }
     }
     out += "\n";
   }
@@ -140,24 +146,27 @@ std::string renderLatex(const Table& table) {
       "% " + table.title + " (marglab tables; needs \\usepackage{booktabs,amsmath})\n";
   out += "\\begin{table}[t]\n\\centering\n\\small\n";
   out += "\\begin{tabular}{l" + std::string(frames ? "r" : "");
-  for (std::size_t i = 0; i < table.columns.size(); ++i) out += "rr";
+  for (std::size_t i = 0; i < table.columns.size(); ++i) out += table.has_paper ? "rr" : "r";
   out += "}\n\\toprule\n" + texEscape(table.row_header) + (frames ? " & frames" : "");
   for (const TableColumn& c : table.columns) {
-    out += " & \\multicolumn{2}{c}{" + c.label_tex + "}";
+    out += table.has_paper ? " & \\multicolumn{2}{c}{" + c.label_tex + "}" : " & " + c.label_tex;
   }
   out += " \\\\\n";
-  for (std::size_t i = 0; i < table.columns.size(); ++i) {
-    out += fmt::format("\\cmidrule(lr){{{}-{}}}", lead + 1 + 2 * i, lead + 2 + 2 * i);
+  if (table.has_paper) {
+    for (std::size_t i = 0; i < table.columns.size(); ++i) {
+      out += fmt::format("\\cmidrule(lr){{{}-{}}}", lead + 1 + 2 * i, lead + 2 + 2 * i);
+    }
+    out += "\n" + std::string(frames ? " & " : "");
+    for (std::size_t i = 0; i < table.columns.size(); ++i) out += " & ours & paper";
+    out += " \\\\\n";
   }
-  out += "\n" + std::string(frames ? " & " : "");
-  for (std::size_t i = 0; i < table.columns.size(); ++i) out += " & ours & paper";
-  out += " \\\\\n\\midrule\n";
+  out += "\\midrule\n";
   for (const TableRow& row : table.rows) {
     out += texEscape(row.label);
     if (frames) out += " & " + row.frames;
     for (std::size_t c = 0; c < table.columns.size(); ++c) {
-      out += " & " + cellLatex(row.ours[c], row, table.columns[c], true) + " & " +
-             cellLatex(row.paper[c], row, table.columns[c], false);
+      out += " & " + cellLatex(row.ours[c], row, table.columns[c], true);
+      if (table.has_paper) out += " & " + cellLatex(row.paper[c], row, table.columns[c], false);
     }
     out += " \\\\\n";
   }

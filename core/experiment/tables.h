@@ -44,6 +44,15 @@
 // that has dense or nfr runs (ids get `_<variant>` when there are several). Deduplication and
 // seeds as above.
 //
+// Preconditioned Hessian storage (issue #31 §3, docs/preconditioned_storage.md), produced when
+// some whole-sequence run has a preconditioned storage (sqp, sqj, sqrtp), per override set:
+//   preconditioned           ATE [m] per sequence (VIO, then VO) of each such variant beside the
+//                            references that ran (ns-qr-sqrt-f32, sc-sc-sq-f32, sc-sc-sqrt-f32),
+//                            with seed statistics
+//   preconditioned_failures  the median frame where the failed seeds of each cell stopped
+// Ours only (Table::has_paper false: the paper has no such storage); runs over the first N frames
+// are left out, so that a short group never sits beside whole runs in one row.
+//
 // One unit per job: paper_values.cpp (loadPaperValues), results_loading.cpp (loadResults),
 // table_builder.cpp (buildTables), table_render.cpp (Markdown / LaTeX / CSV) and tables.cpp
 // (writeTables: the verb's files).
@@ -159,6 +168,7 @@ struct Table {
   std::vector<TableColumn> columns;
   std::vector<TableRow> rows;
   std::vector<std::string> notes;
+  bool has_paper = true;  // false: no paper column (a table of ours only)
 };
 
 // One sequence of the seed claim. Means and stds over the seeds that finished ok (NaN when

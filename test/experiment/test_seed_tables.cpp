@@ -49,9 +49,10 @@ class SeedTables : public test::TempDirTest {
   // A run with a trajectory error that depends on the salt; its index row. Returns the ATE the
   // results file holds (/summary ate_rmse).
   double addRun(const std::string& dataset, const std::string& variant, int seed, double salt,
-                RunStatus status = RunStatus::kOk) {
+                RunStatus status = RunStatus::kOk, const std::string& frames = "0") {
     const std::string sequence = dataset.substr(dataset.find('/') + 1);
-    const std::string id = fmt::format("g__{}__{}__s{}", sequence, variant, seed);
+    const std::string id = fmt::format("g{}__{}__{}__s{}", frames == "0" ? "" : frames, sequence,
+                                       variant, seed);
     const std::string results = "runs/" + id + ".h5";
     RunMetadata m;
     m.dataset = dataset.substr(0, dataset.find('/'));
@@ -77,7 +78,7 @@ class SeedTables : public test::TempDirTest {
     row.set("dataset", dataset);
     row.set("variant", variant);
     row.set("seed", std::to_string(seed));
-    row.set("frames", "0");
+    row.set("frames", frames);
     row.set("override", "");
     row.set("status", status == RunStatus::kOk ? "ok" : "failed");
     row.set("results", results);
@@ -173,6 +174,48 @@ TEST_F(SeedTables, CellsAreMeanStdAndFailureCountsOfTheResultsFiles) {
   EXPECT_NE(md.find("Seeds: mean ± sample standard deviation"), std::string::npos) << md;
   EXPECT_NE(readText(tables / "table1.tex").find("$\\pm$"), std::string::npos);
   EXPECT_EQ(readText(tables / "table2.md").find(" ± "), std::string::npos);
+  // No preconditioned storage among the runs: no preconditioned table.
+  EXPECT_FALSE(fs::exists(tables / "preconditioned.md"));
+}
+
+// Issue #31 §3: the preconditioned storages beside the references that ran, whole sequences only,
+// with seed statistics and the frames where the failed seeds stopped; no paper column.
+TEST_F(SeedTables, PreconditionedTableHasTheNewStoragesBesideTheReferences) {
+  const std::string mh = "euroc/MH_03_medium", kitti = "kitti/10";
+  std::vector<double> sqp;
+  for (int s = 1; s <= 3; ++s) {
+    addRun(mh, "ns-qr-sqrt-f32", s, 1e-3 * s);
+    if (s < 3) sqp.push_back(addRun(mh, "sc-sc-sqp-f32", s, 2e-3 * s));
+  }
+  addRun(mh, "sc-sc-sqp-f32", 3, 0.1, RunStatus::kFailed);  // stops at frame 19 (addRun)
+  addRun(kitti, "sc-sc-sqrtp-f32", 1, 0.02);
+  addRun(mh, "ns-sc-sqp-f32", 1, 0.01, RunStatus::kOk, "600");  // a short run: left out
+  const fs::path tables = writeTablesOf(SeedStats::kAuto);
+
+  const Csv csv = readCsv(tables / "preconditioned.csv", {"row", "variant"});
+  EXPECT_DOUBLE_EQ(std::stod(csv.at(mh + "|sc-sc-sqp-f32", "ours")), meanOf(sqp));
+  EXPECT_NEAR(std::stod(csv.at(mh + "|sc-sc-sqp-f32", "ours_std")), sampleStdOf(sqp), 1e-15);
+  EXPECT_EQ(csv.at(mh + "|sc-sc-sqp-f32", "ours_failed"), "1");
+  EXPECT_EQ(csv.at(kitti + "|sc-sc-sqrtp-f32", "ours_state"), "ok");
+  EXPECT_EQ(csv.at(kitti + "|ns-qr-sqrt-f32", "ours_state"), "missing");
+  EXPECT_EQ(csv.rows.count(mh + "|ns-sc-sqp-f32"), 0u);  // the short run's variant has no column
+  EXPECT_EQ(csv.rows.count(mh + "|sc-sc-sq-f32"), 0u);   // a reference without runs neither
+
+  const Csv failures = readCsv(tables / "preconditioned_failures.csv", {"row", "variant"});
+  EXPECT_EQ(failures.at(mh + "|sc-sc-sqp-f32", "ours"), "19");
+  EXPECT_EQ(failures.at(mh + "|ns-qr-sqrt-f32", "ours_state"), "missing");
+
+  const std::string md = readText(tables / "preconditioned.md");
+  EXPECT_NE(md.find("| sequence | frames | ns-qr-sqrt-f32 | sc-sc-sqp-f32 | sc-sc-sqrtp-f32 |"),
+            std::string::npos)
+      << md;
+  EXPECT_EQ(md.find("paper |"), std::string::npos) << md;
+  EXPECT_NE(md.find(fmt::format("{:.4f} ± {:.4f} x 1/3", meanOf(sqp), sampleStdOf(sqp))),
+            std::string::npos)
+      << md;
+  const std::string tex = readText(tables / "preconditioned.tex");
+  EXPECT_NE(tex.find("\\begin{tabular}{lrrrr}"), std::string::npos) << tex;
+  EXPECT_EQ(tex.find("ours & paper"), std::string::npos);
 }
 
 TEST_F(SeedTables, ClaimTableComparesTheF32DifferenceWithTheF64Spread) {
