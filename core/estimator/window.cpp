@@ -313,15 +313,16 @@ Scalar Window<Scalar>::totalCost() const {
 template <typename Scalar>
 std::vector<Scalar> Window<Scalar>::frameReprojectionErrors(int64_t frame_id) const {
   const SE3S& T_w_t = poseOf(frame_id);
+  std::map<int64_t, SE3S> T_t_h;  // cam0 of the frame from cam0 of each host: once per host
   std::vector<Scalar> errors;
   for (const auto& [id, lm] : landmarks) {
     const auto obs = lm.obs.find(frame_id);
     if (obs == lm.obs.end() || lm.host == frame_id || lm.obs.size() < 2) continue;
-    const Vec3S q =
-        lm.world() ? T_c_i_[0] * (T_w_t.inverse() * lm.param)
-                   : transformLandmark<Scalar>(
-                         relativePose<Scalar>(poseOf(lm.host), T_i_c_[0], T_w_t, T_i_c_[0]),
-                         lm.param);
+    if (!lm.world() && !T_t_h.count(lm.host)) {
+      T_t_h.emplace(lm.host, relativePose<Scalar>(poseOf(lm.host), T_i_c_[0], T_w_t, T_i_c_[0]));
+    }
+    const Vec3S q = lm.world() ? T_c_i_[0] * (T_w_t.inverse() * lm.param)
+                               : transformLandmark<Scalar>(T_t_h.at(lm.host), lm.param);
     Vec2S uv;
     errors.push_back(rig_.cam0.project(q, &uv) ? (uv - obs->second.uv0).norm()
                                                : std::numeric_limits<Scalar>::infinity());
