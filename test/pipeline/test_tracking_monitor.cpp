@@ -11,6 +11,16 @@
 namespace marglab {
 namespace {
 
+// The rule's settings the tests state explicitly (not the defaults); `frames` lost in a row end a run.
+EstimatorConfig lossConfig(int frames) {
+  EstimatorConfig config;
+  config.min_tracked_observations = 10;
+  config.max_tracking_loss_frames = frames;
+  config.inconsistent_px = 5;
+  config.max_inconsistent_share = 0.3;
+  return config;
+}
+
 FrameResult withConnected(int n) {
   FrameResult result;
   result.n_connected = n;
@@ -18,10 +28,7 @@ FrameResult withConnected(int n) {
 }
 
 TEST(TrackingMonitor, FailsAfterTheConfiguredRunOfStarvedFrames) {
-  EstimatorConfig config;
-  config.min_tracked_observations = 10;
-  config.max_tracking_loss_frames = 3;
-  TrackingMonitor monitor(config);
+  TrackingMonitor monitor(lossConfig(3));
   EXPECT_EQ(monitor.update(0, withConnected(0)), "");  // the first frame creates the landmarks
   EXPECT_EQ(monitor.update(1, withConnected(9)), "");
   EXPECT_EQ(monitor.update(2, withConnected(9)), "");
@@ -42,12 +49,7 @@ FrameResult withChecked(int connected, int checked, int inconsistent) {
 }
 
 TEST(TrackingMonitor, FailsAfterTheConfiguredRunOfInconsistentFrames) {
-  EstimatorConfig config;
-  config.min_tracked_observations = 10;
-  config.max_tracking_loss_frames = 3;
-  config.inconsistent_px = 5;
-  config.max_inconsistent_share = 0.3;
-  TrackingMonitor monitor(config);
+  TrackingMonitor monitor(lossConfig(3));
   EXPECT_EQ(monitor.update(0, withChecked(0, 0, 0)), "");
   EXPECT_EQ(monitor.update(1, withChecked(200, 100, 31)), "");
   EXPECT_EQ(monitor.update(2, withChecked(200, 100, 31)), "");
@@ -64,10 +66,7 @@ TEST(TrackingMonitor, FailsAfterTheConfiguredRunOfInconsistentFrames) {
 
 // Too few checked observations say nothing about consistency (one bad track of two is 50 %).
 TEST(TrackingMonitor, FewCheckedObservationsAreNotJudged) {
-  EstimatorConfig config;
-  config.min_tracked_observations = 10;
-  config.max_tracking_loss_frames = 1;
-  TrackingMonitor monitor(config);
+  TrackingMonitor monitor(lossConfig(1));
   EXPECT_EQ(monitor.update(1, withChecked(50, 9, 9)), "");
   EXPECT_NE(monitor.update(2, withChecked(50, 10, 9)), "");
 }
