@@ -193,6 +193,7 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
                         "\"paper\", \"joint-states\" or \"relative-pose\""));
   list.push_back(
       {"marginalization", "nfr_rigid_deflation", nullptr, nullptr, &c.nfr_rigid_deflation});
+  list.push_back({"marginalization", "psd_hessian_prior", nullptr, nullptr, &c.psd_hessian_prior});
   frontendBindings(c.frontend, D, I, &list);
   D("failure", "max_position_error_m", &c.max_position_error_m,
     orSentinel(above(0), -1, "dataset default"));

@@ -19,7 +19,9 @@
 //                   see SparsifyTopology), nfr_rigid_deflation (true: nfr's unary factors lose
 //                   their information in excess of the dense prior's along the window's rigid
 //                   motions, core/sparsify/rigid_deflation.h; needs strategy "nfr" and
-//                   nfr_topology "paper")
+//                   nfr_topology "paper"), psd_hessian_prior (true: a Hessian prior — storages
+//                   sq, sqp, sqj — is stored as the Hessian JᵀJ, Jᵀr of its clamped LDLT square
+//                   root, positive semidefinite like a square-root prior; README item 5)
 //   [frontend]      the image front-end's settings (core/frontend/frontend_options.h): grid_cell_px,
 //                   pyramid_levels (−1: dataset default), max_iterations, window_px, fb_max_px,
 //                   epipolar_max, ncc_min, ransac_px, min_eigen, corner_block_px, border_px,
@@ -156,6 +158,7 @@ struct EstimatorConfig {
   MargStrategy marg_strategy = MargStrategy::kDiscard;
   SparsifyTopology nfr_topology = SparsifyTopology::kPaper;
   bool nfr_rigid_deflation = false;
+  bool psd_hessian_prior = false;
   // frontend
   FrontendOptions frontend;
   // failure

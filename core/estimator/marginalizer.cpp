@@ -193,7 +193,8 @@ class QrMarginalizer final : public Marginalizer<Scalar> {
 template <typename Scalar>
 class SchurMarginalizer final : public Marginalizer<Scalar> {
  public:
-  explicit SchurMarginalizer(PriorStorage storage) : storage_(storage) {}
+  SchurMarginalizer(PriorStorage storage, bool psd_hessian)
+      : storage_(storage), psd_hessian_(psd_hessian) {}
 
   Status marginalize(const Window<Scalar>& w, const MargPlan& plan, MargPrior<Scalar>* prior,
                      int* /*qr_rank*/) const override {
@@ -250,6 +251,7 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
       return Status::Ok();
     }
     const Scalar c = Scalar(0.5) * ldlt.prior.r.squaredNorm();
+    if (psd_hessian_) psdHessian(ldlt.prior, &H_m, &b_m);
     next->setScaledHessian(std::move(H_m), std::move(b_m), c, std::move(P));
     return Status::Ok();
   }
@@ -271,6 +273,7 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
     }
     if (storage_ == PriorStorage::kHessian) {
       const Scalar c = Scalar(0.5) * ldlt.prior.r.squaredNorm();
+      if (psd_hessian_) psdHessian(ldlt.prior, &marginal.H, &b_m);
       next->setHessian(std::move(marginal.H), std::move(b_m), c);
     } else {
       next->setSqrt(std::move(ldlt.prior.J), std::move(ldlt.prior.r));
@@ -278,7 +281,17 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
     return Status::Ok();
   }
 
+  // [marginalization] psd_hessian_prior: the Hessian of the clamped LDLT square root instead of
+  // the Schur complement itself, ½‖r + Jδ‖² = c + (Jᵀr)ᵀδ + ½ δᵀ JᵀJ δ. It differs from H by the
+  // rounding of the Schur complement and the negative pivots the LDLT set to zero: the stored
+  // prior is positive semidefinite, as a square-root prior is, while the storage stays a Hessian.
+  static void psdHessian(const SqrtPrior<Scalar>& sqrt, MatX<Scalar>* H, VecX<Scalar>* b) {
+    *H = sqrt.J.transpose() * sqrt.J;
+    *b = sqrt.J.transpose() * sqrt.r;
+  }
+
   PriorStorage storage_;
+  bool psd_hessian_;
 };
 
 }  // namespace
@@ -292,7 +305,7 @@ std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method, PriorS
     }
     return std::make_unique<QrMarginalizer<Scalar>>(config);
   }
-  return std::make_unique<SchurMarginalizer<Scalar>>(storage);
+  return std::make_unique<SchurMarginalizer<Scalar>>(storage, config.psd_hessian_prior);
 }
 
 #define MARGLAB_INST(S)                                                                   \

@@ -88,7 +88,8 @@ struct RunOutcome {
 // ranges and relations (EstimatorConfig::locatedProblems) and the relations between the options
 // and with the sequence — --tracks with --frontend, --dump-windows within the run's frames and
 // only with strategy discard, VIO only with ground truth and not on KITTI, --imu real and
-// strategies other than discard only with VIO.
+// strategies other than discard only with VIO, marginalization.psd_hessian_prior only with a
+// Hessian prior storage.
 std::vector<Problem> runProblems(const RunOptions& options, const Sequence& sequence,
                                  bool has_ground_truth);
 

@@ -354,6 +354,24 @@ TEST_F(RunInputs, EveryProblemOfTheOptionsIsReported) {
   EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
 }
 
+// [marginalization] psd_hessian_prior acts on a Hessian prior only: with a square-root storage it
+// would do nothing, so it is an input error naming the config file and line.
+TEST_F(RunInputs, PsdHessianPriorNeedsAHessianStorage) {
+  const fs::path config = dir_ / "psd.toml";
+  std::ofstream(config) << "[marginalization]\npsd_hessian_prior = true\n";
+  const auto result = runCli("run --dataset kitti/05 --variant sc-sc-sqrt-f32 --frames 5 --config " +
+                             quote(config) + " -o " + quote(dir_ / "x.h5"));
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find("psd.toml:2: marginalization.psd_hessian_prior = true with variant "
+                               "sc-sc-sqrt-f32: expected a Hessian prior storage"),
+            std::string::npos)
+      << result.output;
+  EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
+  const auto ok = runCli("run --dataset kitti/05 --variant sc-sc-sqp-f32 --frames 5 --config " +
+                         quote(config) + " -o " + quote(dir_ / "x.h5"));
+  EXPECT_EQ(ok.exit_code, 0) << ok.output;
+}
+
 // Minor item of issue #32: `datasets simulate` refused euroc/V1_01_easy_images ("no trajectory")
 // though `run --frontend simulated` uses the ground truth of its shipped recording.
 TEST_F(RunInputs, SimulateUsesTheGroundTruthRunUses) {
