@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """Fig. 1 analog for the preconditioned storages (issue #31 §3, docs/preconditioned_storage.md):
 the smallest eigenvalue of the gauge-free prior at every marginalization, relative to the
-largest, for each variant of one dataset in a sweep folder.
+largest, for each variant (and override) of one dataset in the sweep folders.
 
-Usage: plot_preconditioned.py FOLDER --dataset euroc/MH_01_easy [--dataset kitti/00 ...]
-                              [--seed 1] [--frames 600] --out DIR
+Usage: plot_preconditioned.py FOLDER [FOLDER ...] --dataset euroc/MH_01_easy
+                              [--dataset kitti/00 ...] [--seed 1] [--frames 600] --out DIR
 
 One figure per dataset, DIR/sigma_min_<dataset>.png: top σ_min (symlog axis, linear within
 ±1e-8 as in plot_paper.py's Fig. 1), bottom σ_min/σ_max (symlog, linear within ±1e-9; 0 for the
@@ -37,26 +37,31 @@ STYLE = {
 }
 
 
-def runs_of(folder, dataset, seed, frames):
-    with open(os.path.join(folder, "index.csv"), newline="") as f:
-        for row in csv.DictReader(f):
-            if row["dataset"] == dataset and row["seed"] == seed and row["frames"] == frames:
-                path = os.path.join(folder, row["results"])
-                if os.path.exists(path):
-                    yield row, path
+def runs_of(folders, dataset, seed, frames):
+    for folder in folders:
+        with open(os.path.join(folder, "index.csv"), newline="") as f:
+            for row in csv.DictReader(f):
+                if row["dataset"] == dataset and row["seed"] == seed and row["frames"] == frames:
+                    path = os.path.join(folder, row["results"])
+                    if os.path.exists(path):
+                        yield row, path
 
 
-def plot(folder, dataset, seed, frames, out):
+def plot(folders, dataset, seed, frames, out):
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
-    for row, path in runs_of(folder, dataset, seed, frames):
+    for row, path in runs_of(folders, dataset, seed, frames):
         with h5py.File(path, "r") as f:
             t = np.asarray(f["marg/t_ns"], float) * 1e-9
             lo, hi = np.asarray(f["marg/sigma_min"]), np.asarray(f["marg/sigma_max"])
         if len(t) == 0:
             continue
         t -= t[0]
-        style = STYLE.get(row["variant"], {})
-        top.plot(t, lo, label=row["variant"], **style)
+        style = dict(STYLE.get(row["variant"], {}))
+        label = row["variant"]
+        if row.get("override"):
+            label += " " + row["override"]
+            style.update(lw=2.2, alpha=0.6)
+        top.plot(t, lo, label=label, **style)
         bottom.plot(t, lo / hi, **style)
         if row["status"] != "ok":
             top.plot(t[-1], lo[-1], "x", color=style.get("color", "k"), ms=9)
@@ -80,7 +85,7 @@ def plot(folder, dataset, seed, frames, out):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("folder")
+    parser.add_argument("folders", nargs="+")
     parser.add_argument("--dataset", action="append", required=True)
     parser.add_argument("--seed", default="1")
     parser.add_argument("--frames", default="600")
@@ -88,7 +93,7 @@ def main():
     args = parser.parse_args()
     os.makedirs(args.out, exist_ok=True)
     for dataset in args.dataset:
-        print(os.path.join(args.out, plot(args.folder, dataset, args.seed, args.frames, args.out)))
+        print(os.path.join(args.out, plot(args.folders, dataset, args.seed, args.frames, args.out)))
 
 
 if __name__ == "__main__":
