@@ -60,7 +60,7 @@ def plot(folders, dataset, seed, frames, out):
         label = row["variant"]
         if row.get("override"):
             label += " " + row["override"]
-            style.update(lw=2.2, alpha=0.6)
+            style.update(lw=0.8, alpha=0.45, zorder=1)
         top.plot(t, lo, label=label, **style)
         bottom.plot(t, lo / hi, **style)
         if row["status"] != "ok":
