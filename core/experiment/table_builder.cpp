@@ -592,7 +592,9 @@ class Builder {
     const RunValue ate_m = [](const RunRecord& r) { return r.ate_rmse; };
     bool any_estimate = false;
     std::vector<std::string> keys;
-    for (const auto& [family, id] : {std::pair{isVioDataset, "table1"}, {isVoDataset, "table2"}}) {
+    using Family = std::pair<bool (*)(const std::string&), const char*>;
+    for (const auto& [family, id] :
+         std::initializer_list<Family>{{isVioDataset, "table1"}, {isVoDataset, "table2"}}) {
       for (const std::string& dataset : rowsFor(family, paperTable(id), extra)) {
         TableRow row;
         row.key = dataset;
