@@ -150,25 +150,15 @@ TEST(PreconditionedStorage, SinglePrecisionRunTracksTheTruth) {
   EXPECT_LT(maxPositionError<float>(scenario, "sc-sc-sqrtp-f32"), 0.05);
 }
 
-// The index of the first frame whose processFrame() fails, −1 when none does.
-int firstFailure(const test::VioScenario& scenario, const char* variant, bool psd_hessian_prior) {
-  EstimatorConfig config;
-  config.diagnostics = false;
-  config.psd_hessian_prior = psd_hessian_prior;
-  SlidingWindowEstimator<float> estimator = scenario.estimator<float>(Variant::parse(variant), config);
-  for (size_t i = 0; i < scenario.stream.frames.size(); ++i) {
-    if (!estimator.processFrame(scenario.stream.frames[i]).status.ok()) return static_cast<int>(i);
-  }
-  return -1;
-}
-
-// [marginalization] psd_hessian_prior (README item 5's isolating run): the f32 Hessian storage
-// that fails within the scenario's first seconds runs through it when each new prior is stored as
-// the Hessian of its clamped LDLT square root; every stored prior is then positive semidefinite to
-// the rounding of forming JᵀJ in float (|λ_min| ≤ n·ε·trace, n ≤ 30 prior columns here).
+// [marginalization] psd_hessian_prior (README item 5's isolating run): with each new prior stored
+// as the Hessian of its clamped LDLT square root, the f32 Hessian storages run through the scenario
+// and every stored prior is positive semidefinite to the rounding of forming JᵀJ in float
+// (|λ_min| ≤ n·ε·trace, n ≤ 30 prior columns here). Whether sc-sc-sq-f32 fails here *without* the
+// option depends on the compiler's rounding (GCC's build: within the first seconds; Clang's
+// sanitizer build: not), so that contrast is not asserted; the whole runs of
+// results/preconditioned (psd_sK against whole_sK) measure it.
 TEST(PsdHessianPrior, StoredF32PriorIsPositiveSemidefiniteAndTheRunHolds) {
   const test::VioScenario scenario(10.0, 12.0);
-  EXPECT_GE(firstFailure(scenario, "sc-sc-sq-f32", false), 0);
   const double bound = 30 * NumericTraits<float>::kEpsilon;
   for (const char* variant : {"sc-sc-sq-f32", "sc-sc-sqp-f32"}) {
     SCOPED_TRACE(variant);
