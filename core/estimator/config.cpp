@@ -484,28 +484,28 @@ std::vector<ConfigProblem> EstimatorConfig::problems() const {
   return out;
 }
 
+Problem EstimatorConfig::located(const ConfigProblem& p) const {
+  std::string message = p.message;
+  if (!p.related.empty()) {
+    std::vector<std::string> where;
+    for (const std::string& key : p.related) {
+      const auto it = origins.find(key);
+      where.push_back(key + " from " +
+                      (it == origins.end() ? "the default" : it->second.describe()));
+    }
+    message += fmt::format(" ({})", fmt::join(where, ", "));
+  }
+  const auto it = origins.find(p.key);
+  if (it == origins.end()) return {ProblemKind::kInput, "config", 0, message};
+  if (!it->second.option.empty()) {
+    return {ProblemKind::kUsage, "", 0, it->second.option + ": " + message};
+  }
+  return {ProblemKind::kInput, it->second.file, it->second.line, message};
+}
+
 std::vector<Problem> EstimatorConfig::locatedProblems() const {
   std::vector<Problem> out;
-  for (const ConfigProblem& p : problems()) {
-    std::string message = p.message;
-    if (!p.related.empty()) {
-      std::vector<std::string> where;
-      for (const std::string& key : p.related) {
-        const auto it = origins.find(key);
-        where.push_back(key + " from " +
-                        (it == origins.end() ? "the default" : it->second.describe()));
-      }
-      message += fmt::format(" ({})", fmt::join(where, ", "));
-    }
-    const auto it = origins.find(p.key);
-    if (it == origins.end()) {
-      out.push_back({ProblemKind::kInput, "config", 0, message});
-    } else if (!it->second.option.empty()) {
-      out.push_back({ProblemKind::kUsage, "", 0, it->second.option + ": " + message});
-    } else {
-      out.push_back({ProblemKind::kInput, it->second.file, it->second.line, message});
-    }
-  }
+  for (const ConfigProblem& p : problems()) out.push_back(located(p));
   return out;
 }
 

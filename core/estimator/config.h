@@ -201,6 +201,8 @@ struct EstimatorConfig {
   // it), else the TOML file and line (file "config", line 0, for a default or a value set in code);
   // a relation's message names every key involved with its origin.
   std::vector<Problem> locatedProblems() const;
+  // One problem so located; also for relations checked outside the config (runProblems).
+  Problem located(const ConfigProblem& problem) const;
   // throwProblems(locatedProblems()) unless it is empty: every problem in one error.
   void validate() const;
 

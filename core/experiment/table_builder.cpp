@@ -18,6 +18,7 @@
 #include <utility>
 
 #include "core/common/error.h"
+#include "core/estimator/marg_prior.h"
 #include "core/estimator/variant.h"
 #include "core/io/results_file.h"
 
@@ -231,9 +232,7 @@ TableCell failureFrameCell(const Selection& sel) {
 // A variant whose prior storage is preconditioned (sqp, sqj, sqrtp: docs/preconditioned_storage.md).
 bool isPreconditioned(const std::string& variant) {
   try {
-    const PriorStorage s = Variant::parse(variant).storage;
-    return s == PriorStorage::kHessianBlockJacobi || s == PriorStorage::kHessianJacobi ||
-           s == PriorStorage::kSqrtBlockJacobi;
+    return preconditioningOf(Variant::parse(variant).storage) != Preconditioning::kNone;
   } catch (const UsageError&) {
     return false;
   }

@@ -409,16 +409,12 @@ std::vector<Problem> runProblems(const RunOptions& options, const Sequence& sequ
   }
   // A square-root prior is positive semidefinite already: the option would silently do nothing.
   if (options.config.psd_hessian_prior && sqrtStorage(options.variant.storage)) {
-    const auto it = options.config.origins.find("marginalization.psd_hessian_prior");
-    const ConfigOrigin origin =
-        it == options.config.origins.end() ? ConfigOrigin{"config", 0, ""} : it->second;
-    out.push_back({origin.option.empty() ? ProblemKind::kInput : ProblemKind::kUsage, origin.file,
-                   origin.line,
-                   (origin.option.empty() ? "" : origin.option + ": ") +
-                   fmt::format("marginalization.psd_hessian_prior = true with variant {}: expected "
-                               "a Hessian prior storage (sq, sqp, sqj); a square-root prior is "
-                               "positive semidefinite by construction",
-                               options.variant.name())});
+    out.push_back(options.config.located(
+        {"marginalization.psd_hessian_prior",
+         fmt::format("marginalization.psd_hessian_prior = true with variant {}: expected a "
+                     "Hessian prior storage (sq, sqp, sqj); a square-root prior is positive "
+                     "semidefinite by construction",
+                     options.variant.name())}));
   }
   // A captured window holds hosted landmarks and a prior over frame states only.
   if (strategy != MargStrategy::kDiscard && !options.dump_windows.empty()) {
