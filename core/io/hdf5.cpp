@@ -6,6 +6,7 @@
 
 #include "core/common/error.h"
 #include "core/io/hdf5_global_heap.h"
+#include "core/io/hdf5_vlen_check.h"
 
 namespace marglab::h5 {
 
@@ -249,7 +250,13 @@ std::vector<std::string> Object::readStrings(const std::string& name, bool scala
   if (H5Tis_variable_str(file_type) > 0) {
     const TypeId mem = utf8StringType(H5Tget_cset(file_type));
     std::vector<char*> ptrs(a.n, nullptr);
-    check(H5Aread(a.attr.get(), mem.get(), ptrs.data()), id(), "", what.c_str());
+    const auto heaps = detail::heapObjectsOf(id());  // nullptr: a file marglab is writing
+    std::string refusal;
+    const herr_t read =
+        heaps ? detail::readVlenStrings(a.attr.get(), mem.get(), ptrs.data(), *heaps, &refusal)
+              : H5Aread(a.attr.get(), mem.get(), ptrs.data());
+    if (!refusal.empty()) fail(id(), "", what + ": " + refusal);
+    check(read, id(), "", what.c_str());
     for (char* p : ptrs) {
       out.emplace_back(p != nullptr ? p : "");
       H5free_memory(p);
@@ -497,13 +504,15 @@ File File::openReadOnly(const std::string& path) {
   detail::silenceErrors();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw InputError(path, 0, "no such file");
-  if (const auto bad = detail::findBadGlobalHeap(path)) {
-    throw InputError(path, 0, "corrupted HDF5 file (" + *bad + ")");
-  }
+  const auto bytes = detail::readFileBytes(path);
+  auto heaps = std::make_shared<const detail::GlobalHeapObjects>(
+      bytes ? detail::scanGlobalHeaps(*bytes) : detail::GlobalHeapObjects{});
+  if (heaps->bad) throw InputError(path, 0, "corrupted HDF5 file (" + *heaps->bad + ")");
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (file < 0) {
     throw InputError(path, 0, "not an HDF5 file or unreadable (HDF5: " + errorDetail() + ")");
   }
+  if (bytes) detail::rememberHeapObjects(file, std::move(heaps));
   File f;
   f.path_ = path;
   f.file_ = FileId(file);

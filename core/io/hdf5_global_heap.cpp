@@ -1,9 +1,7 @@
 #include "core/io/hdf5_global_heap.h"
 
 #include <algorithm>
-#include <cstdint>
 #include <fstream>
-#include <vector>
 
 namespace marglab::h5::detail {
 
@@ -15,26 +13,37 @@ std::uint64_t littleEndian(const unsigned char* p, int bytes) {
   return v;
 }
 
-// The superblock's "size of lengths" (bytes of an object size): byte 14 of a version 0/1
-// superblock, byte 10 of a version 2/3 one; 8 (libhdf5's default) when the superblock at byte 0
-// is not recognised.
-int sizeOfLengths(const std::vector<unsigned char>& file) {
+// Where the superblock starts (byte 0, 512, 1024, 2048, ...: after a user block) and its "size
+// of lengths" (bytes of an object size: byte 14 of a version 0/1 superblock, byte 10 of a version
+// 2/3 one). Byte 0 and 8 (libhdf5's default) when no superblock is recognised.
+struct Superblock {
+  std::uint64_t at = 0;
+  int lengths = 8;
+};
+Superblock superblockOf(const std::vector<unsigned char>& file) {
   static const unsigned char kSignature[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
-  if (file.size() < 16 || !std::equal(kSignature, kSignature + 8, file.begin())) return 8;
-  const int version = file[8];
-  const int lengths = version <= 1 ? file[14] : file[10];
-  return lengths == 2 || lengths == 4 || lengths == 8 ? lengths : 8;
+  for (std::uint64_t at = 0; at + 16 <= file.size(); at = at == 0 ? 512 : 2 * at) {
+    if (!std::equal(kSignature, kSignature + 8, file.begin() + static_cast<std::ptrdiff_t>(at))) {
+      continue;
+    }
+    const int version = file[at + 8];
+    const int lengths = version <= 1 ? file[at + 14] : file[at + 10];
+    return {at, lengths == 2 || lengths == 4 || lengths == 8 ? lengths : 8};
+  }
+  return {};
 }
 
-// The walk libhdf5 makes over the collection [begin, end): the offset of the first object whose
-// step is 0 or wraps (the walk never ends) or whose bytes run past the end (H5HG_read copies
-// them from beyond the collection), with which of the two; nullopt when every object is inside.
+// The walk libhdf5 makes over the collection [begin, end), recording each object of index > 0
+// under (collection, index); the offset of the first object whose step is 0 or wraps (the walk
+// never ends) or whose bytes run past the end (H5HG_read copies them from beyond the
+// collection), with which of the two; nullopt when every object is inside.
 struct BadObject {
   std::uint64_t at;
   const char* why;
 };
-std::optional<BadObject> badObject(const std::vector<unsigned char>& file, std::uint64_t begin,
-                                   std::uint64_t end, int lengths) {
+std::optional<BadObject> walkCollection(const std::vector<unsigned char>& file,
+                                        std::uint64_t begin, std::uint64_t end, int lengths,
+                                        std::uint64_t collection, GlobalHeapObjects& objects) {
   const std::uint64_t header = 8 + static_cast<std::uint64_t>(lengths);
   for (std::uint64_t p = begin; p < end && end - p >= header;) {
     const std::uint64_t index = littleEndian(&file[p], 2);
@@ -45,6 +54,7 @@ std::optional<BadObject> badObject(const std::vector<unsigned char>& file, std::
     if (step == 0 || step >= (std::uint64_t{1} << 62)) return BadObject{p, "does not advance"};
     const std::uint64_t bytes = index > 0 ? header + size : size;
     if (size > end - p || bytes > end - p) return BadObject{p, "runs past the collection's end"};
+    if (index > 0) objects.size[{collection, index}] = size;
     p += step;
   }
   return std::nullopt;
@@ -52,33 +62,41 @@ std::optional<BadObject> badObject(const std::vector<unsigned char>& file, std::
 
 }  // namespace
 
-std::optional<std::string> findBadGlobalHeap(const std::string& path) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) return std::nullopt;  // libhdf5 says why it cannot open the file
-  const std::streamoff size = std::max<std::streamoff>(in.tellg(), 0);
-  std::vector<unsigned char> file(static_cast<std::size_t>(size));
-  in.seekg(0);
-  if (!in.read(reinterpret_cast<char*>(file.data()), static_cast<std::streamsize>(file.size()))) {
-    return std::nullopt;  // libhdf5 says why it cannot read the file
-  }
-  const int lengths = sizeOfLengths(file);
+GlobalHeapObjects scanGlobalHeaps(const std::vector<unsigned char>& file) {
+  GlobalHeapObjects objects;
+  const Superblock superblock = superblockOf(file);
+  const int lengths = superblock.lengths;
   const std::uint64_t prefix = 8 + static_cast<std::uint64_t>(lengths);  // GCOL, version, size
   static const unsigned char kGcol[4] = {'G', 'C', 'O', 'L'};
   for (auto it = std::search(file.begin(), file.end(), kGcol, kGcol + 4); it != file.end();
        it = std::search(it + 1, file.end(), kGcol, kGcol + 4)) {
     const auto at = static_cast<std::uint64_t>(it - file.begin());
-    if (file.size() - at < prefix || file[at + 4] != 1) continue;
+    if (file.size() - at < prefix || file[at + 4] != 1 || at < superblock.at) continue;
     const std::uint64_t size = littleEndian(&file[at + 8], lengths);
     if (size < prefix || size > file.size() - at) continue;
-    if (const auto object = badObject(file, at + prefix, at + size, lengths)) {
-      return "global heap collection at byte " + std::to_string(at) + ": the object at byte " +
-             std::to_string(object->at) + " has index " +
-             std::to_string(littleEndian(&file[object->at], 2)) + " and size " +
-             std::to_string(littleEndian(&file[object->at + 8], lengths)) + ", which " +
-             object->why;
+    const auto object =
+        walkCollection(file, at + prefix, at + size, lengths, at - superblock.at, objects);
+    if (object && !objects.bad) {
+      objects.bad = "global heap collection at byte " + std::to_string(at) +
+                    ": the object at byte " + std::to_string(object->at) + " has index " +
+                    std::to_string(littleEndian(&file[object->at], 2)) + " and size " +
+                    std::to_string(littleEndian(&file[object->at + 8], lengths)) + ", which " +
+                    object->why;
     }
   }
-  return std::nullopt;
+  return objects;
+}
+
+std::optional<std::vector<unsigned char>> readFileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return std::nullopt;
+  const std::streamoff size = std::max<std::streamoff>(in.tellg(), 0);
+  std::vector<unsigned char> file(static_cast<std::size_t>(size));
+  in.seekg(0);
+  if (!in.read(reinterpret_cast<char*>(file.data()), static_cast<std::streamsize>(file.size()))) {
+    return std::nullopt;
+  }
+  return file;
 }
 
 }  // namespace marglab::h5::detail

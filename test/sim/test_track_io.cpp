@@ -239,6 +239,14 @@ TEST(TrackIo, Hdf5FuzzFindingsAreInputErrors) {
   expectInputError([&] { readTrackFile(big_chunk); }, big_chunk, 0,
                    "/observations/has_right: the file claims 989855852 bytes for it, more than "
                    "its own 41920");
+  const std::string long_string = corpus + "crash-vlen-string-longer-than-its-heap-object.h5";
+  expectInputError([&] { readTrackFile(long_string); }, long_string, 0,
+                   "'format': string 0 claims 4294967280 bytes; its global heap object "
+                   "(collection at address 2048, index 1) holds 14");
+  const std::string free_space = corpus + "crash-vlen-string-naming-the-free-space.h5";
+  expectInputError([&] { readTrackFile(free_space); }, free_space, 0,
+                   "'format': string 0 names a global heap object (collection at address 2048, "
+                   "index 0) the file does not hold");
 }
 
 }  // namespace

@@ -1,0 +1,39 @@
+#pragma once
+// Variable-length strings read from a file checked before libhdf5 reads them. On disk such a
+// string is a descriptor in the attribute — its length in bytes (4), then the heap ID of its
+// bytes: a global heap collection's address (size of offsets) and an object index (4) — and
+// libhdf5 1.10 trusts both (fuzz_track_hdf5's findings): it allocates the claimed length before
+// it looks at the heap object (a 44 KB file claiming 4 GB made `marglab run --tracks` hold
+// 8 GB), copies the object's own size into that buffer whatever the claim, and follows an index
+// of 0 to the collection's free space (a read before the collection's end). No public API gives
+// the descriptors, but a datatype conversion sees them: the conversion from a variable-length
+// string to a variable-length string is registered here as a soft conversion that checks every
+// descriptor — a string of the file's global heap, its length that object's size (strings
+// have 1-byte elements) — and then calls libhdf5's own conversion (H5Tfind). It checks only
+// inside readVlenStrings, the reads of read-only files; elsewhere it is libhdf5's conversion.
+
+#include <hdf5.h>
+
+#include <memory>
+#include <string>
+
+#include "core/io/hdf5_global_heap.h"
+
+namespace marglab::h5::detail {
+
+// H5Aread(attr, mem_type, out) of a variable-length string attribute of the file of `heaps`,
+// each descriptor checked first. Returns H5Aread's result; when a descriptor is refused, nothing
+// is read, the result is negative and *refusal says why ("string 0 claims 4294967280 bytes; its
+// global heap object (collection at address 2048, index 1) holds 14"), with HDF5's error stack
+// cleared.
+herr_t readVlenStrings(hid_t attr, hid_t mem_type, char** out, const GlobalHeapObjects& heaps,
+                       std::string* refusal);
+
+// The global heap objects of the file that `object` (any identifier in it) lives in, when that
+// file is open read-only: what rememberHeapObjects recorded for the same file (device, inode,
+// size and modification time), else scanned from it now. nullptr for a file open for writing
+// (marglab's own, in memory).
+std::shared_ptr<const GlobalHeapObjects> heapObjectsOf(hid_t object);
+void rememberHeapObjects(hid_t file, std::shared_ptr<const GlobalHeapObjects> objects);
+
+}  // namespace marglab::h5::detail
