@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <utility>
 
 #include "common/fault_injection.h"
 #include "core/common/source_dir.h"
@@ -219,41 +220,39 @@ TEST(TrackIo, Hdf5BadInput) {
   }
 }
 
-// Inputs of fuzz_track_hdf5 kept in fuzz/corpus/track_hdf5/: rejected as input errors, not a
-// hang inside libhdf5 (a global heap object of size 0), an out-of-bounds read in it (an object
-// running past its collection), a 14.7 GB buffer (a dataspace claiming
-// more elements than the file stores) or a 990 MB one (a chunk larger than the file).
+// Inputs of fuzz_track_hdf5 (fuzz/README.md), rejected as input errors: not a hang inside libhdf5
+// (a global heap object of size 0), an out-of-bounds read in it (an object running past its
+// collection; a string naming the collection's free space), a 14.7 GB buffer (a dataspace
+// claiming more elements than the file stores), a 990 MB one (a chunk larger than the file) or
+// 4 GB (a string claiming more than its heap object). The last is not a seed (fuzz/findings/):
+// libhdf5 reserves the 1.5 GB the root group's object header claims before it checks them
+// against the end of the file, which the fuzzers' 512 MB single-allocation limit reports; the
+// release build exits on it at 51 MB of memory.
 TEST(TrackIo, Hdf5FuzzFindingsAreInputErrors) {
-  const std::string corpus = std::string(sourceDir()) + "/fuzz/corpus/track_hdf5/";
-  const std::string stalling = corpus + "crash-global-heap-object-of-size-0.h5";
-  expectInputError([&] { readTrackFile(stalling); }, stalling, 0,
-                   "the object at byte 2304 has index 0 and size 0");
-  const std::string past_end = corpus + "crash-global-heap-object-past-its-end.h5";
-  expectInputError([&] { readTrackFile(past_end); }, past_end, 0,
-                   "the object at byte 2096 has index 2 and size 2424855, which runs past the "
-                   "collection's end");
-  const std::string too_long = corpus + "crash-shape-beyond-the-stored-bytes.h5";
-  expectInputError([&] { readTrackFile(too_long); }, too_long, 0,
-                   "/observations/track_id: its shape claims more elements than the 611 bytes");
-  const std::string big_chunk = corpus + "crash-chunk-larger-than-the-file.h5";
-  expectInputError([&] { readTrackFile(big_chunk); }, big_chunk, 0,
-                   "/observations/has_right: the file claims 989855852 bytes for it, more than "
-                   "its own 41920");
-  const std::string long_string = corpus + "crash-vlen-string-longer-than-its-heap-object.h5";
-  expectInputError([&] { readTrackFile(long_string); }, long_string, 0,
-                   "'format': string 0 claims 4294967280 bytes; its global heap object "
-                   "(collection at address 2048, index 1) holds 14");
-  const std::string free_space = corpus + "crash-vlen-string-naming-the-free-space.h5";
-  expectInputError([&] { readTrackFile(free_space); }, free_space, 0,
-                   "'format': string 0 names a global heap object (collection at address 2048, "
-                   "index 0) the file does not hold");
-  // Not a seed (fuzz/findings/): libhdf5 reserves the 1.5 GB the root group's object header
-  // claims before it checks them against the end of the file, which the fuzzers' 512 MB
-  // single-allocation limit reports; the release build exits here at 51 MB of memory.
-  const std::string big_header = std::string(sourceDir()) + "/fuzz/findings/track_hdf5/" +
-                                 "oom-root-object-header-larger-than-the-file.h5";
-  expectInputError([&] { readTrackFile(big_header); }, big_header, 0,
-                   "addr overflow, addr = 800, size = 1560281384, eoa = 41920");
+  const std::string fuzz = std::string(sourceDir()) + "/fuzz/";
+  const std::pair<const char*, const char*> findings[] = {
+      {"corpus/track_hdf5/crash-global-heap-object-of-size-0.h5",
+       "the object at byte 2304 has index 0 and size 0"},
+      {"corpus/track_hdf5/crash-global-heap-object-past-its-end.h5",
+       "the object at byte 2096 has index 2 and size 2424855, which runs past the collection's "
+       "end"},
+      {"corpus/track_hdf5/crash-shape-beyond-the-stored-bytes.h5",
+       "/observations/track_id: its shape claims more elements than the 611 bytes"},
+      {"corpus/track_hdf5/crash-chunk-larger-than-the-file.h5",
+       "/observations/has_right: the file claims 989855852 bytes for it, more than its own 41920"},
+      {"corpus/track_hdf5/crash-vlen-string-longer-than-its-heap-object.h5",
+       "'format': string 0 claims 4294967280 bytes; its global heap object (collection at "
+       "address 2048, index 1) holds 14"},
+      {"corpus/track_hdf5/crash-vlen-string-naming-the-free-space.h5",
+       "'format': string 0 names a global heap object (collection at address 2048, index 0) the "
+       "file does not hold"},
+      {"findings/track_hdf5/oom-root-object-header-larger-than-the-file.h5",
+       "addr overflow, addr = 800, size = 1560281384, eoa = 41920"},
+  };
+  for (const auto& [name, expected] : findings) {
+    const std::string path = fuzz + name;
+    expectInputError([&] { readTrackFile(path); }, path, 0, expected);
+  }
 }
 
 }  // namespace
