@@ -250,11 +250,9 @@ std::vector<std::string> Object::readStrings(const std::string& name, bool scala
   if (H5Tis_variable_str(file_type) > 0) {
     const TypeId mem = utf8StringType(H5Tget_cset(file_type));
     std::vector<char*> ptrs(a.n, nullptr);
-    const auto heaps = detail::heapObjectsOf(id());  // nullptr: a file marglab is writing
     std::string refusal;
-    const herr_t read =
-        heaps ? detail::readVlenStrings(a.attr.get(), mem.get(), ptrs.data(), *heaps, &refusal)
-              : H5Aread(a.attr.get(), mem.get(), ptrs.data());
+    const herr_t read = detail::readVlenStrings(a.attr.get(), mem.get(), ptrs.data(),
+                                                detail::heapObjectsOf(id()).get(), &refusal);
     if (!refusal.empty()) fail(id(), "", what + ": " + refusal);
     check(read, id(), "", what.c_str());
     for (char* p : ptrs) {

@@ -7,12 +7,6 @@ namespace marglab::h5::detail {
 
 namespace {
 
-std::uint64_t littleEndian(const unsigned char* p, int bytes) {
-  std::uint64_t v = 0;
-  for (int i = bytes - 1; i >= 0; --i) v = (v << 8) | p[i];
-  return v;
-}
-
 // Where the superblock starts (byte 0, 512, 1024, 2048, ...: after a user block) and its "size
 // of lengths" (bytes of an object size: byte 14 of a version 0/1 superblock, byte 10 of a version
 // 2/3 one). Byte 0 and 8 (libhdf5's default) when no superblock is recognised.

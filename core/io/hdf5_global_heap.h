@@ -36,6 +36,13 @@ struct GlobalHeapObjects {
 
 GlobalHeapObjects scanGlobalHeaps(const std::vector<unsigned char>& file);
 
+// The unsigned integer of `bytes` little-endian bytes at p (HDF5 stores every field so).
+inline std::uint64_t littleEndian(const unsigned char* p, std::size_t bytes) {
+  std::uint64_t v = 0;
+  for (std::size_t i = bytes; i-- > 0;) v = (v << 8) | p[i];
+  return v;
+}
+
 // The whole file, or nullopt when it cannot be read (libhdf5 then says why).
 std::optional<std::vector<unsigned char>> readFileBytes(const std::string& path);
 

@@ -1,7 +1,6 @@
 #include "core/io/hdf5_vlen_check.h"
 
 #include <sys/stat.h>
-#include <unistd.h>
 
 #include <cstdint>
 #include <map>
@@ -14,12 +13,6 @@
 namespace marglab::h5::detail {
 
 namespace {
-
-std::uint64_t littleEndian(const unsigned char* p, std::size_t bytes) {
-  std::uint64_t v = 0;
-  for (std::size_t i = bytes; i-- > 0;) v = (v << 8) | p[i];
-  return v;
-}
 
 // The first descriptor of `n` (each `size` bytes, `stride` apart) that is not a string of
 // `heaps`, with why; nullopt when all are. A null string (address 0) is not read by libhdf5.
@@ -128,18 +121,6 @@ std::optional<FileKey> keyOf(int fd, struct stat* st) {
                  std::int64_t{st->st_mtim.tv_sec} * 1000000000 + st->st_mtim.tv_nsec};
 }
 
-std::shared_ptr<const GlobalHeapObjects> scanDescriptor(int fd, off_t size) {
-  std::vector<unsigned char> file(static_cast<std::size_t>(size));
-  std::size_t done = 0;
-  while (done < file.size()) {
-    const ssize_t got = pread(fd, file.data() + done, file.size() - done, static_cast<off_t>(done));
-    if (got <= 0) break;
-    done += static_cast<std::size_t>(got);
-  }
-  file.resize(done);
-  return std::make_shared<const GlobalHeapObjects>(scanGlobalHeaps(file));
-}
-
 // The identifier of the file `object` lives in, closed at scope exit.
 struct FileOf {
   explicit FileOf(hid_t object) : id(H5Iget_file_id(object)) {}
@@ -153,10 +134,11 @@ struct FileOf {
 
 }  // namespace
 
-herr_t readVlenStrings(hid_t attr, hid_t mem_type, char** out, const GlobalHeapObjects& heaps,
+herr_t readVlenStrings(hid_t attr, hid_t mem_type, char** out, const GlobalHeapObjects* heaps,
                        std::string* refusal) {
+  if (heaps == nullptr) return H5Aread(attr, mem_type, out);
   registerCheckedConversion();
-  ReadContext context{&heaps, std::nullopt};
+  ReadContext context{heaps, std::nullopt};
   t_read = &context;
   const herr_t read = H5Aread(attr, mem_type, out);
   t_read = nullptr;
@@ -178,7 +160,10 @@ std::shared_ptr<const GlobalHeapObjects> heapObjectsOf(hid_t object) {
     const std::lock_guard<std::mutex> lock(cache.mutex);
     if (const auto it = cache.scans.find(*key); it != cache.scans.end()) return it->second;
   }
-  auto scan = scanDescriptor(fd, st.st_size);
+  // The file libhdf5 has open, even if its path now names another one.
+  const auto bytes = readFileBytes("/proc/self/fd/" + std::to_string(fd));
+  auto scan = std::make_shared<const GlobalHeapObjects>(
+      bytes ? scanGlobalHeaps(*bytes) : GlobalHeapObjects{});
   rememberHeapObjects(file.id, scan);
   return scan;
 }
