@@ -251,8 +251,8 @@ std::vector<std::string> Object::readStrings(const std::string& name, bool scala
     const TypeId mem = utf8StringType(H5Tget_cset(file_type));
     std::vector<char*> ptrs(a.n, nullptr);
     std::string refusal;
-    const herr_t read = detail::readVlenStrings(a.attr.get(), mem.get(), ptrs.data(),
-                                                detail::heapObjectsOf(id()).get(), &refusal);
+    const herr_t read =
+        detail::readVlenStrings(a.attr.get(), mem.get(), ptrs.data(), heaps_.get(), &refusal);
     if (!refusal.empty()) fail(id(), "", what + ": " + refusal);
     check(read, id(), "", what.c_str());
     for (char* p : ptrs) {
@@ -388,7 +388,8 @@ bool Group::exists(const std::string& path) const {
 
 Group Group::openGroup(const std::string& path) const {
   if (!exists(path)) fail(id(), path, "no such group");
-  return Group(check(H5Gopen2(id(), path.c_str(), H5P_DEFAULT), id(), path, "not a group"));
+  return Group(check(H5Gopen2(id(), path.c_str(), H5P_DEFAULT), id(), path, "not a group"),
+               heaps_);
 }
 
 // Each missing group along the path is created here rather than by HDF5's intermediate-group
@@ -411,7 +412,8 @@ Group Group::group(const std::string& path) const {
 
 Dataset Group::openDataset(const std::string& path) const {
   if (!exists(path)) fail(id(), path, "no such dataset");
-  return Dataset(check(H5Dopen2(id(), path.c_str(), H5P_DEFAULT), id(), path, "not a dataset"));
+  return Dataset(check(H5Dopen2(id(), path.c_str(), H5P_DEFAULT), id(), path, "not a dataset"),
+                 heaps_);
 }
 
 std::vector<std::string> Group::members() const {
@@ -510,11 +512,11 @@ File File::openReadOnly(const std::string& path) {
   if (file < 0) {
     throw InputError(path, 0, "not an HDF5 file or unreadable (HDF5: " + errorDetail() + ")");
   }
-  if (bytes) detail::rememberHeapObjects(file, std::move(heaps));
   File f;
   f.path_ = path;
   f.file_ = FileId(file);
   f.id_ = ObjectId(check(H5Gopen2(file, "/", H5P_DEFAULT), file, "/", "cannot open root group"));
+  f.heaps_ = std::move(heaps);
   return f;
 }
 

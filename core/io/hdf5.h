@@ -113,6 +113,10 @@ using AttrId = Id<H5Aclose>;
 using PropId = Id<H5Pclose>;
 using ObjectId = Id<H5Oclose>;
 
+namespace detail {
+struct GlobalHeapObjects;
+}  // namespace detail
+
 // A group or dataset: the things that carry attributes.
 class Object {
  public:
@@ -133,8 +137,12 @@ class Object {
 
  protected:
   Object() = default;
-  explicit Object(hid_t owned) : id_(owned) {}
+  Object(hid_t owned, std::shared_ptr<const detail::GlobalHeapObjects> heaps)
+      : id_(owned), heaps_(std::move(heaps)) {}
   ObjectId id_;
+  // The global heap of a file opened read-only, scanned when it was opened: every variable-length
+  // string read from it is checked against it (hdf5_vlen_check.h). Null for a file being written.
+  std::shared_ptr<const detail::GlobalHeapObjects> heaps_;
 
  private:
   void writeDoubles(const std::string& name, const std::vector<double>& v, bool scalar) const;
@@ -149,7 +157,8 @@ class Object {
 class Dataset : public Object {
  public:
   Dataset() = default;
-  explicit Dataset(hid_t owned) : Object(owned) {}
+  explicit Dataset(hid_t owned, std::shared_ptr<const detail::GlobalHeapObjects> heaps = nullptr)
+      : Object(owned, std::move(heaps)) {}
   std::vector<hsize_t> shape() const;
   // All elements in row-major order.
   template <typename T>
@@ -165,7 +174,8 @@ class Dataset : public Object {
 class Group : public Object {
  public:
   Group() = default;
-  explicit Group(hid_t owned) : Object(owned) {}
+  explicit Group(hid_t owned, std::shared_ptr<const detail::GlobalHeapObjects> heaps = nullptr)
+      : Object(owned, std::move(heaps)) {}
 
   // Opens the group at path (relative or absolute), creating it and missing parents.
   Group group(const std::string& path) const;

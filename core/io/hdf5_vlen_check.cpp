@@ -1,23 +1,20 @@
 #include "core/io/hdf5_vlen_check.h"
 
-#include <sys/stat.h>
-
 #include <cstdint>
-#include <map>
 #include <mutex>
 #include <optional>
 #include <stdexcept>
-#include <tuple>
-#include <vector>
 
 namespace marglab::h5::detail {
 
 namespace {
 
 // The first descriptor of `n` (each `size` bytes, `stride` apart) that is not a string of
-// `heaps`, with why; nullopt when all are. A null string (address 0) is not read by libhdf5.
+// `heaps` with `char_size`-byte characters, with why; nullopt when all are. A null string
+// (address 0) is not read by libhdf5.
 std::optional<std::string> refuseDescriptor(const unsigned char* buf, std::size_t n,
                                             std::size_t size, std::size_t stride,
+                                            std::uint64_t char_size,
                                             const GlobalHeapObjects& heaps) {
   const std::size_t offsets = size - 8;  // length (4), address, index (4)
   if (offsets != 2 && offsets != 4 && offsets != 8) {
@@ -35,12 +32,28 @@ std::optional<std::string> refuseDescriptor(const unsigned char* buf, std::size_
     if (it == heaps.size.end()) {
       return "string " + std::to_string(i) + " names a " + object + " the file does not hold";
     }
-    if (it->second != length) {
-      return "string " + std::to_string(i) + " claims " + std::to_string(length) + " bytes; its " +
-             object + " holds " + std::to_string(it->second);
+    // libhdf5 allocates length × char_size bytes (< 2^64: both fit in 4 bytes on disk).
+    if (it->second != length * char_size) {
+      const std::string claim =
+          char_size == 1 ? std::to_string(length) + " bytes"
+                         : std::to_string(length) + " characters of " +
+                               std::to_string(char_size) + " bytes";
+      return "string " + std::to_string(i) + " claims " + claim + "; its " + object + " holds " +
+             std::to_string(it->second);
     }
   }
   return std::nullopt;
+}
+
+// The size of one character of a variable-length string type: 1 as libhdf5 writes it, but read
+// from the file's datatype message, so any 4-byte value there (fuzz/README.md: a 14-byte string
+// of 704 MB characters made `marglab run --tracks` hold 9.7 GB).
+std::optional<std::size_t> characterSize(hid_t string_type) {
+  const hid_t character = H5Tget_super(string_type);
+  if (character < 0) return std::nullopt;
+  const std::size_t size = H5Tget_size(character);
+  H5Tclose(character);
+  return size == 0 ? std::nullopt : std::optional<std::size_t>(size);
 }
 
 // What the conversion checks against, set by readVlenStrings for the duration of its H5Aread.
@@ -61,8 +74,12 @@ herr_t checkedConversion(hid_t src, hid_t dst, H5T_cdata_t* cdata, std::size_t n
   }
   if (cdata->command == H5T_CONV_CONV && t_read != nullptr) {
     const std::size_t size = H5Tget_size(src);  // the descriptor on disk
-    t_read->refusal = refuseDescriptor(static_cast<const unsigned char*>(buf), n, size,
-                                       buf_stride == 0 ? size : buf_stride, *t_read->heaps);
+    const std::optional<std::size_t> char_size = characterSize(src);
+    t_read->refusal =
+        char_size ? refuseDescriptor(static_cast<const unsigned char*>(buf), n, size,
+                                     buf_stride == 0 ? size : buf_stride, *char_size,
+                                     *t_read->heaps)
+                  : "the string's character type cannot be read";
     if (t_read->refusal) return -1;
   }
   return g_libhdf5_conversion(src, dst, cdata, n, buf_stride, bkg_stride, buf, bkg, dxpl);
@@ -92,46 +109,6 @@ void registerCheckedConversion() {
   });
 }
 
-// A file as opened: what a cached scan belongs to.
-using FileKey = std::tuple<dev_t, ino_t, off_t, std::int64_t>;
-struct HeapCache {
-  std::mutex mutex;
-  std::map<FileKey, std::shared_ptr<const GlobalHeapObjects>> scans;
-};
-HeapCache& heapCache() {
-  static HeapCache cache;
-  return cache;
-}
-
-// The descriptor of a read-only file opened with the default (sec2) driver, else -1.
-int readOnlyDescriptor(hid_t file) {
-  unsigned intent = 0;
-  if (H5Fget_intent(file, &intent) < 0 || (intent & H5F_ACC_RDWR) != 0) return -1;
-  const hid_t fapl = H5Fget_access_plist(file);
-  void* handle = nullptr;
-  const bool sec2 = fapl >= 0 && H5Pget_driver(fapl) == H5FD_SEC2 &&
-                    H5Fget_vfd_handle(file, fapl, &handle) >= 0 && handle != nullptr;
-  if (fapl >= 0) H5Pclose(fapl);
-  return sec2 ? *static_cast<int*>(handle) : -1;
-}
-
-std::optional<FileKey> keyOf(int fd, struct stat* st) {
-  if (fd < 0 || fstat(fd, st) != 0) return std::nullopt;
-  return FileKey{st->st_dev, st->st_ino, st->st_size,
-                 std::int64_t{st->st_mtim.tv_sec} * 1000000000 + st->st_mtim.tv_nsec};
-}
-
-// The identifier of the file `object` lives in, closed at scope exit.
-struct FileOf {
-  explicit FileOf(hid_t object) : id(H5Iget_file_id(object)) {}
-  ~FileOf() {
-    if (id >= 0) H5Fclose(id);
-  }
-  FileOf(const FileOf&) = delete;
-  FileOf& operator=(const FileOf&) = delete;
-  hid_t id;
-};
-
 }  // namespace
 
 herr_t readVlenStrings(hid_t attr, hid_t mem_type, char** out, const GlobalHeapObjects* heaps,
@@ -147,36 +124,6 @@ herr_t readVlenStrings(hid_t attr, hid_t mem_type, char** out, const GlobalHeapO
     *refusal = *context.refusal;
   }
   return read;
-}
-
-std::shared_ptr<const GlobalHeapObjects> heapObjectsOf(hid_t object) {
-  const FileOf file(object);
-  const int fd = readOnlyDescriptor(file.id);
-  struct stat st {};
-  const auto key = keyOf(fd, &st);
-  if (!key) return nullptr;
-  HeapCache& cache = heapCache();
-  {
-    const std::lock_guard<std::mutex> lock(cache.mutex);
-    if (const auto it = cache.scans.find(*key); it != cache.scans.end()) return it->second;
-  }
-  // The file libhdf5 has open, even if its path now names another one.
-  const auto bytes = readFileBytes("/proc/self/fd/" + std::to_string(fd));
-  auto scan = std::make_shared<const GlobalHeapObjects>(
-      bytes ? scanGlobalHeaps(*bytes) : GlobalHeapObjects{});
-  rememberHeapObjects(file.id, scan);
-  return scan;
-}
-
-void rememberHeapObjects(hid_t file, std::shared_ptr<const GlobalHeapObjects> objects) {
-  struct stat st {};
-  const auto key = keyOf(readOnlyDescriptor(file), &st);
-  if (!key) return;
-  HeapCache& cache = heapCache();
-  const std::lock_guard<std::mutex> lock(cache.mutex);
-  constexpr std::size_t kFiles = 64;  // a few KB each; tables read hundreds of files in turn
-  if (cache.scans.size() >= kFiles) cache.scans.erase(cache.scans.begin());
-  cache.scans[*key] = std::move(objects);
 }
 
 }  // namespace marglab::h5::detail

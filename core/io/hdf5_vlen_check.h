@@ -8,13 +8,16 @@
 // of 0 to the collection's free space (a read before the collection's end). No public API gives
 // the descriptors, but a datatype conversion sees them: the conversion from a variable-length
 // string to a variable-length string is registered here as a soft conversion that checks every
-// descriptor — a string of the file's global heap, its length that object's size (strings
-// have 1-byte elements) — and then calls libhdf5's own conversion (H5Tfind). It checks only
-// inside readVlenStrings, the reads of read-only files; elsewhere it is libhdf5's conversion.
+// descriptor — a string of the file's global heap whose size is the claimed length times the
+// size of a character, which libhdf5 reads from the file too (1 byte as written, but a fuzzed
+// 4-byte field made a 14-byte string claim 9.9 GB) — and then calls libhdf5's own
+// conversion (H5Tfind). It checks only inside readVlenStrings, the reads of read-only files, with
+// the heap scanned when File::openReadOnly opened the file (held by each Object of it: no global
+// cache keyed by the file's identity, and each opening sees the file as it is); elsewhere it is
+// libhdf5's conversion.
 
 #include <hdf5.h>
 
-#include <memory>
 #include <string>
 
 #include "core/io/hdf5_global_heap.h"
@@ -22,18 +25,11 @@
 namespace marglab::h5::detail {
 
 // H5Aread(attr, mem_type, out) of a variable-length string attribute of the file of `heaps`,
-// each descriptor checked first (unchecked when heaps is nullptr: a file marglab is writing). Returns H5Aread's result; when a descriptor is refused, nothing
-// is read, the result is negative and *refusal says why ("string 0 claims 4294967280 bytes; its
-// global heap object (collection at address 2048, index 1) holds 14"), with HDF5's error stack
-// cleared.
+// each descriptor checked first (unchecked when heaps is nullptr: a file marglab is writing).
+// Returns H5Aread's result; when a descriptor is refused, nothing is read, the result is negative
+// and *refusal says why ("string 0 claims 4294967280 bytes; its global heap object (collection at
+// address 2048, index 1) holds 14"), with HDF5's error stack cleared.
 herr_t readVlenStrings(hid_t attr, hid_t mem_type, char** out, const GlobalHeapObjects* heaps,
                        std::string* refusal);
-
-// The global heap objects of the file that `object` (any identifier in it) lives in, when that
-// file is open read-only: what rememberHeapObjects recorded for the same file (device, inode,
-// size and modification time), else scanned from it now. nullptr for a file open for writing
-// (marglab's own, in memory).
-std::shared_ptr<const GlobalHeapObjects> heapObjectsOf(hid_t object);
-void rememberHeapObjects(hid_t file, std::shared_ptr<const GlobalHeapObjects> objects);
 
 }  // namespace marglab::h5::detail

@@ -2,7 +2,9 @@
 
 #include "core/io/hdf5.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include "common/cli_runner.h"
 #include "common/temp_dir.h"
@@ -506,6 +508,58 @@ TEST_F(Hdf5Test, VariableLengthStringsAreCheckedAgainstTheirGlobalHeapObjects) {
                          ", index 0) the file does not hold"),
             std::string::npos)
       << message;
+  // The character size comes from the attribute's datatype message (a UTF-8 string of 16-byte
+  // descriptors over 1-byte unsigned integers): libhdf5 allocates length × that size.
+  const std::string string_type("\x19\x01\x01\x00\x10\x00\x00\x00\x10\x00\x00\x00", 12);
+  const std::size_t type_at = bytes.find(string_type);  // the first attribute's: 'sequence'
+  ASSERT_NE(type_at, std::string::npos);
+  ASSERT_EQ(bytes[type_at + 12], 1);
+  message = corrupted("wide.h5", type_at + 12, 0x01000000u);
+  EXPECT_NE(message.find("'sequence': string 0 claims 16 characters of 16777216 bytes; its " +
+                         object + ", index 1) holds 16"),
+            std::string::npos)
+      << message;
+}
+
+// Each opening scans the file as it is then: a file rewritten in place (same inode, same size,
+// same modification time, as within one tick of the file system's clock) is not checked against
+// the heap of its former contents. Here the rewrite shortens the string and its heap object
+// coherently — to 9 of its 16 bytes (the object keeps its 16-byte slot) — which libhdf5 reads.
+TEST_F(Hdf5Test, FileRewrittenInPlaceIsCheckedAgainstItsNewHeap) {
+  const std::string path = file("rewritten.h5");
+  {
+    File f = File::create(path);
+    f.setAttr("sequence", std::string("euroc/V1_01_easy"));
+    f.commit();
+  }
+  EXPECT_EQ(File::openReadOnly(path).attr<std::string>("sequence"), "euroc/V1_01_easy");
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::uint64_t gcol = bytes.find("GCOL");
+  ASSERT_NE(gcol, std::string::npos);
+  const std::uint64_t object = gcol + 16;  // object 1: index (2), references (2), reserved, size
+  ASSERT_EQ(bytes[object], 1);
+  const std::uint64_t shorter = 9;
+  std::memcpy(&bytes[object + 8], &shorter, 8);
+  char heap_id[12];
+  const std::uint32_t first = 1;
+  std::memcpy(heap_id, &gcol, 8);
+  std::memcpy(heap_id + 8, &first, 4);
+  const std::size_t at = bytes.find(std::string(heap_id, 12));
+  ASSERT_NE(at, std::string::npos);
+  const std::uint32_t length = 9;
+  std::memcpy(&bytes[at - 4], &length, 4);
+
+  struct stat before {};
+  ASSERT_EQ(stat(path.c_str(), &before), 0);
+  std::fstream(path, std::ios::binary | std::ios::in | std::ios::out) << bytes;  // in place
+  const timespec times[2] = {before.st_atim, before.st_mtim};
+  ASSERT_EQ(utimensat(AT_FDCWD, path.c_str(), times, 0), 0);
+  struct stat after {};
+  ASSERT_EQ(stat(path.c_str(), &after), 0);
+  ASSERT_EQ(after.st_ino, before.st_ino);
+  ASSERT_EQ(after.st_size, before.st_size);
+  EXPECT_EQ(File::openReadOnly(path).attr<std::string>("sequence"), "euroc/V1_");
 }
 
 TEST_F(Hdf5Test, WritingAnExistingNameThrows) {
