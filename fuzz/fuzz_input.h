@@ -15,14 +15,20 @@
 
 namespace marglab::fuzz {
 
-// A file named after the process (libFuzzer's -jobs runs several), rewritten for every input; in
-// /dev/shm when there is one, so that the fuzzer does not wear a disk.
+// The input as a file. In the folder MARGLAB_FUZZ_TMP when set (fuzz/run_fuzzers.sh: one per
+// target, under the build folder, given as a relative path), as "input" + suffix: a path that is
+// the same in every run on every machine. The path enters the parsers' messages and comparisons,
+// and through them libFuzzer's comparison-guided mutations: a name carrying the process ID made
+// two runs of one build from one seed take different paths (fuzz/README.md). Without it (a
+// process run by hand, or libFuzzer's -jobs running several at once), a name of its own per
+// process in /dev/shm when there is one, so that the fuzzer does not wear a disk.
 inline std::string writeInput(const std::uint8_t* data, std::size_t size, const char* suffix) {
-  static const std::string dir = [] {
-    if (const char* tmp = std::getenv("MARGLAB_FUZZ_TMP")) return std::string(tmp);
-    return std::string(access("/dev/shm", W_OK) == 0 ? "/dev/shm" : "/tmp");
+  static const std::string prefix = [] {
+    if (const char* dir = std::getenv("MARGLAB_FUZZ_TMP")) return std::string(dir) + "/input";
+    const char* dir = access("/dev/shm", W_OK) == 0 ? "/dev/shm" : "/tmp";
+    return std::string(dir) + "/marglab-fuzz-" + std::to_string(getpid());
   }();
-  std::string path = dir + "/marglab-fuzz-" + std::to_string(getpid()) + suffix;
+  std::string path = prefix + suffix;
   std::FILE* f = std::fopen(path.c_str(), "wb");
   if (f == nullptr || std::fwrite(data, 1, size, f) != size || std::fclose(f) != 0) {
     std::perror(path.c_str());

@@ -39,6 +39,17 @@ make_seeds() {
 }
 make_seeds
 
+# Address-space randomisation off where the kernel allows it (setarch -R): libFuzzer's
+# comparison-guided mutations take operands from the parsers' comparisons, pointers among them,
+# so with random addresses two runs of one build from one seed took different paths
+# (fuzz_window; fuzz/README.md, "Reproducible runs").
+no_aslr=()
+if setarch "$(uname -m)" -R true 2>/dev/null; then
+  no_aslr=(setarch "$(uname -m)" -R)
+else
+  echo "fuzz: setarch -R not permitted here; runs may differ from one run to the next"
+fi
+
 failed=()
 for t in "${TARGETS[@]}"; do
   corpus="$OUT/corpus/$t"  # new inputs go here; fresh each time so that a run is reproducible
@@ -49,6 +60,10 @@ for t in "${TARGETS[@]}"; do
   dict=()
   [ -f "fuzz/$t.dict" ] && dict=("-dict=fuzz/$t.dict")
   log="$OUT/logs/$t.log"
+  # The folder of the input file: a path free of the process ID and of the checkout's location
+  # (fuzz/fuzz_input.h), so that a run of one build from one seed is the same everywhere.
+  export MARGLAB_FUZZ_TMP="$OUT/inputs/$t"
+  mkdir -p "$MARGLAB_FUZZ_TMP"
   rm -f "$OUT/artifacts/$t-"*
   # A hang (> 10 s per input), > 2 GB of memory or a single allocation > 512 MB is a finding too.
   status=0
@@ -57,7 +72,7 @@ for t in "${TARGETS[@]}"; do
   per_target="MARGLAB_FUZZ_RUNS_$t"  # e.g. MARGLAB_FUZZ_RUNS_track_hdf5 overrides the count
   runs_n="${!per_target:-${MARGLAB_FUZZ_RUNS:-}}"
   [ -n "$runs_n" ] && runs_flag=("-runs=$runs_n")
-  "$BUILD_DIR/fuzz/fuzz_$t" -seed=1 -max_total_time="$SECONDS_PER_TARGET" "${runs_flag[@]}" -timeout=10 \
+  "${no_aslr[@]}" "$BUILD_DIR/fuzz/fuzz_$t" -seed=1 -max_total_time="$SECONDS_PER_TARGET" "${runs_flag[@]}" -timeout=10 \
     -rss_limit_mb=2048 -malloc_limit_mb=512 -print_final_stats=1 ${MARGLAB_FUZZ_FLAGS:-} \
     -artifact_prefix="$OUT/artifacts/$t-" "${dict[@]}" "${dirs[@]}" >"$log" 2>&1 || status=$?
   # The last status line: "#RUNS ... cov: E ft: F corp: ..." (also in fork mode).

@@ -252,7 +252,8 @@ std::vector<std::string> Object::readStrings(const std::string& name, bool scala
     std::vector<char*> ptrs(a.n, nullptr);
     std::string refusal;
     const herr_t read =
-        detail::readVlenStrings(a.attr.get(), mem.get(), ptrs.data(), heaps_.get(), &refusal);
+        detail::readVlenStrings(a.attr.get(), mem.get(), ptrs.size(), ptrs.data(), heaps_.get(),
+                                &refusal);
     if (!refusal.empty()) fail(id(), "", what + ": " + refusal);
     check(read, id(), "", what.c_str());
     for (char* p : ptrs) {

@@ -24,12 +24,13 @@
 
 namespace marglab::h5::detail {
 
-// H5Aread(attr, mem_type, out) of a variable-length string attribute of the file of `heaps`,
-// each descriptor checked first (unchecked when heaps is nullptr: a file marglab is writing).
+// H5Aread(attr, mem_type, out) of a variable-length string attribute of `n` strings of the file
+// of `heaps`, its stored bytes and each descriptor checked first (unchecked when heaps is nullptr:
+// a file marglab is writing).
 // Returns H5Aread's result; when a descriptor is refused, nothing is read, the result is negative
 // and *refusal says why ("string 0 claims 4294967280 bytes; its global heap object (collection at
 // address 2048, index 1) holds 14"), with HDF5's error stack cleared.
-herr_t readVlenStrings(hid_t attr, hid_t mem_type, char** out, const GlobalHeapObjects* heaps,
-                       std::string* refusal);
+herr_t readVlenStrings(hid_t attr, hid_t mem_type, std::size_t n, char** out,
+                       const GlobalHeapObjects* heaps, std::string* refusal);
 
 }  // namespace marglab::h5::detail

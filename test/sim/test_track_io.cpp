@@ -222,13 +222,13 @@ TEST(TrackIo, Hdf5BadInput) {
 
 // Inputs of fuzz_track_hdf5 (fuzz/README.md), rejected as input errors: not a hang inside libhdf5
 // (a global heap object of size 0), an out-of-bounds read in it (an object running past its
-// collection; a string naming the collection's free space), a 14.7 GB buffer (a dataspace
-// claiming more elements than the file stores), a 990 MB one (a chunk larger than the file) or
-// 4 GB (a string claiming more than its heap object) or 9.7 GB (a string of 700 MB characters).
-// The last is not a seed (fuzz/findings/):
-// libhdf5 reserves the 1.5 GB the root group's object header claims before it checks them
-// against the end of the file, which the fuzzers' 512 MB single-allocation limit reports; the
-// release build exits on it at 51 MB of memory.
+// collection; a string naming the collection's free space; an attribute storing fewer bytes than
+// its string descriptors), a 14.7 GB buffer (a dataspace claiming more elements than the file
+// stores), a 990 MB one (a chunk larger than the file), 4 GB (a string claiming more than its
+// heap object) or 9.7 GB (a string of 704 MB characters). The last is not a seed
+// (fuzz/findings/): libhdf5 reserves the 1.5 GB the root group's object header claims before it
+// checks them against the end of the file, which the fuzzers' 512 MB single-allocation limit
+// reports; the release build exits on it at 51 MB of memory.
 TEST(TrackIo, Hdf5FuzzFindingsAreInputErrors) {
   const std::string fuzz = std::string(sourceDir()) + "/fuzz/";
   const std::pair<const char*, const char*> findings[] = {
@@ -247,6 +247,8 @@ TEST(TrackIo, Hdf5FuzzFindingsAreInputErrors) {
       {"corpus/track_hdf5/crash-vlen-string-of-wide-characters.h5",
        "'format': string 0 claims 14 characters of 704643073 bytes; its global heap object "
        "(collection at address 2048, index 1) holds 14"},
+      {"corpus/track_hdf5/crash-vlen-attribute-storing-less-than-its-descriptors.h5",
+       "'sequence': it stores 14 bytes, not 1 string descriptor of 16 bytes"},
       {"corpus/track_hdf5/crash-vlen-string-naming-the-free-space.h5",
        "'format': string 0 names a global heap object (collection at address 2048, index 0) the "
        "file does not hold"},
