@@ -50,6 +50,22 @@ std::string inputErrorOf(F&& f) {
   return {};
 }
 
+std::string fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// Where the heap ID (collection address 8 bytes, object index 4) naming object 1 of the global
+// heap collection at `gcol` is stored in `bytes`: in the descriptor of the string held there, 4
+// bytes after its length. npos if no descriptor names it.
+std::size_t heapIdOfFirstObject(const std::string& bytes, std::uint64_t gcol) {
+  char heap_id[12];
+  const std::uint32_t first = 1;
+  std::memcpy(heap_id, &gcol, 8);
+  std::memcpy(heap_id + 8, &first, 4);
+  return bytes.find(std::string(heap_id, 12));
+}
+
 // Element i of a test sequence in T's range, different across chunk boundaries.
 template <typename T>
 T element(std::size_t i) {
@@ -434,8 +450,7 @@ TEST_F(Hdf5Test, GlobalHeapThatWouldStallLibhdf5IsRefusedNamingTheByte) {
     f.setAttr("sequence", std::string("kitti/06_images"));
     f.commit();
   }
-  std::ifstream in(good, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string bytes = fileBytes(good);
   const std::size_t gcol = bytes.find("GCOL");
   ASSERT_NE(gcol, std::string::npos);
   std::size_t p = gcol + 16;  // signature, version, reserved, 8-byte collection size
@@ -477,15 +492,10 @@ TEST_F(Hdf5Test, VariableLengthStringsAreCheckedAgainstTheirGlobalHeapObjects) {
   EXPECT_EQ(read.attr<std::string>("sequence"), "euroc/V1_01_easy");
   EXPECT_EQ(read.openGroup("g").attr<std::vector<std::string>>("names"), names);
 
-  std::ifstream in(good, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string bytes = fileBytes(good);
   const std::uint64_t gcol = bytes.find("GCOL");
   ASSERT_NE(gcol, std::string::npos);
-  char heap_id[12];  // the descriptor's address and index of heap object 1
-  const std::uint32_t first = 1;
-  std::memcpy(heap_id, &gcol, 8);
-  std::memcpy(heap_id + 8, &first, 4);
-  const std::size_t at = bytes.find(std::string(heap_id, 12));
+  const std::size_t at = heapIdOfFirstObject(bytes, gcol);
   ASSERT_NE(at, std::string::npos);
   const std::string object = "global heap object (collection at address " + std::to_string(gcol);
   auto corrupted = [&](const std::string& name, std::size_t offset, std::uint32_t value) {
@@ -538,19 +548,14 @@ TEST_F(Hdf5Test, FileRewrittenInPlaceIsCheckedAgainstItsNewHeap) {
     f.commit();
   }
   EXPECT_EQ(File::openReadOnly(path).attr<std::string>("sequence"), "euroc/V1_01_easy");
-  std::ifstream in(path, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string bytes = fileBytes(path);
   const std::uint64_t gcol = bytes.find("GCOL");
   ASSERT_NE(gcol, std::string::npos);
   const std::uint64_t object = gcol + 16;  // object 1: index (2), references (2), reserved, size
   ASSERT_EQ(bytes[object], 1);
   const std::uint64_t shorter = 9;
   std::memcpy(&bytes[object + 8], &shorter, 8);
-  char heap_id[12];
-  const std::uint32_t first = 1;
-  std::memcpy(heap_id, &gcol, 8);
-  std::memcpy(heap_id + 8, &first, 4);
-  const std::size_t at = bytes.find(std::string(heap_id, 12));
+  const std::size_t at = heapIdOfFirstObject(bytes, gcol);
   ASSERT_NE(at, std::string::npos);
   const std::uint32_t length = 9;
   std::memcpy(&bytes[at - 4], &length, 4);
