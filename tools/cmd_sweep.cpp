@@ -13,6 +13,7 @@
 #include "core/common/error.h"
 #include "core/data/sequence.h"
 #include "core/estimator/config.h"
+#include "core/pipeline/run.h"
 #include "core/experiment/slurm_backend.h"
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_runner.h"
@@ -20,88 +21,85 @@
 #include "tools/command.h"
 #include "tools/option_checks.h"
 #include "tools/output_checks.h"
+#include "tools/run_args.h"
 
 namespace marglab {
 namespace cli {
 
 namespace {
 
-// The value of a `run` option in args ("--opt V" or "--opt=V", the last one counts); "" if absent.
-std::string optionValue(const std::vector<std::string>& args, const std::string& option) {
-  std::string value;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == option && i + 1 < args.size()) value = args[i + 1];
-    if (args[i].rfind(option + "=", 0) == 0) value = args[i].substr(option.size() + 1);
+// Every planned run validated as `marglab run` validates it (prepareRun: the same spec, the same
+// runProblems), before any run starts — `--dry-run` included. A dataset (and a track file) is
+// loaded once for all the runs on it.
+class PlanValidator {
+ public:
+  std::string check(const experiment::PlannedRun& run) {
+    try {
+      const RunSpec spec = plannedSpec(run);
+      const RunInputs& inputs = inputsOf(spec);
+      const RunSpec resolved =
+          resolveRunSpec(spec, inputs.dataset.sequence, inputs.has_ground_truth);
+      const std::vector<Problem> problems = runProblems(resolved, inputs);
+      if (!problems.empty()) throwProblems(problems);
+    } catch (const InputError& e) {
+      return e.what();
+    } catch (const UsageError& e) {
+      return e.what();
+    }
+    return {};
   }
-  return value;
-}
 
-// Whether a dataset has stereo images (loaded once per dataset: a sweep plans many runs of each).
-bool hasImages(const std::string& dataset) {
-  static std::map<std::string, bool> known;
-  const auto it = known.find(dataset);
-  if (it != known.end()) return it->second;
-  bool images = true;  // a folder that cannot be loaded: the run itself reports it
-  try {
-    images = loadImageSequence(dataset).images.has_value();
-  } catch (const InputError&) {
+ private:
+  // The run's spec as its child will build it. Frontend "images": the runner tracks the images
+  // into the sweep folder before the runs start, so the run is checked as an images run.
+  static RunSpec plannedSpec(const experiment::PlannedRun& run) {
+    experiment::PlannedRun planned = run;
+    if (run.frontend == "images") planned.frontend.clear();
+    planned.config_toml.clear();  // given as text below, not as the file the runner writes
+    std::vector<std::string> arguments = experiment::runArguments(planned, "runs/x.h5", "");
+    arguments.erase(arguments.begin());  // "run"
+    RunSpec spec = parseRunArguments(arguments, run.config_toml, "the merged config of " + run.id);
+    if (run.frontend == "images") spec.frontend = FrontendKind::kImages;
+    return spec;
   }
-  return known[dataset] = images;
-}
 
-// What `marglab run` would refuse only after loading the dataset: VIO on KITTI (no IMU), the image
-// front-end on a folder without images, so that `sweep --dry-run` and the validation before a
-// sweep refuse it too.
-std::string runPlanProblem(const experiment::PlannedRun& run) {
-  if (run.frontend == "images" && !hasImages(run.dataset)) {
-    return fmt::format("frontend = \"images\" on {}, which has no images (expected mav0/cam0/data/ "
-                       "or image_0/ and image_1/)",
-                       run.dataset);
+  const RunInputs& inputsOf(const RunSpec& spec) {
+    const std::string key = spec.dataset + '\n' + spec.tracks_file;
+    auto it = loaded_.find(key);
+    if (it == loaded_.end()) {
+      Loaded entry;
+      try {
+        entry.inputs = std::make_shared<RunInputs>(loadRunInputs(spec));
+      } catch (const InputError& e) {
+        entry.error = std::make_shared<InputError>(e);
+      }
+      it = loaded_.emplace(key, std::move(entry)).first;
+    }
+    if (it->second.error) throw *it->second.error;
+    return *it->second.inputs;
   }
-  try {
-    if (sequenceKind(run.dataset) != DatasetKind::kKitti) return {};
-  } catch (const InputError&) {
-    return {};  // the run itself reports a folder it cannot read
-  }
-  if (optionValue(run.extra_args, "--mode") == "vio") {
-    return "--mode vio on KITTI: KITTI odometry has no IMU (VIO needs EuRoC or TUM-VI)";
-  }
-  if (optionValue(run.extra_args, "--imu") == "real") {
-    return "--imu real on KITTI: KITTI odometry has no IMU";
-  }
-  std::string strategy = optionValue(run.extra_args, "--marg-strategy");
-  if (strategy.empty() && !run.config_toml.empty()) {
-    EstimatorConfig config;
-    config.loadTomlString(run.config_toml, run.id);
-    strategy = toString(config.marg_strategy);
-  }
-  if (!strategy.empty() && strategy != "discard") {
-    return fmt::format("marginalization strategy {} on KITTI: it needs VIO (EuRoC or TUM-VI)",
-                       strategy);
-  }
-  return {};
-}
+
+  struct Loaded {
+    std::shared_ptr<RunInputs> inputs;
+    std::shared_ptr<InputError> error;
+  };
+  std::map<std::string, Loaded> loaded_;
+};
 
 }  // namespace
 
-// Checks extra `marglab run` options of a sweep by parsing them with the real `run` verb, so that
-// a typo in a sweep file fails before any run starts. Also used by `marglab reproduce`.
+// The sweep's checks of its runs (also used by `marglab reproduce`): a group's `args` parsed with
+// the options of `marglab run` (so that a typo names the line of `args`), and every planned run
+// validated as `marglab run` would validate it.
 experiment::ParseOptions sweepParseOptions() {
   experiment::ParseOptions options;
   options.check_run_args = [](const std::vector<std::string>& extra) -> std::string {
-    const auto& commands = registeredCommands();
-    const auto it = std::find_if(commands.begin(), commands.end(),
-                                 [](const CommandSpec& c) { return c.name == "run"; });
-    if (it == commands.end()) return {};
     CLI::App app{"run"};
-    // The returned run owns the variables the options write to: keep it alive while parsing.
-    const CommandRun run = it->setup(app);
-    std::vector<std::string> args = {"--dataset",      "kitti/10", "--variant",
-                                     "ns-qr-sqrt-f32", "-o",       "/dev/null"};
-    args.insert(args.end(), extra.begin(), extra.end());
-    std::reverse(args.begin(), args.end());  // CLI11 takes the arguments in reverse order
+    RunArgs args;
+    addRunOptions(app, args);
+    std::vector<std::string> reversed(extra.rbegin(), extra.rend());  // CLI11's order
     try {
-      app.parse(args);
+      app.parse(reversed);
     } catch (const CLI::ParseError& e) {
       return e.what();
     } catch (const InputError& e) {  // a missing --tracks file
@@ -109,7 +107,10 @@ experiment::ParseOptions sweepParseOptions() {
     }
     return {};
   };
-  options.check_run = runPlanProblem;
+  auto validator = std::make_shared<PlanValidator>();
+  options.check_run = [validator](const experiment::PlannedRun& run) {
+    return validator->check(run);
+  };
   return options;
 }
 

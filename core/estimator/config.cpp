@@ -5,6 +5,7 @@
 
 #include <toml++/toml.h>
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -250,13 +251,15 @@ std::vector<double> numberList(const Binding& binding, const toml::node& node, E
   return values;
 }
 
-void apply(EstimatorConfig& config, const toml::table& root, const std::string& name) {
+void apply(EstimatorConfig& config, const toml::table& root, const std::string& name,
+           const std::string& foreign_section) {
   auto list = bindings(config);
   auto error = [&](const toml::node& node, const std::string& what) {
     return InputError(name, static_cast<int>(node.source().begin.line), what);
   };
   for (const auto& [section_key, section_node] : root) {
     const std::string section(section_key.str());
+    if (section == foreign_section) continue;
     const toml::table* table = section_node.as_table();
     if (table == nullptr) throw error(section_node, "expected a table [" + section + "]");
     for (const auto& [key_key, node] : *table) {
@@ -365,12 +368,56 @@ bool parseMargStrategy(const std::string& text, MargStrategy* strategy) {
                      strategy);
 }
 
-void EstimatorConfig::loadTomlString(const std::string& text, const std::string& name) {
+namespace {
+
+bool isToml(const std::string& text) {
   try {
-    apply(*this, toml::parse(text, name), name);
+    toml::parse(text);
+    return true;
+  } catch (const toml::parse_error&) {
+    return false;
+  }
+}
+
+}  // namespace
+
+void EstimatorConfig::loadTomlString(const std::string& text, const std::string& name,
+                                     const std::string& foreign_section) {
+  try {
+    apply(*this, toml::parse(text, name), name, foreign_section);
   } catch (const toml::parse_error& e) {
     throw InputError(name, static_cast<int>(e.source().begin.line), std::string(e.description()));
   }
+}
+
+void EstimatorConfig::set(const std::string& assignment, const std::string& option) {
+  const std::size_t eq = assignment.find('=');
+  const std::string key = assignment.substr(0, eq);
+  const std::size_t dot = key.find('.');
+  const auto name_char = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+  const bool well_formed =
+      eq != std::string::npos && dot != std::string::npos && dot > 0 && dot + 1 < key.size() &&
+      std::all_of(key.begin(), key.begin() + static_cast<std::ptrdiff_t>(dot), name_char) &&
+      std::all_of(key.begin() + static_cast<std::ptrdiff_t>(dot) + 1, key.end(), name_char) &&
+      assignment.find_first_of("\r\n", eq) == std::string::npos;
+  if (!well_formed) {
+    throw UsageError(fmt::format("{} {}: expected section.key=value, e.g. lm.max_iterations=3",
+                                 option, shortToken(assignment)));
+  }
+  const std::string value = assignment.substr(eq + 1);
+  const auto toml_text = [&](const std::string& v) {
+    return fmt::format("[{}]\n{} = {}\n", key.substr(0, dot), key.substr(dot + 1), v);
+  };
+  // A name (relative, basalt) may be given without TOML's quotes.
+  const bool bare = value.find_first_of("\"'[]{}\n") == std::string::npos;
+  std::string text = toml_text(value);
+  if (bare && !isToml(text)) text = toml_text("\"" + value + "\"");
+  try {
+    loadTomlString(text, "--set");
+  } catch (const InputError& e) {
+    throw UsageError(fmt::format("{} {}: {}", option, shortToken(assignment), e.detail()));
+  }
+  setOrigin(key, option);
 }
 
 void EstimatorConfig::loadToml(const std::string& path) {
@@ -518,7 +565,12 @@ std::string EstimatorConfig::checkValueText(const std::string& key, const std::s
   EstimatorConfig probe;
   for (const Binding& b : bindings(probe)) {
     if (b.name() != key) continue;
-    if (!b.numeric()) throw std::logic_error("checkValueText: " + key + " is not numeric");
+    if (b.parse_choice) {
+      return b.parse_choice(text) ? std::string()
+                                  : fmt::format("{} = {}: expected {}", key, shortToken(text),
+                                                b.choices);
+    }
+    if (!b.numeric()) throw std::logic_error("checkValueText: " + key + " is not a number or name");
     const char* begin = text.c_str();
     char* end = nullptr;
     const double v = std::strtod(begin, &end);

@@ -188,8 +188,14 @@ struct EstimatorConfig {
   // Overrides the fields present in a TOML file; throws InputError(file, line, what) on syntax
   // errors, unknown keys, wrong types and values outside their key's range.
   void loadToml(const std::string& path);
-  // The same from a string (name used in messages).
-  void loadTomlString(const std::string& text, const std::string& name);
+  // The same from a string (name used in messages); a table named foreign_section is skipped
+  // (the [run] table of a spec file, core/pipeline/run_spec.h).
+  void loadTomlString(const std::string& text, const std::string& name,
+                      const std::string& foreign_section = "");
+  // One key from the command line, "section.key=value" (`--set`, a sweep group's `set`): parsed
+  // and range-checked as its TOML line would be (a name may omit the quotes); its origin becomes
+  // `option`. Throws UsageError naming the option, the key and what was expected.
+  void set(const std::string& assignment, const std::string& option = "--set");
   std::string toToml() const;
 
   // Records that `key` ("lm.threads") was set by a command-line option.
@@ -206,7 +212,8 @@ struct EstimatorConfig {
   // throwProblems(locatedProblems()) unless it is empty: every problem in one error.
   void validate() const;
 
-  // A command-line value for `key` checked against the key's range; "" when it is accepted, else
+  // A command-line value for `key` (a number or a name) checked against the key's range or names;
+  // "" when it is accepted, else
   // the reason ("lm.threads = 0: expected an integer in [1, 256]"). Throws std::logic_error for
   // an unknown key. For CLI11 validators, so that `marglab run` and sweep validation reject a bad
   // option value while parsing.

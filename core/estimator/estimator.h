@@ -116,7 +116,7 @@ class SlidingWindowEstimator {
 
   // VO: T_w_i_initial is the first cam0 pose (the rig's T_i_c0 is ignored: body = cam0).
   // VIO (imu given): the first state is imu->initial; the rig's extrinsics map body to cameras.
-  // config is used as given: the run validated it (resolveRunOptions); min_frames_after_kf −1 (no
+  // config is used as given: the run validated it (prepareRun); min_frames_after_kf −1 (no
   // dataset default applied) spaces keyframes as 1 does.
   SlidingWindowEstimator(const EstimatorConfig& config, const Variant& variant,
                          const StereoRig<double>& rig, const SE3<double>& T_w_i_initial,

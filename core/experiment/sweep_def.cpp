@@ -25,7 +25,7 @@ int lineOf(const toml::node& node) { return static_cast<int>(node.source().begin
 
 // Options `marglab sweep` sets itself for every run.
 const char* const kReservedRunOptions[] = {"--dataset", "--variant", "--frames", "--seed",
-                                           "--config",  "-o",        "--output"};
+                                           "--config",  "-o",        "--output",  "--spec"};
 
 bool validName(const std::string& name) {
   return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
@@ -188,6 +188,20 @@ class Parser {
     return args;
   }
 
+  // The `set` of a group or override ("section.key=value", as `marglab run --set`): run options
+  // appended to its args, checked at the line of `set`.
+  std::vector<std::string> setArgs(const toml::table& table) const {
+    std::vector<std::string> args;
+    for (const std::string& assignment : stringArray(table, "set")) {
+      args.push_back("--set");
+      args.push_back(assignment);
+    }
+    if (args.empty() || !options_.check_run_args) return args;
+    const std::string problem = options_.check_run_args(args);
+    if (!problem.empty()) throw error(*table.get("set"), "set: " + problem);
+    return args;
+  }
+
   // An inline [config] table: validated key by key against EstimatorConfig, so that an error
   // names the line of the offending key.
   toml::table configTable(const toml::table& table) const {
@@ -251,8 +265,8 @@ class Parser {
     GroupSpec g;
     g.line = lineOf(group);
     checkKeys(group,
-              {"name", "datasets", "variants", "seeds", "frames", "timeout_s", "args", "frontend",
-               "config_file", "config", "override"},
+              {"name", "datasets", "variants", "seeds", "frames", "timeout_s", "args", "set",
+               "frontend", "config_file", "config", "override"},
               "a [[group]]");
     g.name = requiredString(group, "name", "a [[group]]", g.line);
     if (!validName(g.name)) {
@@ -266,6 +280,8 @@ class Parser {
     g.frames = parseFrames(group);
     g.timeout_s = parseTimeout(group);
     g.args = runArgs(group);
+    const std::vector<std::string> sets = setArgs(group);
+    g.args.insert(g.args.end(), sets.begin(), sets.end());
     g.frontend = parseFrontend(group, g.args);
     g.config = parseConfigFile(group);
     mergeInto(g.config, configTable(group));
@@ -390,7 +406,7 @@ class Parser {
     std::vector<Override> overrides;
     for (const toml::node& item : *array) {
       const toml::table& table = *item.as_table();
-      checkKeys(table, {"name", "args", "config"}, "a [[group.override]]");
+      checkKeys(table, {"name", "args", "set", "config"}, "a [[group.override]]");
       Override o;
       o.line = lineOf(table);
       o.name = requiredString(table, "name", "a [[group.override]]", o.line);
@@ -404,6 +420,8 @@ class Parser {
         }
       }
       o.args = runArgs(table);
+      const std::vector<std::string> sets = setArgs(table);
+      o.args.insert(o.args.end(), sets.begin(), sets.end());
       o.config = configTable(table);
       overrides.push_back(std::move(o));
     }

@@ -22,6 +22,7 @@
 //   frames      = 600                           # optional, 0 (default): the whole sequence
 //   timeout_s   = 0                             # optional wall-time limit per run (0: none)
 //   args        = ["--no-diagnostics"]          # optional extra `marglab run` options
+//   set         = ["lm.max_iterations=3"]       # optional config keys, as `marglab run --set`
 //   frontend    = "images"                      # optional: images | simulated | auto (the run's
 //                                               # --frontend; default: not passed = auto). With
 //                                               # "images" the runner tracks each dataset's
@@ -34,12 +35,14 @@
 //   [[group.override]]                          # optional; without, one unnamed override
 //   name   = "relqr"                            # required in an override
 //   args   = ["--qr-threshold-mode", "relative"]
+//   set    = ["marginalization.psd_hessian_prior=true"]
 //   config = { marginalization = { qr_threshold = 1e-6 } }
 //
 // Everything is validated when the file is read — unknown keys, wrong types, unknown variants and
 // datasets, `run` options that `marglab run` rejects, config keys EstimatorConfig rejects,
-// duplicate run ids — and each error is an InputError naming the file and line, so that no run
-// starts from a broken sweep. Config layers merge as: config_file < group config < override config
+// duplicate run ids, and (ParseOptions::check_run; the CLI's is runProblems, as `marglab run`
+// validates) every planned run with its dataset — and each error is an InputError naming the file
+// and line, so that no run starts from a broken sweep and no run is started that would be refused. Config layers merge as: config_file < group config < override config
 // (tables merged key by key) and reach the run as one --config file.
 
 #include <cstdint>

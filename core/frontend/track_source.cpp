@@ -15,19 +15,6 @@
 
 namespace marglab {
 
-bool parseFrontendKind(const std::string& text, FrontendKind* kind) {
-  if (text == "auto") {
-    *kind = FrontendKind::kAuto;
-  } else if (text == "images") {
-    *kind = FrontendKind::kImages;
-  } else if (text == "simulated") {
-    *kind = FrontendKind::kSimulated;
-  } else {
-    return false;
-  }
-  return true;
-}
-
 namespace {
 
 // Without ground truth: the body stays at the origin (a VO run starts at the identity).
@@ -189,16 +176,16 @@ void startImages(const TrackSourceOptions& options, const ImageSequence& folder,
 
 }  // namespace
 
-TrackSource obtainTracks(const TrackSourceOptions& options) {
+TrackSource obtainTracks(const TrackSourceOptions& options, const ImageSequence& images,
+                         std::optional<TrackStream> tracks) {
   TrackSource source;
-  ImageSequence images = loadImageSequence(options.dataset);
   source.sequence = images.sequence;
   if (!images.fallback.empty()) {
     source.provenance.emplace_back("fallback_sequence", images.fallback);
   }
   addTrajectory(&source);
   if (!options.tracks_file.empty()) {
-    source.stream = readTrackFile(options.tracks_file);
+    source.stream = tracks ? std::move(*tracks) : readTrackFile(options.tracks_file);
     cutToEstimatorFrames(source.sequence, options.max_frames, &source.stream);
     source.stats = streamFrontendStats(source.stream);
     source.n_frames = source.stream.frames.size();

@@ -26,10 +26,12 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "core/common/enum_names.h"
 #include "core/data/types.h"
 #include "core/frontend/image_folder.h"
 #include "core/frontend/optical_flow.h"
@@ -41,8 +43,10 @@
 namespace marglab {
 
 enum class FrontendKind { kAuto, kImages, kSimulated };
-// "auto" | "images" | "simulated" → kind; false for anything else.
-bool parseFrontendKind(const std::string& text, FrontendKind* kind);
+inline constexpr EnumNames<FrontendKind, 3> kFrontendKindNames{{{FrontendKind::kAuto, "auto"},
+                                                                {FrontendKind::kImages, "images"},
+                                                                {FrontendKind::kSimulated,
+                                                                 "simulated"}}};
 
 struct TrackSourceOptions {
   std::string dataset;
@@ -100,7 +104,10 @@ struct TrackSource {
 
 // Throws InputError (bad or missing files, images of the wrong size, a sequence without ground
 // truth for the simulation) and UsageError (--frontend images on a folder without images).
-TrackSource obtainTracks(const TrackSourceOptions& options);
+// `images`: the dataset as loaded (loadImageSequence(options.dataset)); `tracks`: the stream of
+// options.tracks_file where the caller has read it already (else it is read here).
+TrackSource obtainTracks(const TrackSourceOptions& options, const ImageSequence& images,
+                         std::optional<TrackStream> tracks = std::nullopt);
 
 // The front-end on the first max_images stereo frames of a folder (0: all), with the tracker's own
 // prediction (options.prediction "estimator" falls back to it: there is no estimator here).

@@ -57,15 +57,15 @@ Trajectory cameraGroundTruth(const Trajectory& gt, const SE3<double>& T_b_c0) {
 
 std::string splitDataset(const Sequence& sequence) { return datasetKindName(sequence.kind); }
 
-TrackSourceOptions trackSourceOptions(const RunOptions& options) {
+TrackSourceOptions trackSourceOptions(const RunSpec& spec) {
   TrackSourceOptions source;
-  source.dataset = options.dataset;
-  source.frontend = options.frontend;
-  source.tracks_file = options.tracks_file;
-  source.max_frames = options.max_frames;
-  source.seed = options.seed;
-  source.sim_profile = options.config.sim_profile;
-  source.frontend_options = options.config.frontend;
+  source.dataset = spec.dataset;
+  source.frontend = spec.frontend;
+  source.tracks_file = spec.tracks_file;
+  source.max_frames = spec.max_frames;
+  source.seed = spec.seed;
+  source.sim_profile = spec.config.sim_profile;
+  source.frontend_options = spec.config.frontend;
   return source;
 }
 
@@ -74,18 +74,18 @@ std::uint64_t imuSeed(std::uint64_t seed) { return seed ^ 0x9e3779b97f4a7c15ULL;
 
 }  // namespace
 
-ImuSetup vioImuSetup(const RunOptions& options, const Sequence& sequence,
+ImuSetup vioImuSetup(const RunSpec& spec, const Sequence& sequence,
                      const TrajectoryFunction& trajectory, std::int64_t t0_ns,
                      std::map<std::string, std::string>* provenance) {
   ImuSetup setup;
   // One set of densities for the synthetic IMU and the estimator's weights.
-  setup.noise = profileImuNoise(sequence, options.config.imu_noise_profile);
+  setup.noise = profileImuNoise(sequence, spec.config.imu_noise_profile);
   setup.g_w = gravityWorld(sequence.kind);
   const TrajectorySample first = trajectory.evaluate(t0_ns);
   setup.initial.t_ns = t0_ns;
   setup.initial.T_w_i = SE3<double>(first.R_w_b, first.p_w_b);
   setup.initial.v_w = first.v_w;
-  if (options.imu == ImuSource::kReal) {
+  if (spec.imu == ImuSource::kReal) {
     setup.imu = realImuWithin(sequence, trajectory);
     if (setup.imu.size() < 2) {
       throw InputError(sequence.imu_file, 0, "fewer than two IMU samples inside the trajectory");
@@ -113,7 +113,7 @@ ImuSetup vioImuSetup(const RunOptions& options, const Sequence& sequence,
     ImuSynthOptions synth_options;
     synth_options.gravity_w = setup.g_w;
     setup.imu =
-        synthesizeImu(trajectory, setup.noise, 200.0, imuSeed(options.seed), synth_options).imu;
+        synthesizeImu(trajectory, setup.noise, 200.0, imuSeed(spec.seed), synth_options).imu;
     setup.sample_period_s = 1.0 / 200.0;
     (*provenance)["imu"] = "synthetic 200 Hz from the spline (white noise + bias random walk)";
     (*provenance)["initial_biases"] = "zero (the synthetic biases start at zero)";
@@ -122,7 +122,7 @@ ImuSetup vioImuSetup(const RunOptions& options, const Sequence& sequence,
   (*provenance)["imu_noise"] = fmt::format(
       "{} profile: gyro {:g} rad/s/sqrt(Hz), gyro bias walk {:g}, accel {:g} m/s^2/sqrt(Hz), "
       "accel bias walk {:g}",
-      toString(options.config.imu_noise_profile), setup.noise.gyro_noise_density,
+      toString(spec.config.imu_noise_profile), setup.noise.gyro_noise_density,
       setup.noise.gyro_random_walk, setup.noise.accel_noise_density, setup.noise.accel_random_walk);
   return setup;
 }
@@ -131,21 +131,22 @@ namespace {
 
 // The root attributes of a run's results file: what ran, on what, with which settings.
 template <typename Scalar>
-RunMetadata runMetadata(const RunOptions& options, const TrackSource& source,
+RunMetadata runMetadata(const RunSpec& spec, const TrackSource& source,
                         const EstimatorConfig& config, bool vio,
-                        const std::map<std::string, std::string>& imu_provenance) {
+                        const std::map<std::string, std::string>& imu_provenance,
+                        const std::string& spec_toml) {
   const Sequence& sequence = source.sequence;
   RunMetadata metadata;
   metadata.dataset = splitDataset(sequence);
   const std::string& name = sequence.name;
   metadata.sequence = name.substr(name.find('/') == std::string::npos ? 0 : name.find('/') + 1);
-  metadata.variant = options.variant.name();
-  metadata.precision = options.variant.precisionName();
+  metadata.variant = spec.variant.name();
+  metadata.precision = spec.variant.precisionName();
   metadata.mode = vio ? "vio" : "vo";
-  metadata.seed = options.seed;
+  metadata.seed = spec.seed;
   metadata.config_toml = config.toToml();
   metadata.marg_strategy = toString(config.marg_strategy);
-  if (options.variant.marg == MargMethod::kQr) {
+  if (spec.variant.marg == MargMethod::kQr) {
     metadata.qr_threshold_mode = toString(config.qr_threshold_mode);
     metadata.qr_threshold = config.qr_threshold >= 0
                                 ? config.qr_threshold
@@ -153,7 +154,8 @@ RunMetadata runMetadata(const RunOptions& options, const TrackSource& source,
   }
   metadata.frontend = source.frontend;
   metadata.extra = {{"dataset_path", sequence.directory},
-                    {"gt_source", source.has_ground_truth ? sequence.gt_source : "none"}};
+                    {"gt_source", source.has_ground_truth ? sequence.gt_source : "none"},
+                    {"run_spec", spec_toml}};
   for (const auto& [key, value] : source.provenance) metadata.extra.emplace_back(key, value);
   for (const auto& [key, value] : imu_provenance) metadata.extra.emplace_back(key, value);
   return metadata;
@@ -162,12 +164,12 @@ RunMetadata runMetadata(const RunOptions& options, const TrackSource& source,
 // The gauge diagnostics of one marginalization event (/marg) and, every store_prior_every
 // events, the prior itself.
 void writeMargEvent(const MargEvent& event, int frame_index, std::int64_t t_ns,
-                    std::int64_t marg_index, const RunOptions& options,
+                    std::int64_t marg_index, const RunSpec& spec,
                     const EstimatorConfig& config, ResultsWriter& writer) {
   const PriorLayout& layout = event.layout;
   const GaugeState& state = event.state;
   const std::uint64_t seed = config.diagnostics_seed + static_cast<std::uint64_t>(marg_index);
-  const bool sqrt_storage = sqrtStorage(options.variant.storage);
+  const bool sqrt_storage = sqrtStorage(spec.variant.storage);
   const PriorDiagnostics diagnostics =
       sqrt_storage ? diagnoseSqrtPrior(event.J_m, event.r_m, layout, state, seed)
                    : diagnosePrior(event.H_m, event.b_m, layout, state, seed);
@@ -180,11 +182,11 @@ void writeMargEvent(const MargEvent& event, int frame_index, std::int64_t t_ns,
 }
 
 // A captured window (--dump-windows) into the dump folder.
-void writeCapturedWindow(WindowSnapshot window, const RunOptions& options, int frame_index) {
-  window.dataset = options.dataset;
+void writeCapturedWindow(WindowSnapshot window, const RunSpec& spec, int frame_index) {
+  window.dataset = spec.dataset;
   window.frame_index = frame_index;
-  writeWindow(window, (std::filesystem::path(options.dump_dir) /
-                       windowFileName(options.dataset, options.variant.name(), frame_index))
+  writeWindow(window, (std::filesystem::path(spec.dump_dir) /
+                       windowFileName(spec.dataset, spec.variant.name(), frame_index))
                           .string());
 }
 
@@ -231,14 +233,14 @@ struct RunTrace {
 
 // The records of one processed frame: /frames, /marg, /sparsify, the trajectory.
 void recordFrame(int k, const TrackFrame& frame, const FrameResult& result, FrameRecord record,
-                 const RunOptions& options, const EstimatorConfig& config, ResultsWriter& writer,
+                 const RunSpec& spec, const EstimatorConfig& config, ResultsWriter& writer,
                  RunTrace* trace, RunOutcome* outcome) {
   writer.appendFrame(record);
   trace->t_ns.push_back(frame.t_ns);
   trace->positions.push_back(record.p_est);
   trace->quaternions.push_back(record.q_est);
   if (result.marg_event && result.status.ok() && !result.marg_event->layout.empty()) {
-    writeMargEvent(*result.marg_event, k, frame.t_ns, trace->marg_index++, options, config,
+    writeMargEvent(*result.marg_event, k, frame.t_ns, trace->marg_index++, spec, config,
                    writer);
   }
   if (result.sparsify_event && result.status.ok()) {
@@ -251,14 +253,37 @@ void recordFrame(int k, const TrackFrame& frame, const FrameResult& result, Fram
   }
 }
 
+// What runWith is given besides the tracks: the resolved spec, the given one's text (root
+// attribute run_spec) and the progress callback.
+struct RunContext {
+  const RunSpec& spec;
+  std::string spec_toml;
+  const RunProgress& progress;
+};
+
+// The TUM trajectory beside the results file, both or neither: a failure to write it removes the
+// results file.
+void writeTrajectory(const std::string& results_path, const RunTrace& trace) {
+  try {
+    writeTumTrajectory(tumPathFor(results_path), trace.t_ns, trace.positions, trace.quaternions);
+  } catch (const InputError& e) {
+    std::error_code ec;
+    std::filesystem::remove(results_path, ec);
+    throw InputError(e.file(), e.line(),
+                     e.detail() + " (the results file " + results_path +
+                         " was removed with it: a run leaves both files or neither)");
+  }
+}
+
 template <typename Scalar>
-RunOutcome runWith(const RunOptions& options, TrackSource& source) {
-  const EstimatorConfig& config = options.config;
+RunOutcome runWith(const RunContext& context, TrackSource& source) {
+  const RunSpec& spec = context.spec;
+  const EstimatorConfig& config = spec.config;
   const Sequence& sequence = source.sequence;
   const TrajectoryFunction& trajectory = *source.trajectory;
   RunOutcome outcome;
   outcome.frontend = source.frontend;
-  const bool vio = options.mode == RunMode::kVio;
+  const bool vio = spec.mode == RunMode::kVio;
   outcome.vio = vio;
   outcome.marg_strategy = config.marg_strategy;
   const SE3<double> T_b_c0 = cameraExtrinsic(sequence.calib.cam0);
@@ -269,11 +294,12 @@ RunOutcome runWith(const RunOptions& options, TrackSource& source) {
   const SE3<double> T_w_c0_first = SE3<double>(first.R_w_b, first.p_w_b) * T_b_c0;
   std::map<std::string, std::string> imu_provenance;
   std::optional<ImuSetup> imu;
-  if (vio) imu = vioImuSetup(options, sequence, trajectory, t0_ns, &imu_provenance);
+  if (vio) imu = vioImuSetup(spec, sequence, trajectory, t0_ns, &imu_provenance);
 
   ResultsWriter writer = ResultsWriter::create(
-      options.output, runMetadata<Scalar>(options, source, config, vio, imu_provenance));
-  SlidingWindowEstimator<Scalar> estimator(config, options.variant, rigFromCalib(sequence.calib),
+      spec.output,
+      runMetadata<Scalar>(spec, source, config, vio, imu_provenance, context.spec_toml));
+  SlidingWindowEstimator<Scalar> estimator(config, spec.variant, rigFromCalib(sequence.calib),
                                            T_w_c0_first, std::move(imu));
   const bool predict = source.images && config.frontend.prediction == MotionPredictionSource::kEstimator;
   const SE3<double> T_i_c0 = vio ? T_b_c0 : SE3<double>();
@@ -289,21 +315,21 @@ RunOutcome runWith(const RunOptions& options, TrackSource& source) {
     std::optional<FramePrediction> prediction;
     if (predict) prediction = estimatorPrediction(estimator, source.frameTimeNs(k), T_i_c0);
     TrackFrame frame = source.frame(k, prediction ? &*prediction : nullptr);
-    if (k == options.inject_nan_frame && !frame.observations.empty()) {
+    if (k == spec.inject_nan_frame && !frame.observations.empty()) {
       frame.observations.front().uv0.x() = std::numeric_limits<double>::quiet_NaN();
     }
     trace.features += static_cast<double>(frame.observations.size());
-    const bool dump = std::find(options.dump_windows.begin(), options.dump_windows.end(), k) !=
-                      options.dump_windows.end();
+    const bool dump = std::find(spec.dump_windows.begin(), spec.dump_windows.end(), k) !=
+                      spec.dump_windows.end();
     if (dump) estimator.captureNextWindow();
     const FrameResult result = estimator.processFrame(frame);
     if (std::optional<WindowSnapshot> window = estimator.takeCapturedWindow()) {
-      writeCapturedWindow(std::move(*window), options, k);
+      writeCapturedWindow(std::move(*window), spec, k);
     }
     FrameRecord record = toFrameRecord(result);
     if (auto p_gt = interpolatePosition(gt_est, frame.t_ns)) record.p_gt = *p_gt;
-    recordFrame(k, frame, result, record, options, config, writer, &trace, &outcome);
-    if (options.progress) options.progress(k + 1, total);
+    recordFrame(k, frame, result, record, spec, config, writer, &trace, &outcome);
+    if (context.progress) context.progress(k + 1, total);
 
     std::string failure = frameFailure(result, record, config);
     failure_kind = "numerical";
@@ -324,8 +350,8 @@ RunOutcome runWith(const RunOptions& options, TrackSource& source) {
   outcome.mean_features_per_frame = trace.processed > 0 ? trace.features / trace.processed : 0;
   outcome.summary = writer.finish(RunSummary{}, outcome.status, outcome.failure_frame,
                                   outcome.failure_reason, outcome.failure_kind);
-  outcome.tum_path = tumPathFor(options.output);
-  writeTumTrajectory(outcome.tum_path, trace.t_ns, trace.positions, trace.quaternions);
+  outcome.tum_path = tumPathFor(spec.output);
+  writeTrajectory(spec.output, trace);
   return outcome;
 }
 
@@ -350,9 +376,8 @@ std::string tumPathFor(const std::string& results_path) {
   return base + ".tum";
 }
 
-RunOptions resolveRunOptions(const RunOptions& options, const Sequence& sequence,
-                             bool has_ground_truth) {
-  RunOptions resolved = options;
+RunSpec resolveRunSpec(const RunSpec& spec, const Sequence& sequence, bool has_ground_truth) {
+  RunSpec resolved = spec;
   EstimatorConfig& config = resolved.config;
   config.frontend = resolveFrontendOptions(config.frontend, sequence.kind);
   if (config.min_frames_after_kf < 0)
@@ -365,69 +390,159 @@ RunOptions resolveRunOptions(const RunOptions& options, const Sequence& sequence
     resolved.mode =
         sequence.kind == DatasetKind::kKitti || !has_ground_truth ? RunMode::kVo : RunMode::kVio;
   }
-  const std::vector<Problem> problems = runProblems(resolved, sequence, has_ground_truth);
-  if (!problems.empty()) throwProblems(problems);
   return resolved;
 }
 
-std::vector<Problem> runProblems(const RunOptions& options, const Sequence& sequence,
-                                 bool has_ground_truth) {
-  std::vector<Problem> out = options.config.locatedProblems();
-  const auto usage = [&out](std::string message) {
-    out.push_back({ProblemKind::kUsage, "", 0, std::move(message)});
-  };
-  if (!options.tracks_file.empty() && options.frontend != FrontendKind::kAuto) {
-    usage(
-        fmt::format("--tracks FILE and --frontend {} both say where the tracks come from: give "
-                    "one of them",
-                    options.frontend == FrontendKind::kImages ? "images" : "simulated"));
+RunInputs loadRunInputs(const RunSpec& spec) {
+  RunInputs inputs;
+  inputs.dataset = loadImageSequence(spec.dataset);
+  inputs.has_ground_truth = inputs.dataset.sequence.hasTrajectory();
+  if (!spec.tracks_file.empty()) inputs.tracks = readTrackFile(spec.tracks_file);
+  return inputs;
+}
+
+namespace {
+
+// An input check that throws InputError, as a problem of the list.
+template <typename Check>
+void addInputProblem(std::vector<Problem>* out, Check check) {
+  try {
+    check();
+  } catch (const InputError& e) {
+    out->push_back({ProblemKind::kInput, e.file(), e.line(), e.detail()});
   }
+}
+
+// Where the tracks come from: one source, one that this dataset can give.
+void addTrackSourceProblems(const RunSpec& spec, const RunInputs& inputs,
+                            std::vector<Problem>* out) {
+  const Sequence& sequence = inputs.dataset.sequence;
+  if (!spec.tracks_file.empty() && spec.frontend != FrontendKind::kAuto) {
+    out->push_back({ProblemKind::kUsage, "", 0,
+                    fmt::format("--tracks FILE and --frontend {} both say where the tracks come "
+                                "from: give one of them",
+                                nameOf(kFrontendKindNames, spec.frontend))});
+  }
+  if (inputs.tracks && !spec.tracks_any_sequence) {
+    addInputProblem(out, [&] { checkTracksBelongTo(*inputs.tracks, spec.tracks_file, sequence); });
+  }
+  if (!spec.tracks_file.empty()) return;
+  const bool images = inputs.dataset.images.has_value();
+  if (spec.frontend == FrontendKind::kImages && !images) {
+    out->push_back({ProblemKind::kInput, sequence.directory, 0,
+                    "frontend images on a folder without images (expected mav0/cam0/data/ or "
+                    "image_0/ and image_1/)"});
+  }
+  const bool simulate = spec.frontend == FrontendKind::kSimulated ||
+                        (spec.frontend == FrontendKind::kAuto && !images);
+  if (simulate && !inputs.has_ground_truth) {
+    out->push_back({ProblemKind::kInput, sequence.directory, 0,
+                    fmt::format("sequence {} has no trajectory to simulate from (only camera "
+                                "timestamps); use its images (--frontend images) or a track file",
+                                sequence.name)});
+  }
+}
+
+// --dump-windows: frames the run reaches, a strategy whose windows can be captured, a folder that
+// can be created (probed: created and removed again when it does not exist yet).
+void addCaptureProblems(const RunSpec& spec, const Sequence& sequence, std::vector<Problem>* out) {
+  if (spec.dump_windows.empty()) return;
+  const auto usage = [out](std::string message) {
+    out->push_back({ProblemKind::kUsage, "", 0, std::move(message)});
+  };
   // A window the run can never reach would be captured silently never.
   const int frames =
-      options.max_frames > 0 ? options.max_frames : static_cast<int>(sequence.cam_t_ns.size());
-  for (const int frame : options.dump_windows) {
+      spec.max_frames > 0 ? spec.max_frames : static_cast<int>(sequence.cam_t_ns.size());
+  for (const int frame : spec.dump_windows) {
     if (frame >= frames) {
       usage(fmt::format("--dump-windows {}: the run has {} frames ({}), expected indices below",
-                        frame, frames, options.max_frames > 0 ? "--frames" : sequence.name));
+                        frame, frames, spec.max_frames > 0 ? "--frames" : sequence.name));
     }
   }
-  const bool vio = options.mode == RunMode::kVio;
-  if (vio && !has_ground_truth) {
-    out.push_back({ProblemKind::kInput, sequence.directory, 0,
-                   "VIO starts from the ground-truth state at its first frame, and this sequence "
-                   "has no ground truth (use --mode vo)"});
+  // A captured window holds hosted landmarks and a prior over frame states only.
+  if (spec.config.marg_strategy != MargStrategy::kDiscard) {
+    usage("window capture (--dump-windows) needs marginalization strategy discard");
+  }
+  std::error_code ec;
+  const std::filesystem::path dir(spec.dump_dir);
+  if (std::filesystem::is_directory(dir, ec)) return;
+  if (!std::filesystem::create_directories(dir, ec) || ec) {
+    usage(fmt::format("--dump-dir {}: cannot create the folder ({})", spec.dump_dir,
+                      ec ? ec.message() : "it exists and is not a folder"));
+    return;
+  }
+  std::filesystem::remove(dir, ec);
+}
+
+// The mode against the dataset: VIO needs ground truth and an IMU; a real IMU needs VIO.
+void addModeProblems(const RunSpec& spec, const RunInputs& inputs, std::vector<Problem>* out) {
+  const Sequence& sequence = inputs.dataset.sequence;
+  const bool vio = spec.mode == RunMode::kVio;
+  if (vio && !inputs.has_ground_truth) {
+    out->push_back({ProblemKind::kInput, sequence.directory, 0,
+                    "VIO starts from the ground-truth state at its first frame, and this sequence "
+                    "has no ground truth (use --mode vo)"});
   }
   if (vio && sequence.kind == DatasetKind::kKitti) {
-    out.push_back({ProblemKind::kInput, sequence.directory, 0,
-                   "KITTI odometry has no IMU: VIO needs EuRoC or TUM-VI (use --mode vo)"});
+    out->push_back({ProblemKind::kInput, sequence.directory, 0,
+                    "KITTI odometry has no IMU: VIO needs EuRoC or TUM-VI (use --mode vo)"});
   }
-  if (!vio && options.imu == ImuSource::kReal) usage("--imu real needs VIO (--mode vio)");
-  const MargStrategy strategy = options.config.marg_strategy;
+  if (spec.imu == ImuSource::kReal && !vio) {
+    out->push_back({ProblemKind::kUsage, "", 0, "--imu real needs VIO (--mode vio)"});
+  } else if (spec.imu == ImuSource::kReal && !sequence.imu) {
+    out->push_back({ProblemKind::kInput, sequence.directory, 0,
+                    fmt::format("--imu real: sequence {} has no IMU recording (expected "
+                                "mav0/imu0/data.csv; use the synthetic IMU)",
+                                sequence.name)});
+  } else if (spec.imu == ImuSource::kReal) {
+    addInputProblem(out, [&] { checkImuCoverage(sequence); });
+  }
+  const MargStrategy strategy = spec.config.marg_strategy;
   if (strategy != MargStrategy::kDiscard && !vio) {
-    usage(
-        fmt::format("marginalization strategy {} needs VIO (EuRoC or TUM-VI)", toString(strategy)));
+    out->push_back(
+        {ProblemKind::kUsage, "", 0,
+         fmt::format("marginalization strategy {} needs VIO (EuRoC or TUM-VI)", toString(strategy))});
   }
+}
+
+}  // namespace
+
+std::vector<Problem> runProblems(const RunSpec& spec, const RunInputs& inputs) {
+  std::vector<Problem> out = spec.config.locatedProblems();
+  addTrackSourceProblems(spec, inputs, &out);
+  addCaptureProblems(spec, inputs.dataset.sequence, &out);
+  addModeProblems(spec, inputs, &out);
   // A square-root prior is positive semidefinite already: the option would silently do nothing.
-  if (options.config.psd_hessian_prior && sqrtStorage(options.variant.storage)) {
-    out.push_back(options.config.located(
+  if (spec.config.psd_hessian_prior && sqrtStorage(spec.variant.storage)) {
+    out.push_back(spec.config.located(
         {"marginalization.psd_hessian_prior",
          fmt::format("marginalization.psd_hessian_prior = true with variant {}: expected a "
                      "Hessian prior storage (sq, sqp, sqj); a square-root prior is positive "
                      "semidefinite by construction",
-                     options.variant.name())}));
-  }
-  // A captured window holds hosted landmarks and a prior over frame states only.
-  if (strategy != MargStrategy::kDiscard && !options.dump_windows.empty()) {
-    usage("window capture (--dump-windows) needs marginalization strategy discard");
+                     spec.variant.name())}));
   }
   return out;
 }
 
-RunOutcome runSequence(const RunOptions& options) {
-  TrackSource source = obtainTracks(trackSourceOptions(options));
-  const RunOptions resolved = resolveRunOptions(options, source.sequence, source.has_ground_truth);
-  if (options.variant.floatState()) return runWith<float>(resolved, source);
-  return runWith<double>(resolved, source);
+PreparedRun prepareRun(const RunSpec& spec) {
+  PreparedRun run{spec, spec, loadRunInputs(spec)};
+  const Sequence& sequence = run.inputs.dataset.sequence;
+  run.resolved = resolveRunSpec(spec, sequence, run.inputs.has_ground_truth);
+  const std::vector<Problem> problems = runProblems(run.resolved, run.inputs);
+  if (!problems.empty()) throwProblems(problems);
+  return run;
+}
+
+RunOutcome runPrepared(PreparedRun run, const RunProgress& progress) {
+  TrackSource source = obtainTracks(trackSourceOptions(run.resolved), run.inputs.dataset,
+                                    std::move(run.inputs.tracks));
+  const RunContext context{run.resolved, run.given.toToml(), progress};
+  if (run.resolved.variant.floatState()) return runWith<float>(context, source);
+  return runWith<double>(context, source);
+}
+
+RunOutcome runSequence(const RunSpec& spec, const RunProgress& progress) {
+  return runPrepared(prepareRun(spec), progress);
 }
 
 }  // namespace marglab

@@ -21,12 +21,14 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/data/types.h"
 #include "core/estimator/config.h"
 #include "core/estimator/variant.h"
+#include "core/pipeline/run_spec.h"
 #include "core/estimator/window.h"
 #include "core/frontend/track_source.h"
 #include "core/geometry/camera.h"
@@ -34,40 +36,6 @@
 #include "core/sim/trajectory_spline.h"
 
 namespace marglab {
-
-// VO: stereo only (the state is the left camera). VIO: stereo + IMU (the state is the body).
-// kAuto: VIO where the dataset has an IMU (EuRoC, TUM-VI), VO on KITTI.
-enum class RunMode { kAuto, kVo, kVio };
-// The IMU of a VIO run: synthesized from the spline (default), or the sequence's recording.
-enum class ImuSource { kSynthetic, kReal };
-
-// Everything a run is given: dataset, variant, config (defaults < --config FILE < options, each
-// key's origin recorded) and the command line's other choices. runSequence resolves it once
-// against the sequence (resolveRunOptions) and validates it once (runProblems); every step after
-// that reads the resolved options only.
-struct RunOptions {
-  std::string dataset;  // "kitti/10", "euroc/MH_01_easy", or a folder in original layout
-  Variant variant;
-  RunMode mode = RunMode::kAuto;
-  ImuSource imu = ImuSource::kSynthetic;
-  // Where the tracks come from (core/frontend/track_source.h): a track file when tracks_file is
-  // set, else the images or the simulation (auto: images where the folder has them).
-  FrontendKind frontend = FrontendKind::kAuto;
-  std::string tracks_file;
-  int max_frames = 0;  // 0: the whole sequence
-  std::uint64_t seed = 1;
-  EstimatorConfig config;
-  std::string output;  // results file (.h5); the TUM trajectory goes to <output minus .h5>.tum
-  // Fault injection for tests of the failure path: a NaN in the first measurement of this frame.
-  int inject_nan_frame = -1;
-  // Window capture: the windows of these frame indices (0-based, before their optimization, with
-  // the step taken) are written to dump_dir as <dataset>_<variant>_<frame>.win.gz
-  // (core/estimator/window_io.h).
-  std::vector<int> dump_windows;
-  std::string dump_dir;
-  // Called after each frame with (frames done, total frames).
-  std::function<void(int, int)> progress;
-};
 
 struct RunOutcome {
   RunStatus status = RunStatus::kOk;
@@ -84,35 +52,63 @@ struct RunOutcome {
   std::int64_t n_keyframe_events = 0;  // /sparsify rows (strategies dense, nfr)
 };
 
-// Every problem of resolved options (IsValid-style; empty: valid), in one list: the config's
-// ranges and relations (EstimatorConfig::locatedProblems) and the relations between the options
-// and with the sequence — --tracks with --frontend, --dump-windows within the run's frames and
-// only with strategy discard, VIO only with ground truth and not on KITTI, --imu real and
-// strategies other than discard only with VIO, marginalization.psd_hessian_prior only with a
-// Hessian prior storage.
-std::vector<Problem> runProblems(const RunOptions& options, const Sequence& sequence,
-                                 bool has_ground_truth);
+// A run's dataset, loaded once — the sequence (calibration, timestamps, ground truth, IMU), its
+// images if the folder has them, and the track file's tracks for a run on one — before anything is
+// simulated, tracked or estimated.
+struct RunInputs {
+  ImageSequence dataset;
+  bool has_ground_truth = false;
+  std::optional<TrackStream> tracks;  // spec.tracks_file, read
+};
 
-// The options with what depends on the sequence filled in — mode auto → vo | vio, the config's
-// dataset defaults (keyframe spacing, position bound, front-end settings) — then validated: every
-// problem of runProblems in one error (throwProblems: UsageError or InputError).
-RunOptions resolveRunOptions(const RunOptions& options, const Sequence& sequence,
-                             bool has_ground_truth);
+// Throws InputError: a dataset that does not load, a track file that cannot be read.
+RunInputs loadRunInputs(const RunSpec& spec);
 
-// Obtains the tracks, resolves and validates the options (resolveRunOptions) and runs. Throws
-// InputError for bad input (unknown dataset, sequence without trajectory, unwritable output) and
-// UsageError / InputError for invalid options; numerical failure is a result (status failed), not
-// an exception.
-RunOutcome runSequence(const RunOptions& options);
+// Every problem of a resolved spec (IsValid-style; empty: valid), in one list — the only place a
+// run's validity is decided (`marglab run`, `marglab sweep` at plan time, runSequence): the
+// config's ranges and relations (EstimatorConfig::locatedProblems) and the relations between the
+// spec and its inputs — --tracks with --frontend, a track file of this sequence (unless
+// tracks_any_sequence), images for frontend images, a trajectory to simulate from, --dump-windows
+// within the run's frames and only with strategy discard, a dump folder that can be created, VIO
+// only with ground truth and not on KITTI, --imu real only with VIO and a real IMU covering the
+// frames, strategies other than discard only with VIO, marginalization.psd_hessian_prior only
+// with a Hessian prior storage.
+std::vector<Problem> runProblems(const RunSpec& spec, const RunInputs& inputs);
+
+// The spec with what depends on the sequence filled in — mode auto → vo | vio, the config's
+// dataset defaults (keyframe spacing, position bound, front-end settings); not validated.
+RunSpec resolveRunSpec(const RunSpec& spec, const Sequence& sequence, bool has_ground_truth);
+
+// A run ready to start: its inputs loaded, its spec resolved and valid.
+struct PreparedRun {
+  RunSpec given;     // as given (recorded in the results file: run_spec)
+  RunSpec resolved;  // resolveRunSpec(given)
+  RunInputs inputs;
+};
+
+// load → resolve → validate: every problem of runProblems in one error (throwProblems:
+// UsageError or InputError), before any work.
+PreparedRun prepareRun(const RunSpec& spec);
+
+// Called after each frame with (frames done, total frames).
+using RunProgress = std::function<void(int, int)>;
+
+// Obtains the tracks and runs a prepared run. Numerical failure is a result (status failed), not
+// an exception. A run leaves its results file and its TUM trajectory, both or neither: an
+// InputError writing the trajectory removes the results file (the message says so).
+RunOutcome runPrepared(PreparedRun run, const RunProgress& progress = {});
+
+// prepareRun, then runPrepared.
+RunOutcome runSequence(const RunSpec& spec, const RunProgress& progress = {});
 
 // The IMU stream and first state of a VIO run, and what they are (provenance: root attributes
-// imu, initial_biases, initial_state, imu_noise). `options` are resolved (resolveRunOptions).
-// The densities are those of options.config.imu_noise_profile, for the synthetic IMU and the
+// imu, initial_biases, initial_state, imu_noise). `spec` is resolved (resolveRunSpec).
+// The densities are those of spec.config.imu_noise_profile, for the synthetic IMU and the
 // estimator's weights alike. The first state is the ground truth at t0_ns (pose and velocity from
 // the trajectory) with zero biases, or the recorded ground-truth biases for the real IMU where the
 // sequence has them — the same for every variant. Throws InputError (a profile without calibration,
 // too few real samples).
-ImuSetup vioImuSetup(const RunOptions& options, const Sequence& sequence,
+ImuSetup vioImuSetup(const RunSpec& spec, const Sequence& sequence,
                      const TrajectoryFunction& trajectory, std::int64_t t0_ns,
                      std::map<std::string, std::string>* provenance);
 

@@ -30,7 +30,7 @@ fs::path tempDir(const std::string& name) {
 // Runs `frames` frames and captures the window of frame `capture`.
 WindowSnapshot capture(const std::string& dataset, const std::string& variant, int frames,
                        int capture, const fs::path& dir) {
-  RunOptions options;
+  RunSpec options;
   options.dataset = dataset;
   options.variant = Variant::parse(variant);
   options.max_frames = frames;

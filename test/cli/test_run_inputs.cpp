@@ -337,7 +337,7 @@ TEST_F(RunInputs, UnboundedCountsAreUsageErrors) {
   EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
 }
 
-// The run's options are validated in one place (resolveRunOptions), which reports every problem:
+// The run's options are validated in one place (prepareRun), which reports every problem:
 // here the strategy nfr, which needs VIO (KITTI runs VO), and window capture, which needs discard.
 TEST_F(RunInputs, EveryProblemOfTheOptionsIsReported) {
   const auto result = runCli(

@@ -148,7 +148,7 @@ TEST(NoiseProfile, VioImuSetupSynthesizesAndWeighsWithTheProfile) {
   const TrajectorySpline spline = TrajectorySpline::fromSequence(seq);
   std::map<ImuNoiseProfile, ImuSetup> setups;
   for (ImuNoiseProfile p : {ImuNoiseProfile::kKalibr, ImuNoiseProfile::kBasalt}) {
-    RunOptions options;
+    RunSpec options;
     options.seed = 3;
     options.config.imu_noise_profile = p;
     std::map<std::string, std::string> provenance;

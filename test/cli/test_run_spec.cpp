@@ -1,0 +1,173 @@
+// One typed run (core/pipeline/run_spec.h), validated once before any work (runProblems): a sweep
+// refuses at plan time — `--dry-run` included — every run `marglab run` would refuse, naming the
+// run and the reason, and starts none; `--set` reaches every config key and is recorded; a run
+// repeated from its spec gives the same numbers.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "common/cli_runner.h"
+#include "common/temp_dir.h"
+#include "core/common/source_dir.h"
+#include "core/data/sequence.h"
+#include "core/io/hdf5.h"
+
+namespace marglab {
+namespace {
+
+namespace fs = std::filesystem;
+using test::quote;
+using test::runCli;
+
+class RunSpecTest : public test::TempDirTest {
+ protected:
+  // A sweep file of one group with `body` (datasets, variants, ...) in the temporary folder.
+  fs::path sweepFile(const std::string& body) const {
+    const fs::path file = dir_ / "sweep.toml";
+    std::ofstream(file) << "name = \"s\"\n[[group]]\nname = \"g\"\n" << body;
+    return file;
+  }
+
+  // `sweep FILE` (dry run and real) refuses with exit 1 naming the run and `reason`; no run starts.
+  void expectPlanRefuses(const std::string& body, const std::string& run,
+                         const std::string& reason) const {
+    const fs::path file = sweepFile(body);
+    const fs::path out = dir_ / "out";
+    for (const std::string extra : {" --dry-run", ""}) {
+      const auto result = runCli("sweep " + quote(file) + extra + " -o " + quote(out));
+      EXPECT_EQ(result.exit_code, 1) << extra << "\n" << result.output;
+      EXPECT_NE(result.output.find("run " + run + ": "), std::string::npos) << result.output;
+      EXPECT_NE(result.output.find(reason), std::string::npos) << reason << "\n" << result.output;
+      EXPECT_FALSE(fs::exists(out / "index.csv")) << extra;
+      EXPECT_FALSE(fs::exists(out / "tracks")) << extra;
+    }
+  }
+
+  std::string rootAttribute(const fs::path& results, const std::string& name) const {
+    return h5::File::openReadOnly(results.string()).attr<std::string>(name);
+  }
+};
+
+TEST_F(RunSpecTest, SweepRefusesAtPlanTimeWhatRunRefuses) {
+  expectPlanRefuses(
+      "datasets = [\"kitti/05\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nframes = 5\n"
+      "[group.config]\nmarginalization = { psd_hessian_prior = true }\n",
+      "g__kitti-05__ns-qr-sqrt-f32__s1", "expected a Hessian prior storage");
+  expectPlanRefuses(
+      "datasets = [\"kitti/05\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nframes = 5\n"
+      "args = [\"--qr-threshold-mode\", \"relative\"]\n"
+      "[group.config]\nmarginalization = { qr_threshold = 5 }\n",
+      "g__kitti-05__ns-qr-sqrt-f32__s1", "expected a relative threshold in [0, 1)");
+  expectPlanRefuses(
+      "datasets = [\"euroc/MH_01_easy\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nframes = 5\n"
+      "args = [\"--imu\", \"real\"]\n",
+      "g__euroc-MH_01_easy__ns-qr-sqrt-f32__s1", "has no IMU recording");
+  expectPlanRefuses("datasets = [\"tumvi/corridor2\"]\nvariants = [\"ns-qr-sqrt-f32\"]\n",
+                    "g__tumvi-corridor2__ns-qr-sqrt-f32__s1", "has no trajectory to simulate from");
+  expectPlanRefuses(
+      "datasets = [\"kitti/05\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nframes = 5\n"
+      "args = [\"--dump-windows\", \"2\", \"--dump-dir\", \"/proc/nope/windows\"]\n",
+      "g__kitti-05__ns-qr-sqrt-f32__s1", "--dump-dir /proc/nope/windows: cannot create the folder");
+  expectPlanRefuses(
+      "datasets = [\"kitti/05\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nframes = 20\n"
+      "args = [\"--dump-windows\", \"500\"]\n",
+      "g__kitti-05__ns-qr-sqrt-f32__s1", "--dump-windows 500: the run has 20 frames");
+}
+
+// A track file of another sequence, and a user's folder without an IMU with --imu real: refused
+// before any image is tracked.
+TEST_F(RunSpecTest, SweepRefusesInputsOfAnotherSequenceBeforeAnyWork) {
+  const fs::path tracks = dir_ / "k05.h5";
+  const auto simulate =
+      runCli("datasets simulate --dataset kitti/05 --frames 5 -o " + quote(tracks));
+  ASSERT_EQ(simulate.exit_code, 0) << simulate.output;
+  expectPlanRefuses("datasets = [\"kitti/10\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nframes = 5\n"
+                    "args = [\"--tracks\", " + quote(tracks) + "]\n",
+                    "g__kitti-10__ns-qr-sqrt-f32__s1", "k05.h5");
+  const fs::path images = fs::path(datasetsRoot()) / "euroc" / "V1_01_easy_images";
+  const fs::path folder = dir_ / "V1_01_easy_images";
+  fs::copy(images, folder, fs::copy_options::recursive);
+  expectPlanRefuses("datasets = [\"" + folder.string() +
+                        "\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nfrontend = \"images\"\n"
+                        "args = [\"--mode\", \"vio\", \"--imu\", \"real\"]\n",
+                    "g__", "--imu real");
+}
+
+TEST_F(RunSpecTest, SetReachesEveryKeyAndIsRecorded) {
+  const fs::path out = dir_ / "x.h5";
+  const auto ok = runCli(
+      "run --dataset kitti/05 --variant ns-qr-sqrt-f64 --frames 5 --set lm.max_iterations=3 "
+      "--set marginalization.qr_threshold_mode=relative -o " +
+      quote(out));
+  ASSERT_EQ(ok.exit_code, 0) << ok.output;
+  const std::string config = rootAttribute(out, "config_toml");
+  EXPECT_NE(config.find("max_iterations = 3"), std::string::npos) << config;
+  EXPECT_NE(config.find("qr_threshold_mode = 'relative'"), std::string::npos) << config;
+  const std::string spec = rootAttribute(out, "run_spec");
+  EXPECT_NE(spec.find("'lm.max_iterations=3'"), std::string::npos) << spec;
+
+  const std::string run = "run --dataset kitti/05 --variant ns-qr-sqrt-f64 --frames 5 -o " +
+                          quote(dir_ / "y.h5") + " --set ";
+  const auto unknown = runCli(run + "lm.max_iteration=3");
+  EXPECT_EQ(unknown.exit_code, 2) << unknown.output;
+  EXPECT_NE(unknown.output.find("--set lm.max_iteration=3: unknown key lm.max_iteration"),
+            std::string::npos)
+      << unknown.output;
+  const auto range = runCli(run + "lm.max_iterations=0");
+  EXPECT_EQ(range.exit_code, 2) << range.output;
+  EXPECT_NE(range.output.find("lm.max_iterations = 0: expected an integer in [1, 1000]"),
+            std::string::npos)
+      << range.output;
+  const auto malformed = runCli(run + "max_iterations");
+  EXPECT_EQ(malformed.exit_code, 2) << malformed.output;
+  EXPECT_NE(malformed.output.find("expected section.key=value"), std::string::npos)
+      << malformed.output;
+  EXPECT_FALSE(fs::exists(dir_ / "y.h5"));
+}
+
+// A relation between keys is refused before the sequence is simulated, naming both keys.
+TEST_F(RunSpecTest, RelationErrorIsRefusedBeforeAnyWork) {
+  const auto result = runCli(
+      "run --dataset euroc/MH_01_easy --variant ns-qr-sqrt-f32 --set "
+      "marginalization.qr_threshold_mode=relative --set marginalization.qr_threshold=5 -o " +
+      quote(dir_ / "x.h5"));
+  EXPECT_EQ(result.exit_code, 2) << result.output;
+  EXPECT_NE(result.output.find("--set: marginalization.qr_threshold = 5 with qr_threshold_mode"),
+            std::string::npos)
+      << result.output;
+  EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
+}
+
+// The results file records its spec; run from it (-o elsewhere), the numbers are the same bit for
+// bit.
+TEST_F(RunSpecTest, RunRepeatedFromItsSpecIsBitIdentical) {
+  const fs::path first = dir_ / "first.h5";
+  const auto run = runCli(
+      "run --dataset kitti/05 --variant sc-sc-sq-f32 --frames 40 --seed 3 --set lm.max_iterations=4 "
+      "--threads 1 -o " +
+      quote(first));
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const fs::path spec = dir_ / "first.spec.toml";
+  std::ofstream(spec) << rootAttribute(first, "run_spec");
+  const fs::path second = dir_ / "second.h5";
+  const auto again = runCli("run --spec " + quote(spec) + " -o " + quote(second));
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  const auto compare = test::runShell("/usr/bin/python3 '" + std::string(sourceDir()) +
+                                      "/tools/scripts/compare_runs.py' " + quote(first) + " " +
+                                      quote(second));
+  EXPECT_EQ(compare.exit_code, 0) << compare.output;
+  EXPECT_NE(compare.output.find("SAME"), std::string::npos) << compare.output;
+  EXPECT_EQ(rootAttribute(first, "config_toml"), rootAttribute(second, "config_toml"));
+
+  const auto beside = runCli("run --spec " + quote(spec) + " --frames 3 -o " + quote(second));
+  EXPECT_EQ(beside.exit_code, 2) << beside.output;
+  EXPECT_NE(beside.output.find("--frames cannot be given beside it"), std::string::npos)
+      << beside.output;
+}
+
+}  // namespace
+}  // namespace marglab
