@@ -33,14 +33,15 @@ namespace {
 // loaded once for all the runs on it.
 class PlanValidator {
  public:
-  std::string check(const experiment::PlannedRun& run) {
+  std::string check(experiment::PlannedRun* run) {
     try {
-      const RunSpec spec = plannedSpec(run);
+      const RunSpec spec = plannedSpec(*run);
       const RunInputs& inputs = inputsOf(spec);
       const RunSpec resolved =
           resolveRunSpec(spec, inputs.dataset.sequence, inputs.has_ground_truth);
       const std::vector<Problem> problems = runProblems(resolved, inputs);
       if (!problems.empty()) throwProblems(problems);
+      run->spec_toml = childSpec(spec, *run).toToml();
     } catch (const InputError& e) {
       return e.what();
     } catch (const UsageError& e) {
@@ -63,13 +64,28 @@ class PlanValidator {
     return spec;
   }
 
+  // The spec as its child runs it, in the sweep folder: its results file, and for frontend
+  // "images" the track file the runner writes before the runs.
+  static RunSpec childSpec(RunSpec spec, const experiment::PlannedRun& run) {
+    spec.output = "runs/" + run.id + ".h5";
+    if (run.frontend == "images") {
+      spec.frontend = FrontendKind::kAuto;
+      spec.tracks_file = experiment::sweepTrackFile(run);
+    }
+    return spec;
+  }
+
   const RunInputs& inputsOf(const RunSpec& spec) {
     const std::string key = spec.dataset + '\n' + spec.tracks_file;
     auto it = loaded_.find(key);
     if (it == loaded_.end()) {
       Loaded entry;
+      // A track file that is not a regular file (a FIFO) can be read once: by its run.
+      RunSpec loaded = spec;
+      std::error_code ec;
+      if (!std::filesystem::is_regular_file(spec.tracks_file, ec)) loaded.tracks_file.clear();
       try {
-        entry.inputs = std::make_shared<RunInputs>(loadRunInputs(spec));
+        entry.inputs = std::make_shared<RunInputs>(loadRunInputs(loaded));
       } catch (const InputError& e) {
         entry.error = std::make_shared<InputError>(e);
       }
@@ -108,9 +124,7 @@ experiment::ParseOptions sweepParseOptions() {
     return {};
   };
   auto validator = std::make_shared<PlanValidator>();
-  options.check_run = [validator](const experiment::PlannedRun& run) {
-    return validator->check(run);
-  };
+  options.check_run = [validator](experiment::PlannedRun* run) { return validator->check(run); };
   return options;
 }
 

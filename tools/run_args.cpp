@@ -128,9 +128,10 @@ void checkSpecAlone(const CLI::App& app) {
     if (option->count() == 0 || name == "--spec" || name == "--output" || name == "--help") {
       continue;
     }
-    throw UsageError(fmt::format("--spec FILE gives the whole run: {} cannot be given beside it "
-                                 "(only -o)",
-                                 name));
+    // Thrown while parsing: a CLI11 error, reported like any other bad option (exit 2).
+    throw CLI::ValidationError(
+        "--spec", fmt::format("FILE gives the whole run: {} cannot be given beside it (only -o)",
+                              name));
   }
 }
 

@@ -372,7 +372,7 @@ namespace {
 
 bool isToml(const std::string& text) {
   try {
-    toml::parse(text);
+    static_cast<void>(toml::parse(text));
     return true;
   } catch (const toml::parse_error&) {
     return false;

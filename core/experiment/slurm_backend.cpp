@@ -168,7 +168,7 @@ class Submitter {
       detail::prepareRunFiles(out_, plan_.name, plan_.runs[i], &row);
       row.set("status", "pending");
       s.tasks.push_back(
-          {row.get("id"), runArguments(plan_.runs[i], row.get("results"), row.get("config"))});
+          {row.get("id"), childArguments(plan_.runs[i], row.get("results"), row.get("config"))});
     }
     const std::string job = submitScript(s, indices.size());
     for (std::size_t k = 0; k < indices.size(); ++k) {

@@ -304,11 +304,13 @@ void prepareRunFiles(const fs::path& out, const std::string& sweep_name, const P
   if (!run.config_toml.empty()) {
     writeFileAtomically((out / row->get("config")).string(), run.config_toml);
   }
+  if (!run.spec_toml.empty()) writeFileAtomically((out / runSpecFile(run)).string(), run.spec_toml);
   writeFileAtomically((out / "runs" / (run.id + ".cmd")).string(), runFingerprint(run));
   std::ofstream header(out / row->get("log"), std::ios::trunc);
   header << "# marglab sweep " << sweep_name << ": run " << run.id << "\n# started "
          << utcNowIso8601() << " in " << fs::absolute(out).string() << "\n# " << row->get("command")
          << "\n";
+  if (!run.spec_toml.empty()) header << "# run as: marglab run --spec " << runSpecFile(run) << "\n";
 }
 
 }  // namespace marglab::experiment::detail

@@ -488,7 +488,7 @@ class Parser {
     run.id = fmt::format("{}__{}__{}__s{}", g.name, slug(dataset), variant, seed);
     if (!o.name.empty()) run.id += "__" + o.name;
     if (options_.check_run) {
-      const std::string problem = options_.check_run(run);
+      const std::string problem = options_.check_run(&run);
       if (!problem.empty()) {
         throw InputError(name_, o.name.empty() ? g.line : o.line,
                          fmt::format("run {}: {}", run.id, problem));
@@ -566,6 +566,14 @@ SweepPlan loadSweepFile(const std::string& path, const ParseOptions& options) {
 }
 
 std::string sweepTrackFile(const PlannedRun& run) { return "tracks/" + slug(run.dataset) + ".h5"; }
+
+std::string runSpecFile(const PlannedRun& run) { return "runs/" + run.id + ".spec.toml"; }
+
+std::vector<std::string> childArguments(const PlannedRun& run, const std::string& results_path,
+                                        const std::string& config_path) {
+  if (run.spec_toml.empty()) return runArguments(run, results_path, config_path);
+  return {"run", "--spec", runSpecFile(run)};
+}
 
 std::vector<std::string> runArguments(const PlannedRun& run, const std::string& results_path,
                                       const std::string& config_path) {

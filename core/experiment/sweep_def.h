@@ -64,6 +64,9 @@ struct PlannedRun {
   std::string frontend;                 // "" (not passed), "images", "simulated", "auto"
   std::vector<std::string> extra_args;  // group args, then override args
   std::string config_toml;              // merged config overrides (TOML text), "" when none
+  // The spec its child runs (`marglab run --spec runs/<id>.spec.toml`, core/pipeline/run_spec.h),
+  // as the checker built and validated it; "" without a checker: the child gets runArguments.
+  std::string spec_toml;
   int line = 0;                         // line of the group in the sweep file (for messages)
 };
 
@@ -79,8 +82,8 @@ struct SweepPlan {
 using RunArgsChecker = std::function<std::string(const std::vector<std::string>& args)>;
 
 // Checks one planned run as a whole (its dataset with its options); returns "" when fine, else
-// what is wrong. The CLI refuses combinations `marglab run` would refuse (VIO on KITTI).
-using RunChecker = std::function<std::string(const PlannedRun& run)>;
+// what is wrong, and sets run->spec_toml. The CLI's validates the run's spec as `marglab run` does.
+using RunChecker = std::function<std::string(PlannedRun* run)>;
 
 struct ParseOptions {
   RunArgsChecker check_run_args;
@@ -113,5 +116,13 @@ std::string sweepTrackFile(const PlannedRun& run);
 // and, when config_toml is non-empty, the config file it was written to.
 std::vector<std::string> runArguments(const PlannedRun& run, const std::string& results_path,
                                       const std::string& config_path);
+
+// The spec file of a run, relative to the sweep folder: "runs/<id>.spec.toml".
+std::string runSpecFile(const PlannedRun& run);
+
+// What the child of a run is given: `run --spec runs/<id>.spec.toml` where the plan holds its
+// spec, else runArguments(run, results_path, config_path).
+std::vector<std::string> childArguments(const PlannedRun& run, const std::string& results_path,
+                                        const std::string& config_path);
 
 }  // namespace marglab::experiment

@@ -155,7 +155,7 @@ class Runner {
     const fs::path log = out / row.get("log");
 
     ChildSpec spec;
-    spec.argv = runArguments(run, row.get("results"), row.get("config"));
+    spec.argv = childArguments(run, row.get("results"), row.get("config"));
     spec.argv.insert(spec.argv.begin(), exe_);
     spec.working_dir = out.string();
     spec.output = log.string();

@@ -20,6 +20,7 @@
 #include "core/pipeline/tracking_monitor.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/imu_synth.h"
+#include "core/sim/track_io.h"
 #include "core/sim/trajectory_spline.h"
 
 namespace marglab {

@@ -16,6 +16,7 @@
 #include "core/common/error.h"
 #include "core/data/sequence.h"
 #include "core/estimator/config.h"
+#include "core/frontend/image_folder.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/sim_profile.h"
@@ -219,7 +220,7 @@ TEST(RealisticProfileFile, SimulationRecordsItsFamilysFile) {
     options.frontend = FrontendKind::kSimulated;
     options.max_frames = 3;
     options.sim_profile = SimProfile::kRealistic;
-    const TrackSource source = obtainTracks(options);
+    const TrackSource source = obtainTracks(options, loadImageSequence(dataset));
     std::string recorded;
     for (const auto& [key, value] : source.provenance) {
       if (key == "sim_profile") recorded = value;
