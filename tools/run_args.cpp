@@ -104,7 +104,9 @@ void addRunConfig(CLI::App& app, RunArgs& args) {
 // Where it writes, what it captures, and --spec.
 void addRunOutputs(CLI::App& app, RunArgs& args) {
   RunSpec& spec = args.spec;
-  app.add_option("-o,--output", spec.output, "Results file (HDF5)");
+  app.add_option("-o,--output", spec.output, "Results file (HDF5)")->each([&args](const std::string&) {
+    args.output_given = true;
+  });
   app.add_option("--dump-windows", spec.dump_windows,
                  "Capture the windows of these frames (comma-separated 0-based indices) before "
                  "their optimization, with the step taken, for `marglab bench` and the tests")
@@ -165,7 +167,7 @@ void applyConfigOptions(const RunArgs& args, RunSpec* spec) {
 RunSpec specOfOptions(const RunArgs& args, const std::function<void(EstimatorConfig*)>& load_config) {
   if (args.spec.dataset.empty()) throw UsageError("--dataset is required (or --spec FILE)");
   if (args.variant.empty()) throw UsageError("--variant is required (or --spec FILE)");
-  if (args.spec.output.empty()) throw UsageError("-o is required: the results file to write");
+  if (!args.output_given) throw UsageError("-o is required: the results file to write");
   RunSpec spec = args.spec;
   spec.variant = Variant::parse(args.variant);
   spec.mode = parsedChoice(kRunModeNames, args.mode);
@@ -190,7 +192,7 @@ void addRunOptions(CLI::App& app, RunArgs& args) {
 RunSpec runSpecFrom(const RunArgs& args) {
   if (!args.spec_file.empty()) {
     RunSpec spec = RunSpec::fromTomlFile(args.spec_file);
-    if (!args.spec.output.empty()) spec.output = args.spec.output;
+    if (args.output_given) spec.output = args.spec.output;
     return spec;
   }
   return specOfOptions(args, [&args](EstimatorConfig* config) {

@@ -29,6 +29,7 @@ struct RunArgs {
   // The config-key options given, in the order of kConfigKeyOptions (run_args.cpp); "" if not.
   std::vector<std::string> config_key_values;
   bool no_diagnostics = false;
+  bool output_given = false;  // -o, even empty (then an error of its own)
 };
 
 // Registers the options of `marglab run` on `app`.

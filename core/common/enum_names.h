@@ -54,13 +54,14 @@ std::vector<std::string> namesOf(const EnumNames<E, N>& table) {
   return names;
 }
 
-// "a", "a or b", "a, b or c".
+// "a", "a or b", "a, b or c"; quoted: "\"a\", \"b\" or \"c\"" (as TOML strings).
 template <typename E, std::size_t N>
-std::string describeNames(const EnumNames<E, N>& table) {
+std::string describeNames(const EnumNames<E, N>& table, bool quoted = false) {
+  const std::string quote = quoted ? "\"" : "";
   std::string text;
   for (std::size_t k = 0; k < N; ++k) {
     if (k > 0) text += k + 1 == N ? " or " : ", ";
-    text += table[k].name;
+    text += quote + table[k].name + quote;
   }
   return text;
 }

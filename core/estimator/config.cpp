@@ -94,7 +94,7 @@ struct Binding {
   // A key with a fixed set of names (an enum field): parse (false for an unknown name), print.
   std::function<bool(const std::string&)> parse_choice = nullptr;
   std::function<std::string()> print_choice = nullptr;
-  const char* choices = nullptr;  // for messages: "\"a\" or \"b\""
+  std::string choices = "";  // for messages: "\"a\" or \"b\""
 
   std::string name() const { return std::string(section) + "." + key; }
   bool numeric() const { return d != nullptr || i != nullptr || u != nullptr; }
@@ -107,13 +107,15 @@ struct Binding {
   }
 };
 
-// Binds an enum field with toString(E) / a parser bool(const std::string&, E*).
-template <typename E, typename Parse>
-Binding choice(const char* section, const char* key, E* field, Parse parse, const char* choices) {
+// Binds an enum field to its name table (core/common/enum_names.h).
+template <typename E, std::size_t N>
+Binding choice(const char* section, const char* key, E* field, const EnumNames<E, N>& names) {
   Binding binding{section, key};
-  binding.parse_choice = [field, parse](const std::string& text) { return parse(text, field); };
-  binding.print_choice = [field] { return std::string(toString(*field)); };
-  binding.choices = choices;
+  binding.parse_choice = [field, &names](const std::string& text) {
+    return parseName(names, text, field);
+  };
+  binding.print_choice = [field, &names] { return std::string(nameOf(names, *field)); };
+  binding.choices = describeNames(names, true);
   return binding;
 }
 
@@ -140,8 +142,7 @@ void frontendBindings(FrontendOptions& f, AddDouble D, AddInt I, std::vector<Bin
   guesses.list = &f.disparity_guesses_px;
   guesses.rule = between(0, 10000);
   list->push_back(guesses);
-  list->push_back(choice(s, "prediction", &f.prediction, parseMotionPredictionSource,
-                         "\"estimator\", \"tracker\" or \"none\""));
+  list->push_back(choice(s, "prediction", &f.prediction, kMotionPredictionSourceNames));
 }
 
 // The keys and their ranges (docs/design.md §9). The ranges follow what the estimator does with
@@ -179,19 +180,17 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
   D("lm", "lambda_max", &c.lambda_max, above(0));
   D("lm", "stop_relative_cost", &c.stop_relative_cost, atLeast(0));
   D("lm", "stop_max_step", &c.stop_max_step, atLeast(0));
-  list.push_back(
-      choice("lm", "stop_rule", &c.lm_stop_rule, parseLmStopRule, "\"marglab\" or \"basalt\""));
+  list.push_back(choice("lm", "stop_rule", &c.lm_stop_rule, kLmStopRuleNames));
   I("lm", "max_failed_solves", &c.max_failed_solves, between(1, 1000));
   list.push_back({"lm", "landmark_damping", nullptr, nullptr, &c.lm_landmark_damping});
   I("lm", "threads", &c.lm_threads, between(1, kMaxLmThreads));
   list.push_back(choice("marginalization", "qr_threshold_mode", &c.qr_threshold_mode,
-                        parseRankThresholdMode, "\"absolute\" or \"relative\""));
+                        kRankThresholdModeNames));
   D("marginalization", "qr_threshold", &c.qr_threshold,
     orSentinel(atLeast(0), -1, "sqrt(eps) of the precision"));
-  list.push_back(choice("marginalization", "strategy", &c.marg_strategy, parseMargStrategy,
-                        "\"discard\", \"dense\" or \"nfr\""));
-  list.push_back(choice("marginalization", "nfr_topology", &c.nfr_topology, parseSparsifyTopology,
-                        "\"paper\", \"joint-states\" or \"relative-pose\""));
+  list.push_back(choice("marginalization", "strategy", &c.marg_strategy, kMargStrategyNames));
+  list.push_back(
+      choice("marginalization", "nfr_topology", &c.nfr_topology, kSparsifyTopologyNames));
   list.push_back(
       {"marginalization", "nfr_rigid_deflation", nullptr, nullptr, &c.nfr_rigid_deflation});
   list.push_back({"marginalization", "psd_hessian_prior", nullptr, nullptr, &c.psd_hessian_prior});
@@ -202,10 +201,8 @@ std::vector<Binding> bindings(EstimatorConfig& c) {
   I("failure", "max_tracking_loss_frames", &c.max_tracking_loss_frames, between(1, kMaxWindow));
   D("failure", "inconsistent_px", &c.inconsistent_px, above(0));
   D("failure", "max_inconsistent_share", &c.max_inconsistent_share, between(0, 1));
-  list.push_back(choice("imu", "noise_profile", &c.imu_noise_profile, parseImuNoiseProfile,
-                        "\"kalibr\" or \"basalt\""));
-  list.push_back(
-      choice("sim", "profile", &c.sim_profile, parseSimProfile, "\"ideal\" or \"realistic\""));
+  list.push_back(choice("imu", "noise_profile", &c.imu_noise_profile, kImuNoiseProfileNames));
+  list.push_back(choice("sim", "profile", &c.sim_profile, kSimProfileNames));
   list.push_back({"diagnostics", "enabled", nullptr, nullptr, &c.diagnostics});
   I("diagnostics", "store_prior_every", &c.store_prior_every,
     between(0, std::numeric_limits<int>::max()));
@@ -312,61 +309,7 @@ void apply(EstimatorConfig& config, const toml::table& root, const std::string& 
   }
 }
 
-// The value among `values` whose toString() is text.
-template <typename E>
-bool parseByName(const std::string& text, std::initializer_list<E> values, E* out) {
-  for (E value : values) {
-    if (text == toString(value)) {
-      *out = value;
-      return true;
-    }
-  }
-  return false;
-}
-
 }  // namespace
-
-const char* toString(MargStrategy strategy) {
-  switch (strategy) {
-    case MargStrategy::kDense:
-      return "dense";
-    case MargStrategy::kNfr:
-      return "nfr";
-    case MargStrategy::kDiscard:
-      break;
-  }
-  return "discard";
-}
-
-const char* toString(SparsifyTopology topology) {
-  switch (topology) {
-    case SparsifyTopology::kJointStates:
-      return "joint-states";
-    case SparsifyTopology::kRelativePose:
-      return "relative-pose";
-    case SparsifyTopology::kPaper:
-      break;
-  }
-  return "paper";
-}
-
-bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology) {
-  return parseByName(
-      text,
-      {SparsifyTopology::kPaper, SparsifyTopology::kJointStates, SparsifyTopology::kRelativePose},
-      topology);
-}
-
-const char* toString(LmStopRule rule) { return rule == LmStopRule::kBasalt ? "basalt" : "marglab"; }
-
-bool parseLmStopRule(const std::string& text, LmStopRule* rule) {
-  return parseByName(text, {LmStopRule::kMarglab, LmStopRule::kBasalt}, rule);
-}
-
-bool parseMargStrategy(const std::string& text, MargStrategy* strategy) {
-  return parseByName(text, {MargStrategy::kDiscard, MargStrategy::kDense, MargStrategy::kNfr},
-                     strategy);
-}
 
 namespace {
 

@@ -50,6 +50,7 @@
 #include <string>
 #include <vector>
 
+#include "core/common/enum_names.h"
 #include "core/common/error.h"
 #include "core/frontend/frontend_options.h"
 #include "core/imu/noise_profile.h"
@@ -70,9 +71,11 @@ namespace marglab {
 //   nfr     — the dense prior, sparsified by nonlinear factor recovery (eq. 16): unary pose,
 //             velocity and bias factors and one pose–landmark factor per landmark replace it.
 enum class MargStrategy { kDiscard, kDense, kNfr };
-const char* toString(MargStrategy strategy);
-// False for an unknown name.
-bool parseMargStrategy(const std::string& text, MargStrategy* strategy);
+inline constexpr EnumNames<MargStrategy, 3> kMargStrategyNames{{{MargStrategy::kDiscard, "discard"}, {MargStrategy::kDense, "dense"}, {MargStrategy::kNfr, "nfr"}}};
+inline const char* toString(MargStrategy value) { return nameOf(kMargStrategyNames, value); }
+inline bool parseMargStrategy(const std::string& text, MargStrategy* value) {
+  return parseName(kMargStrategyNames, text, value);
+}
 
 // The factors nfr recovers (docs/sparsification.md):
 //   paper        — eqs. 11–12: a unary factor on every pose, velocity and bias of the blanket and a
@@ -84,8 +87,11 @@ bool parseMargStrategy(const std::string& text, MargStrategy* strategy);
 //                  relative-pose factor between consecutive blanket poses, unary velocity and
 //                  bias factors, and the same pose–landmark factors.
 enum class SparsifyTopology { kPaper, kJointStates, kRelativePose };
-const char* toString(SparsifyTopology topology);
-bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology);
+inline constexpr EnumNames<SparsifyTopology, 3> kSparsifyTopologyNames{{{SparsifyTopology::kPaper, "paper"}, {SparsifyTopology::kJointStates, "joint-states"}, {SparsifyTopology::kRelativePose, "relative-pose"}}};
+inline const char* toString(SparsifyTopology value) { return nameOf(kSparsifyTopologyNames, value); }
+inline bool parseSparsifyTopology(const std::string& text, SparsifyTopology* value) {
+  return parseName(kSparsifyTopologyNames, text, value);
+}
 
 // When a frame's Levenberg–Marquardt stops (docs/design.md §3, Levenberg–Marquardt):
 //   marglab — at most max_iterations linearizations, each with as many λ trials as it takes; stop
@@ -94,8 +100,11 @@ bool parseSparsifyTopology(const std::string& text, SparsifyTopology* topology);
 //             in all (rejected λ trials count); stop on an absolute cost decrease < 1e-6
 //             (kBasaltStopCost) or max|δ| < stop_max_step.
 enum class LmStopRule { kMarglab, kBasalt };
-const char* toString(LmStopRule rule);
-bool parseLmStopRule(const std::string& text, LmStopRule* rule);
+inline constexpr EnumNames<LmStopRule, 2> kLmStopRuleNames{{{LmStopRule::kMarglab, "marglab"}, {LmStopRule::kBasalt, "basalt"}}};
+inline const char* toString(LmStopRule value) { return nameOf(kLmStopRuleNames, value); }
+inline bool parseLmStopRule(const std::string& text, LmStopRule* value) {
+  return parseName(kLmStopRuleNames, text, value);
+}
 // Basalt's absolute cost-decrease tolerance (its optimize() hard-codes 1e-6).
 inline constexpr double kBasaltStopCost = 1e-6;
 

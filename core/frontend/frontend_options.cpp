@@ -4,30 +4,6 @@
 
 namespace marglab {
 
-const char* toString(MotionPredictionSource source) {
-  switch (source) {
-    case MotionPredictionSource::kTracker:
-      return "tracker";
-    case MotionPredictionSource::kNone:
-      return "none";
-    case MotionPredictionSource::kEstimator:
-      break;
-  }
-  return "estimator";
-}
-
-bool parseMotionPredictionSource(const std::string& text, MotionPredictionSource* source) {
-  for (const MotionPredictionSource s :
-       {MotionPredictionSource::kEstimator, MotionPredictionSource::kTracker,
-        MotionPredictionSource::kNone}) {
-    if (text == toString(s)) {
-      *source = s;
-      return true;
-    }
-  }
-  return false;
-}
-
 FrontendOptions resolveFrontendOptions(const FrontendOptions& options, DatasetKind kind) {
   FrontendOptions out = options;
   const bool kitti = kind == DatasetKind::kKitti;

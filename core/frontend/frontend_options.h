@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "core/common/enum_names.h"
 #include "core/data/types.h"
 
 namespace marglab {
@@ -39,8 +40,11 @@ namespace marglab {
 //               system);
 //   none      — LK starts at the previous position (the front-end before prediction).
 enum class MotionPredictionSource { kEstimator, kTracker, kNone };
-const char* toString(MotionPredictionSource source);
-bool parseMotionPredictionSource(const std::string& text, MotionPredictionSource* source);
+inline constexpr EnumNames<MotionPredictionSource, 3> kMotionPredictionSourceNames{{{MotionPredictionSource::kEstimator, "estimator"}, {MotionPredictionSource::kTracker, "tracker"}, {MotionPredictionSource::kNone, "none"}}};
+inline const char* toString(MotionPredictionSource value) { return nameOf(kMotionPredictionSourceNames, value); }
+inline bool parseMotionPredictionSource(const std::string& text, MotionPredictionSource* value) {
+  return parseName(kMotionPredictionSourceNames, text, value);
+}
 
 struct FrontendOptions {
   int grid_cell_px = -1;    // −1: dataset default

@@ -73,20 +73,6 @@ double isotropicDensity(const NumberedText& file, const std::string& path, const
 
 }  // namespace
 
-const char* toString(ImuNoiseProfile profile) {
-  return profile == ImuNoiseProfile::kBasalt ? "basalt" : "kalibr";
-}
-
-bool parseImuNoiseProfile(const std::string& text, ImuNoiseProfile* profile) {
-  for (ImuNoiseProfile p : {ImuNoiseProfile::kKalibr, ImuNoiseProfile::kBasalt}) {
-    if (text == toString(p)) {
-      *profile = p;
-      return true;
-    }
-  }
-  return false;
-}
-
 ImuNoise readBasaltImuNoise(const std::string& path) {
   const NumberedText file(path);
   ImuNoise noise;

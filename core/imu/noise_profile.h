@@ -18,14 +18,17 @@
 
 #include <string>
 
+#include "core/common/enum_names.h"
 #include "core/data/types.h"
 
 namespace marglab {
 
 enum class ImuNoiseProfile { kKalibr, kBasalt };
-const char* toString(ImuNoiseProfile profile);  // "kalibr" | "basalt"
-// False for an unknown name.
-bool parseImuNoiseProfile(const std::string& text, ImuNoiseProfile* profile);
+inline constexpr EnumNames<ImuNoiseProfile, 2> kImuNoiseProfileNames{{{ImuNoiseProfile::kKalibr, "kalibr"}, {ImuNoiseProfile::kBasalt, "basalt"}}};
+inline const char* toString(ImuNoiseProfile value) { return nameOf(kImuNoiseProfileNames, value); }
+inline bool parseImuNoiseProfile(const std::string& text, ImuNoiseProfile* value) {
+  return parseName(kImuNoiseProfileNames, text, value);
+}
 
 // The four IMU densities of a Basalt calibration (cereal JSON: "accel_noise_std",
 // "gyro_noise_std", "accel_bias_std", "gyro_bias_std", each a list of three per-axis values).

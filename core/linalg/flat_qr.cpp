@@ -5,21 +5,6 @@
 
 namespace marglab {
 
-const char* toString(RankThresholdMode mode) {
-  return mode == RankThresholdMode::kAbsolute ? "absolute" : "relative";
-}
-
-bool parseRankThresholdMode(const std::string& text, RankThresholdMode* mode) {
-  if (text == "absolute") {
-    *mode = RankThresholdMode::kAbsolute;
-  } else if (text == "relative") {
-    *mode = RankThresholdMode::kRelative;
-  } else {
-    return false;
-  }
-  return true;
-}
-
 template <typename Scalar>
 FlatQrInfo flatQrInPlace(Eigen::Ref<MatX<Scalar>> A, int n_cols, int n_prefix,
                          const FlatQrOptions<Scalar>& options) {

@@ -34,15 +34,18 @@
 #include <vector>
 
 #include "core/common/eigen_types.h"
+#include "core/common/enum_names.h"
 #include "core/common/scalar.h"
 #include "core/common/status.h"
 
 namespace marglab {
 
 enum class RankThresholdMode { kAbsolute, kRelative };
-const char* toString(RankThresholdMode mode);
-// Parses "absolute" / "relative"; returns false on anything else.
-bool parseRankThresholdMode(const std::string& text, RankThresholdMode* mode);
+inline constexpr EnumNames<RankThresholdMode, 2> kRankThresholdModeNames{{{RankThresholdMode::kAbsolute, "absolute"}, {RankThresholdMode::kRelative, "relative"}}};
+inline const char* toString(RankThresholdMode value) { return nameOf(kRankThresholdModeNames, value); }
+inline bool parseRankThresholdMode(const std::string& text, RankThresholdMode* value) {
+  return parseName(kRankThresholdModeNames, text, value);
+}
 
 template <typename Scalar>
 struct FlatQrOptions {

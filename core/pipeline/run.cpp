@@ -492,7 +492,7 @@ void addModeProblems(const RunSpec& spec, const RunInputs& inputs, std::vector<P
     out->push_back({ProblemKind::kUsage, "", 0, "--imu real needs VIO (--mode vio)"});
   } else if (spec.imu == ImuSource::kReal && !sequence.imu) {
     out->push_back({ProblemKind::kInput, sequence.directory, 0,
-                    fmt::format("--imu real: sequence {} has no IMU recording (expected "
+                    fmt::format("--imu real: sequence {} has no real IMU recording (expected "
                                 "mav0/imu0/data.csv; use the synthetic IMU)",
                                 sequence.name)});
   } else if (spec.imu == ImuSource::kReal) {
@@ -511,7 +511,6 @@ void addModeProblems(const RunSpec& spec, const RunInputs& inputs, std::vector<P
 std::vector<Problem> runProblems(const RunSpec& spec, const RunInputs& inputs) {
   std::vector<Problem> out = spec.config.locatedProblems();
   addTrackSourceProblems(spec, inputs, &out);
-  addCaptureProblems(spec, inputs.dataset.sequence, &out);
   addModeProblems(spec, inputs, &out);
   // A square-root prior is positive semidefinite already: the option would silently do nothing.
   if (spec.config.psd_hessian_prior && sqrtStorage(spec.variant.storage)) {
@@ -522,6 +521,7 @@ std::vector<Problem> runProblems(const RunSpec& spec, const RunInputs& inputs) {
                      "semidefinite by construction",
                      spec.variant.name())}));
   }
+  addCaptureProblems(spec, inputs.dataset.sequence, &out);
   return out;
 }
 

@@ -72,21 +72,6 @@ void readKey(const toml::table& root, const ProfileKey& k, const std::string& pa
 
 }  // namespace
 
-const char* toString(SimProfile profile) {
-  return profile == SimProfile::kRealistic ? "realistic" : "ideal";
-}
-
-bool parseSimProfile(const std::string& text, SimProfile* profile) {
-  if (text == "ideal") {
-    *profile = SimProfile::kIdeal;
-  } else if (text == "realistic") {
-    *profile = SimProfile::kRealistic;
-  } else {
-    return false;
-  }
-  return true;
-}
-
 RealisticProfile readRealisticProfile(const std::string& path) {
   toml::table root;
   try {

@@ -28,15 +28,18 @@
 
 #include <string>
 
+#include "core/common/enum_names.h"
 #include "core/data/types.h"
 #include "core/sim/feature_tracker.h"
 
 namespace marglab {
 
 enum class SimProfile { kIdeal, kRealistic };
-const char* toString(SimProfile profile);
-// False for an unknown name.
-bool parseSimProfile(const std::string& text, SimProfile* profile);
+inline constexpr EnumNames<SimProfile, 2> kSimProfileNames{{{SimProfile::kIdeal, "ideal"}, {SimProfile::kRealistic, "realistic"}}};
+inline const char* toString(SimProfile value) { return nameOf(kSimProfileNames, value); }
+inline bool parseSimProfile(const std::string& text, SimProfile* value) {
+  return parseName(kSimProfileNames, text, value);
+}
 
 // The parameters of the realistic profile, as in its TOML file ([noise], [drift], [outliers],
 // [tracking]; every key required, unknown keys are errors).

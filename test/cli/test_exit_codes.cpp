@@ -11,6 +11,7 @@
 
 #include "common/cli_runner.h"
 #include "common/temp_dir.h"
+#include "core/data/sequence.h"
 
 namespace marglab {
 namespace {
@@ -95,8 +96,8 @@ TEST_F(ExitCodes, Sweep) {
   expectExit("sweep --dry-run --seeds 3,1 " + seeds, 0, "): 2 runs, would write");
   expectExit("sweep --dry-run --seeds 3,1 " + seeds, 0, "g__kitti-10__ns-qr-sqrt-f64__s3");
   expectExit("sweep --dry-run " + vio, 1,
-             "vio.toml:2: run g__kitti-10__ns-qr-sqrt-f64__s1: --mode vio on KITTI: KITTI "
-             "odometry has no IMU");
+             "vio.toml:2: run g__kitti-10__ns-qr-sqrt-f64__s1: " + datasetsRoot() +
+                 "/kitti/10: KITTI odometry has no IMU");
 }
 
 TEST_F(ExitCodes, Tables) {

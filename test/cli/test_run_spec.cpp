@@ -81,7 +81,7 @@ TEST_F(RunSpecTest, SweepRefusesAtPlanTimeWhatRunRefuses) {
   expectPlanRefuses(
       "datasets = [\"euroc/MH_01_easy\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nframes = 5\n"
       "args = [\"--imu\", \"real\"]\n",
-      "g__euroc-MH_01_easy__ns-qr-sqrt-f32__s1", "has no IMU recording");
+      "g__euroc-MH_01_easy__ns-qr-sqrt-f32__s1", "has no real IMU recording");
   expectPlanRefuses("datasets = [\"tumvi/corridor2\"]\nvariants = [\"ns-qr-sqrt-f32\"]\n",
                     "g__tumvi-corridor2__ns-qr-sqrt-f32__s1", "has no trajectory to simulate from");
   expectPlanRefuses(
@@ -113,7 +113,7 @@ TEST_F(RunSpecTest, SweepRefusesInputsOfAnotherSequenceBeforeAnyWork) {
   expectPlanRefuses("datasets = [\"" + folder.string() +
                         "\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nfrontend = \"images\"\n"
                         "args = [\"--mode\", \"vio\", \"--imu\", \"real\"]\n",
-                    "g__", "has no IMU recording");
+                    "g__", "has no real IMU recording");
 }
 
 TEST_F(RunSpecTest, SetReachesEveryKeyAndIsRecorded) {
