@@ -6,14 +6,14 @@
 // Schema, schema_version = 2: every root attribute, dataset and /summary attribute, with its type,
 // unit and description, is one row of the tables in core/io/results_schema.{h,cpp}, over the row
 // records of core/io/results_records.h; docs/design.md §6 and tools/scripts/results_schema.json
-// (the Python side) are generated from them. Version 2
-// added /sparsify, the marg_strategy attribute, precision "mixed", /frontend and the frontend
-// attribute; files of version 1 are read as runs with marg_strategy discard, simulated tracks and
-// no /sparsify or /frontend rows. Not in the tables: RunMetadata::extra (more root strings) and
-// the optional full priors /marg/priors/<k>/ (appendPriorMatrices: H_m (n,n), b_m (n), for
-// square-root storage J_m (rows,n) and r_m (rows); layout_kind int32 (attribute "kind_names"),
-// layout_frame_id int64, layout_offset int32, layout_dim int32, one row per variable block;
-// attribute storage "sqrt"|"sq").
+// (the Python side) are generated from them. Version 2 added /sparsify, the marg_strategy
+// attribute, precision "mixed", /frontend and the frontend attribute; files of version 1 are read
+// as runs with marg_strategy discard, simulated tracks and no /sparsify or /frontend rows. Not in
+// the tables: RunMetadata::extra (more root strings) and the optional full priors
+// /marg/priors/<k>/ (appendPriorMatrices: H_m (n,n), b_m (n), for square-root storage J_m
+// (rows,n) and r_m (rows); layout_kind int32 (attribute "kind_names"), layout_frame_id int64,
+// layout_offset int32, layout_dim int32, one row per variable block; attribute storage
+// "sqrt"|"sq").
 //
 // Atomicity: the file is written under a temporary name and renamed onto the path by finish()
 // (h5::File::commit). A ResultsWriter destroyed without finish() (exception, crash path) leaves
