@@ -75,7 +75,9 @@ FrameResult SlidingWindowEstimator<Scalar>::processFrame(const TrackFrame& track
     capture_next_ = false;
   }
   const Frame& optimized = window_.frames.at(id);
-  result.T_w_i = optimized.T_w_i.template cast<double>();
+  const SE3<double> T_w_i = optimized.T_w_i.template cast<double>();
+  result.p_est = T_w_i.translation();
+  result.q_est = T_w_i.unitQuaternion();
   if (optimized.has_speed_bias) {
     result.v_w = optimized.speed_bias.template head<3>().template cast<double>();
   }
@@ -91,7 +93,7 @@ FrameResult SlidingWindowEstimator<Scalar>::processFrame(const TrackFrame& track
   result.status = marginalize(id, &result);
 
   previous_pose_ = last_pose_;
-  last_pose_ = result.T_w_i;
+  last_pose_ = T_w_i;
   has_previous_pose_ = id > 0;
   return result;
 }

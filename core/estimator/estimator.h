@@ -60,6 +60,7 @@
 #include "core/estimator/window_snapshot.h"
 #include "core/geometry/camera.h"
 #include "core/geometry/se3.h"
+#include "core/io/results_records.h"
 #include "core/sim/tracks.h"
 
 namespace marglab {
@@ -80,23 +81,10 @@ struct MargEvent {
   int numPoses() const;
 };
 
-// What the estimator reports of one frame.
-struct FrameResult {
-  int64_t t_ns = 0;
-  bool is_keyframe = false;
-  int n_landmarks = 0;
-  int n_observations = 0;
-  int n_connected = 0;  // the frame's observations of landmarks already in the window
-  // After the optimization: the observations Window::frameReprojectionErrors checks, and those of
-  // them farther than failure.inconsistent_px from their landmark's projection.
-  int n_checked = 0;
-  int n_inconsistent = 0;
-  int lm_iterations = 0;
-  double cost_initial = 0;
-  double cost_final = 0;
-  double t_opt_s = 0;
-  double t_marg_s = 0;
-  SE3<double> T_w_i;  // body (VIO) or cam0 (VO) pose of the frame after optimization
+// What the estimator reports of one frame: its /frames row (p_est, q_est: the body (VIO) or cam0
+// (VO) pose after optimization; p_gt left to the run, which has the ground truth) and what the
+// file does not store, or stores elsewhere.
+struct FrameResult : FrameRecord {
   Eigen::Vector3d v_w = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   std::optional<MargEvent> marg_event;
   std::optional<SparsifyEvent> sparsify_event;

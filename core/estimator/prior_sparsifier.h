@@ -38,32 +38,20 @@
 // the deflated factors. A deflation that fails (non-finite input) keeps the dense prior, with the
 // reason.
 
-#include <cstdint>
-#include <limits>
 #include <string>
 
 #include "core/common/eigen_types.h"
 #include "core/diagnostics/gauge.h"
 #include "core/estimator/config.h"
 #include "core/estimator/window.h"
+#include "core/io/results_records.h"
 
 namespace marglab {
 
-// One keyframe marginalization of a dense / nfr run, as the estimator reports it.
-struct SparsifyEvent {
-  int blanket_cols = 0;
-  int n_blanket_poses = 0;
-  int n_blanket_landmarks = 0;
-  std::int64_t nnz_dense = 0;
-  std::int64_t nnz_sparse = 0;
-  // εᵀΛε of Λ_t and Λ_s along the gauge directions (kGaugeDirectionNames order), see above.
-  Vec7d info_dense = Vec7d::Constant(std::numeric_limits<double>::quiet_NaN());
-  Vec7d info_sparse = Vec7d::Constant(std::numeric_limits<double>::quiet_NaN());
-  double kld = std::numeric_limits<double>::quiet_NaN();  // NaN: kept dense
-  bool recovered = false;
-  double t_schur_s = 0.0;
-  double t_recovery_s = 0.0;
-  double t_insert_s = 0.0;
+// One keyframe marginalization of a dense / nfr run, as the estimator reports it: its /sparsify
+// row (info_dense, info_sparse: εᵀΛε of Λ_t and Λ_s along the gauge directions, see above; kld NaN:
+// kept dense), which the run completes with frame_index and t_ns, and what the file does not store.
+struct SparsifyEvent : SparsifyRecord {
   std::string fallback_reason;  // why nfr kept the dense prior (empty otherwise)
 };
 

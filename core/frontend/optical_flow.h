@@ -69,6 +69,7 @@
 #include "core/frontend/camera_model.h"
 #include "core/frontend/frontend_options.h"
 #include "core/frontend/motion_prediction.h"
+#include "core/io/results_records.h"
 #include "core/sim/tracks.h"
 
 namespace marglab {
@@ -77,20 +78,16 @@ namespace marglab {
 FrontendOptions defaultFrontendOptions(const Sequence& sequence,
                                        const FrontendOptions& configured = FrontendOptions{});
 
-// Per frame statistics (the results file's /frontend group).
-struct FrontendFrameStats {
-  int64_t t_ns = 0;
-  int n_features = 0;         // observations handed to the estimator
-  int n_tracked = 0;          // of those, continued from the previous frame
-  int n_new = 0;              // detected in this frame
-  int n_stereo = 0;           // with a right match
+// Per frame statistics: the frame's /frontend row (n_features: the observations handed to the
+// estimator; t_frontend_s: wall time of tracking + detection + stereo + undistortion) and what
+// the file does not store.
+struct FrontendFrameStats : FrontendRecord {
   int n_continued_depth = 0;  // continued tracks that had a stereo depth in the previous frame
   int n_motion_inliers = -1;  // the geometric check's inliers (−1: no motion this frame)
   int n_motion_points = 0;    // tracks with depth it was run on
   bool has_motion = false;    // T_new_prev below is the geometric check's motion
   SE3<double> T_new_prev;     // cam0 motion from the previous frame (step 3)
-  double t_frontend_s = 0;    // wall time of tracking + detection + stereo + undistortion
-  double cpu_frontend_s = 0;  // the same in CPU time of the process (one thread: the speed)
+  double cpu_frontend_s = 0;  // t_frontend_s in CPU time of the process (one thread: the speed)
 };
 
 // Forward-tracked candidates of one frame, before the forward–backward check (for tests that

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -209,8 +208,7 @@ std::vector<FrontendFrameStats> streamFrontendStats(const TrackStream& stream) {
   std::unordered_set<int64_t> previous;
   for (const TrackFrame& frame : stream.frames) {
     FrontendFrameStats s;
-    s.t_ns = frame.t_ns;
-    s.t_frontend_s = std::numeric_limits<double>::quiet_NaN();
+    s.t_ns = frame.t_ns;  // t_frontend_s keeps its default, NaN: not measured
     std::unordered_set<int64_t> current;
     for (const StereoObservation& obs : frame.observations) {
       ++s.n_features;
@@ -226,11 +224,7 @@ std::vector<FrontendFrameStats> streamFrontendStats(const TrackStream& stream) {
 }
 
 std::vector<FrontendRecord> frontendRecords(const std::vector<FrontendFrameStats>& stats) {
-  std::vector<FrontendRecord> rows;
-  for (const FrontendFrameStats& s : stats) {
-    rows.push_back({s.t_ns, s.n_features, s.n_tracked, s.n_new, s.n_stereo, s.t_frontend_s});
-  }
-  return rows;
+  return {stats.begin(), stats.end()};
 }
 
 double medianTrackLength(const TrackStream& stream) {

@@ -127,7 +127,7 @@ std::vector<FrontendFrameStats> streamFrontendStats(const TrackStream& stream);
 std::string frontendSummary(const std::string& frontend,
                             const std::vector<FrontendFrameStats>& stats);
 
-// The results file's /frontend rows.
+// The results file's /frontend rows: the FrontendRecord part of each.
 std::vector<FrontendRecord> frontendRecords(const std::vector<FrontendFrameStats>& stats);
 
 // Median number of frames a track id is observed in.

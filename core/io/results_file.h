@@ -4,15 +4,16 @@
 // or pandas (tools/scripts/check_results.py validates a file independently).
 //
 // Schema, schema_version = 2: every root attribute, dataset and /summary attribute, with its type,
-// unit and description, is one row of the tables in core/io/results_schema.{h,cpp}; docs/design.md
-// §6 and tools/scripts/results_schema.json (the Python side) are generated from them. Version 2
-// added /sparsify, the marg_strategy attribute, precision "mixed", /frontend and the frontend
-// attribute; files of version 1 are read as runs with marg_strategy discard, simulated tracks and
-// no /sparsify or /frontend rows. Not in the tables: RunMetadata::extra (more root strings) and
-// the optional full priors /marg/priors/<k>/ (appendPriorMatrices: H_m (n,n), b_m (n), for
-// square-root storage J_m (rows,n) and r_m (rows); layout_kind int32 (attribute "kind_names"),
-// layout_frame_id int64, layout_offset int32, layout_dim int32, one row per variable block;
-// attribute storage "sqrt"|"sq").
+// unit and description, is one row of the tables in core/io/results_schema.{h,cpp}, over the row
+// records of core/io/results_records.h; docs/design.md §6 and tools/scripts/results_schema.json
+// (the Python side) are generated from them. Version 2 added /sparsify, the marg_strategy
+// attribute, precision "mixed", /frontend and the frontend attribute; files of version 1 are read
+// as runs with marg_strategy discard, simulated tracks and no /sparsify or /frontend rows. Not in
+// the tables: RunMetadata::extra (more root strings) and the optional full priors
+// /marg/priors/<k>/ (appendPriorMatrices: H_m (n,n), b_m (n), for square-root storage J_m
+// (rows,n) and r_m (rows); layout_kind int32 (attribute "kind_names"), layout_frame_id int64,
+// layout_offset int32, layout_dim int32, one row per variable block; attribute storage
+// "sqrt"|"sq").
 //
 // Atomicity: the file is written under a temporary name and renamed onto the path by finish()
 // (h5::File::commit). A ResultsWriter destroyed without finish() (exception, crash path) leaves
@@ -33,6 +34,7 @@
 #include "core/common/eigen_types.h"
 #include "core/diagnostics/diagnostics.h"
 #include "core/io/hdf5.h"
+#include "core/io/results_records.h"
 
 namespace marglab {
 
@@ -52,71 +54,6 @@ struct RunMetadata {
   std::string frontend = "simulated";
   std::string isa;  // empty: the writer records the process's active ISA (core/linalg/isa.h)
   std::vector<std::pair<std::string, std::string>> extra;  // more root string attributes
-};
-
-struct FrameRecord {
-  std::int64_t t_ns = 0;
-  bool is_keyframe = false;
-  int n_landmarks = 0;
-  int n_observations = 0;
-  int lm_iterations = 0;
-  // The tracking monitor's inputs (core/pipeline/tracking_monitor.h); 0 in older files.
-  int n_connected = 0;
-  int n_checked = 0;
-  int n_inconsistent = 0;
-  double cost_initial = 0.0;
-  double cost_final = 0.0;
-  double t_opt_s = 0.0;
-  double t_marg_s = 0.0;
-  Eigen::Vector3d p_est = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond q_est = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d p_gt = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-  // Written by finish() (the alignment needs every frame); appendFrame ignores it.
-  double ate_error = std::numeric_limits<double>::quiet_NaN();
-};
-
-struct MargRecord {
-  std::int64_t frame_index = 0;
-  std::int64_t t_ns = 0;
-  int prior_cols = 0;
-  int prior_rows = 0;
-  int rank = 0;
-  int n_negative = 0;
-  double sigma_min = 0.0;
-  double sigma_max = 0.0;
-  double eig_tolerance = 0.0;
-  Vec7d dEm = Vec7d::Zero();
-  VecXd eigenvalues;  // ascending, size prior_cols
-};
-
-// One keyframe marginalization of a dense / nfr run (/sparsify).
-struct SparsifyRecord {
-  std::int64_t frame_index = 0;
-  std::int64_t t_ns = 0;
-  int blanket_cols = 0;
-  int n_blanket_poses = 0;
-  int n_blanket_landmarks = 0;
-  std::int64_t nnz_dense = 0;
-  std::int64_t nnz_sparse = 0;
-  // εᵀΛε of the dense prior and of what replaced it along the gauge directions (columns
-  // kGaugeDirectionNames); NaN in files written before these columns existed.
-  Vec7d info_dense = Vec7d::Constant(std::numeric_limits<double>::quiet_NaN());
-  Vec7d info_sparse = Vec7d::Constant(std::numeric_limits<double>::quiet_NaN());
-  double kld = std::numeric_limits<double>::quiet_NaN();
-  bool recovered = false;
-  double t_schur_s = 0.0;
-  double t_recovery_s = 0.0;
-  double t_insert_s = 0.0;
-};
-
-// One row of /frontend.
-struct FrontendRecord {
-  std::int64_t t_ns = 0;
-  int n_features = 0;
-  int n_tracked = 0;
-  int n_new = 0;
-  int n_stereo = 0;
-  double t_frontend_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 // Fills a MargRecord from the diagnostics of one event (prior_cols = eigenvalues.size()).

@@ -16,7 +16,6 @@
 #include "core/estimator/estimator.h"
 #include "core/estimator/window_io.h"
 #include "core/imu/noise_profile.h"
-#include "core/pipeline/records.h"
 #include "core/pipeline/tracking_monitor.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/imu_synth.h"
@@ -246,7 +245,10 @@ void recordFrame(int k, const TrackFrame& frame, const FrameResult& result, Fram
   }
   if (result.sparsify_event && result.status.ok()) {
     const SparsifyEvent& event = *result.sparsify_event;
-    writer.appendSparsify(toSparsifyRecord(event, k, frame.t_ns));
+    SparsifyRecord record = event;  // the event's /sparsify row, located in /frames here
+    record.frame_index = k;
+    record.t_ns = frame.t_ns;
+    writer.appendSparsify(record);
     ++outcome->n_keyframe_events;
     if (!event.fallback_reason.empty()) {
       fmt::print(stderr, "frame {}: nfr kept the dense prior: {}\n", k, event.fallback_reason);
@@ -327,7 +329,7 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
     if (std::optional<WindowSnapshot> window = estimator.takeCapturedWindow()) {
       writeCapturedWindow(std::move(*window), spec, k);
     }
-    FrameRecord record = toFrameRecord(result);
+    FrameRecord record = result;  // the result's /frames row
     if (auto p_gt = interpolatePosition(gt_est, frame.t_ns)) record.p_gt = *p_gt;
     recordFrame(k, frame, result, record, spec, config, writer, &trace, &outcome);
     if (context.progress) context.progress(k + 1, total);

@@ -104,14 +104,13 @@ double maxPositionError(const test::VioScenario& scenario, const char* variant,
     const FrameResult result = estimator.processFrame(frame);
     EXPECT_TRUE(result.status.ok()) << variant << ": " << result.status.toString();
     if (!result.status.ok()) return std::numeric_limits<double>::infinity();
-    if (positions != nullptr) positions->push_back(result.T_w_i.translation());
+    if (positions != nullptr) positions->push_back(result.p_est);
     if (min_eigen != nullptr && !estimator.prior().empty()) {
       const MatXd H = estimator.prior().hessianAtAnchor().template cast<double>();
       const double lambda_min = Eigen::SelfAdjointEigenSolver<MatXd>(H).eigenvalues()(0);
       *min_eigen = std::min(*min_eigen, lambda_min / H.trace());
     }
-    max_error = std::max(max_error,
-                         (result.T_w_i.translation() - scenario.truePosition(frame.t_ns)).norm());
+    max_error = std::max(max_error, (result.p_est - scenario.truePosition(frame.t_ns)).norm());
   }
   return max_error;
 }

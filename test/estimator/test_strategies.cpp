@@ -139,8 +139,7 @@ void expectRecoveredEvents(const Variant& variant, double max_position_error_m,
   for (const TrackFrame& frame : scenario.stream.frames) {
     const FrameResult result = estimator.processFrame(frame);
     ASSERT_TRUE(result.status.ok()) << result.status.toString();
-    max_error = std::max(max_error,
-                         (result.T_w_i.translation() - scenario.truePosition(frame.t_ns)).norm());
+    max_error = std::max(max_error, (result.p_est - scenario.truePosition(frame.t_ns)).norm());
     if (!result.sparsify_event) continue;
     const SparsifyEvent& event = *result.sparsify_event;
     ++events;

@@ -94,8 +94,8 @@ double maxPositionError(const Scenario& scenario, const Variant& variant) {
     const FrameResult result = estimator.processFrame(frame);
     EXPECT_TRUE(result.status.ok()) << result.status.toString();
     if (!result.status.ok()) return std::numeric_limits<double>::infinity();
-    max_error = std::max(
-        max_error, (result.T_w_i.translation() - scenario.truth(frame.t_ns).translation()).norm());
+    max_error =
+        std::max(max_error, (result.p_est - scenario.truth(frame.t_ns).translation()).norm());
   }
   return max_error;
 }
@@ -233,9 +233,8 @@ TEST(VoStopRule, BasaltRuleCountsEvaluationsAndRecoversTheTruth) {
       results.push_back(estimator.processFrame(frame));
       EXPECT_TRUE(results.back().status.ok()) << results.back().status.toString();
       EXPECT_LE(results.back().cost_final, results.back().cost_initial);
-      *error = std::max(
-          *error,
-          (results.back().T_w_i.translation() - scenario.truth(frame.t_ns).translation()).norm());
+      *error = std::max(*error,
+                        (results.back().p_est - scenario.truth(frame.t_ns).translation()).norm());
     }
     return results;
   };
@@ -273,7 +272,7 @@ TEST(VoThreads, ThreadedLmLoopMatchesOneThreadAndIsReproducible) {
       for (const TrackFrame& frame : scenario.stream.frames) {
         const FrameResult result = estimator.processFrame(frame);
         EXPECT_TRUE(result.status.ok()) << result.status.toString();
-        const Eigen::Vector3d p = result.T_w_i.translation();
+        const Eigen::Vector3d p = result.p_est;
         out.insert(out.end(), {p.x(), p.y(), p.z(), result.cost_final});
       }
       return out;
