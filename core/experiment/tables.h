@@ -53,9 +53,14 @@
 // Ours only (Table::has_paper false: the paper has no such storage); runs over the first N frames
 // are left out, so that a short group never sits beside whole runs in one row.
 //
+// Every table above is one declarative TableSpec (table_specs.h: columns, quantity, seed
+// statistics, rows, paper values, notes), listed in publishedTables() (table_specs.cpp) and made by
+// the one generic builder; a new study's table is one more entry there.
+//
 // One unit per job: paper_values.cpp (loadPaperValues), results_loading.cpp (loadResults),
-// table_builder.cpp (buildTables), table_render.cpp (Markdown / LaTeX / CSV) and tables.cpp
-// (writeTables: the verb's files).
+// table_specs.cpp (the tables as data), table_builder.cpp (buildTables: any spec from the runs),
+// table_run_stats.cpp (what a cell reads from a results file beyond /summary), table_render.cpp
+// (Markdown / LaTeX / CSV) and tables.cpp (writeTables: the verb's files).
 
 #include <map>
 #include <optional>
@@ -206,6 +211,7 @@ enum class SeedStats { kAuto, kOn, kOff };
 // False for a name other than "auto", "on", "off".
 bool parseSeedStats(const std::string& text, SeedStats* mode);
 
+// The published tables (publishedTables(), table_specs.h) of the runs, one set per override.
 std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& paper,
                                   SeedStats seeds = SeedStats::kAuto);
 
@@ -224,7 +230,7 @@ std::string formatCell(const TableCell& cell, std::size_t component, int decimal
 struct TablesRequest {
   std::vector<std::string> dirs;
   std::string formats = "md,tex,csv";
-  std::string out;           // default <first dir>/tables  // default <first dir>/tables
+  std::string out;           // default <first dir>/tables
   std::string paper_values;  // default defaultPaperValuesPath()
   SeedStats seeds = SeedStats::kAuto;
   bool print = false;
