@@ -139,23 +139,39 @@ TableCell seedCell(const Selection& sel, const std::vector<RunValue>& quantities
   return cell;
 }
 
-// A cell of the frames where the failed runs of a selection stopped: their median (kMissing, "–",
-// when none failed).
-TableCell failureFrameCell(const Selection& sel) {
+// A cell of the median of values, n_runs their number (kMissing, "–", without one).
+TableCell medianCell(std::vector<double> values) {
   TableCell cell;
+  cell.n_runs = static_cast<int>(values.size());
+  if (values.empty()) return cell;
+  std::sort(values.begin(), values.end());
+  const std::size_t n = values.size();
+  cell.state = TableCell::State::kValue;
+  cell.numbers = {n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2])};
+  return cell;
+}
+
+// The median frame where the failed runs of a selection stopped.
+TableCell failureFrameCell(const Selection& sel) {
   std::vector<double> frames;
   for (const RunRecord* r : sel.runs) {
     if (r->state == RunRecord::State::kFailed && r->failure_frame >= 0) {
       frames.push_back(static_cast<double>(r->failure_frame));
     }
   }
-  cell.n_runs = static_cast<int>(frames.size());
-  if (frames.empty()) return cell;
-  std::sort(frames.begin(), frames.end());
-  const std::size_t n = frames.size();
-  cell.state = TableCell::State::kValue;
-  cell.numbers = {n % 2 == 1 ? frames[n / 2] : 0.5 * (frames[n / 2 - 1] + frames[n / 2])};
-  return cell;
+  return medianCell(std::move(frames));
+}
+
+// The median of one value over the finished runs of a selection where it is finite (a run whose
+// results file is not in its folder has none).
+TableCell medianOfRuns(const Selection& sel, RunValue value, const RunFileCache& files) {
+  std::vector<double> values;
+  for (const RunRecord* r : sel.runs) {
+    if (r->state == RunRecord::State::kMissing) continue;
+    const double v = value(RunView{*r, files});
+    if (std::isfinite(v)) values.push_back(v);
+  }
+  return medianCell(std::move(values));
 }
 
 // frontends: where the runs' tracks came from (results file attribute "frontend").
@@ -276,6 +292,7 @@ class Builder {
         perSequenceAndKeyRows(spec, columns, &t, &context);
         break;
     }
+    if (spec.needs_files && !anyValue(t)) t.rows.clear();
     if (t.rows.empty()) {
       std::vector<std::string> keys;
       for (const BuiltColumn& c : columns) keys.push_back(c.column.variant);
@@ -314,6 +331,14 @@ class Builder {
   }
 
  private:
+  static bool anyValue(const Table& t) {
+    return std::any_of(t.rows.begin(), t.rows.end(), [](const TableRow& row) {
+      return std::any_of(row.ours.begin(), row.ours.end(), [](const TableCell& cell) {
+        return cell.state == TableCell::State::kValue;
+      });
+    });
+  }
+
   // The spec's columns as built: optional ones only when they ran, groups expanded.
   std::vector<BuiltColumn> columnsOf(const TableSpec& spec) const {
     std::vector<BuiltColumn> columns;
@@ -432,6 +457,7 @@ class Builder {
   TableCell cellOf(CellStat stat, bool seed_stats, const Selection& sel,
                    const std::vector<RunValue>& values) const {
     if (stat == CellStat::kFailureFrame) return failureFrameCell(sel);
+    if (stat == CellStat::kMedian) return medianOfRuns(sel, values.front(), files_);
     return seed_stats ? seedCell(sel, values, files_) : meanCell(sel, values, files_);
   }
 
@@ -469,6 +495,7 @@ class Builder {
         row.frames = framesLabel(dataset, defining);
         row.ours_decimals = spec.ours_decimals;
         row.paper_decimals = spec.paper_decimals;
+        row.scientific = spec.scientific;
         for (const BuiltColumn& c : columns) {
           row.ours.push_back(cellOf(spec.cell, context->seed_stats,
                                     select(dataset, c.column.variant), valuesOf(spec, *c.spec)));
@@ -744,8 +771,8 @@ class Builder {
   RunFileCache files_;
 };
 
-// The builders of one override: every run, and the whole-sequence runs (a sweep with a short
-// group, the first N frames, would otherwise put its runs beside whole runs in one row).
+// The builders of one override: every run, the whole-sequence runs and those of a short group (the
+// first N frames; a sweep with one would otherwise put its runs beside whole runs in one row).
 TableSet overrideSet(const ResultSet& results, const PaperValues& paper, SeedStats seeds,
                      const std::vector<TableSpec>& specs, const SeedClaimSpec& claim_spec,
                      const std::string& o) {
@@ -753,17 +780,24 @@ TableSet overrideSet(const ResultSet& results, const PaperValues& paper, SeedSta
     if (r.row.get("override") != o) return std::nullopt;
     return r.row.get("variant");
   });
-  const Builder whole(results, paper, [&o](const RunRecord& r) -> std::optional<std::string> {
-    const double frames = r.row.number("frames");
-    if (r.row.get("override") != o || (std::isfinite(frames) && frames > 0)) return std::nullopt;
-    return r.row.get("variant");
-  });
+  const auto length = [&o](bool short_group) {
+    return [&o, short_group](const RunRecord& r) -> std::optional<std::string> {
+      const double frames = r.row.number("frames");
+      if (r.row.get("override") != o || (std::isfinite(frames) && frames > 0) != short_group) {
+        return std::nullopt;
+      }
+      return r.row.get("variant");
+    };
+  };
+  const Builder whole(results, paper, length(false)), short_group(results, paper, length(true));
   TableSet set;
   set.override_name = o;
   bool claim = false;
   for (const TableSpec& spec : specs) {
     if (spec.keys == Keys::kMargStrategy) continue;
-    const Builder& builder = spec.keys == Keys::kVariantWhole ? whole : all;
+    const Builder& builder = spec.keys == Keys::kVariantWhole   ? whole
+                             : spec.keys == Keys::kVariantShort ? short_group
+                                                                : all;
     const bool on_request =
         spec.cell == CellStat::kSeedsOnRequest &&
         (seeds == SeedStats::kOn || (seeds == SeedStats::kAuto && builder.severalSeeds(spec.rows)));

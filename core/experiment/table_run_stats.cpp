@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 #include <set>
 
 #include "core/common/error.h"
@@ -103,12 +104,23 @@ RunFileStats readRunFileStats(const std::string& path) {
   }
   s.opt = moments(frames.t_opt_s);
   s.marg = moments(marg);
+  for (const MargRecord& m : reader.margs(/*with_eigenvalues=*/false)) {
+    if (!std::isfinite(m.sigma_min) || !std::isfinite(m.sigma_max) || m.sigma_max <= 0) continue;
+    const double ratio = m.sigma_min / m.sigma_max;
+    if (!(ratio >= s.worst_sigma_ratio)) s.worst_sigma_ratio = ratio;  // NaN: the first
+  }
   return s;
 }
 
 const RunFileStats& RunFileCache::of(const RunRecord& run) const {
   auto it = stats_.find(&run);
-  if (it == stats_.end()) it = stats_.emplace(&run, readRunFileStats(run.results_path)).first;
+  if (it == stats_.end()) {
+    it = stats_
+             .emplace(&run, std::filesystem::is_regular_file(run.results_path)
+                                ? readRunFileStats(run.results_path)
+                                : RunFileStats{})
+             .first;
+  }
   return it->second;
 }
 

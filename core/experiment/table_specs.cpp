@@ -26,6 +26,7 @@ double optStd(const RunView& r) { return r.file().opt.std; }
 double margMean(const RunView& r) { return r.file().marg.mean; }
 double margRmse(const RunView& r) { return r.file().marg.rmse; }
 double margStd(const RunView& r) { return r.file().marg.std; }
+double worstSigmaRatio(const RunView& r) { return r.file().worst_sigma_ratio; }
 
 // A variant whose prior storage is preconditioned (sqp, sqj, sqrtp:
 // docs/preconditioned_storage.md).
@@ -61,6 +62,8 @@ const char* const kStorages =
     "sqj = the same with point-Jacobi scaling, sqrtp = square-root prior made by the "
     "block-preconditioned LDLT; the preconditioning also scales the LM step's LDLT.";
 const char* const kWholeOnly = " Whole sequences only (runs over the first N frames are left out).";
+const char* const kShortOnly =
+    " Runs over the first N frames only (the whole sequences are left out).";
 const char* const kNoPaper = "No paper values: the paper has no preconditioned storage.";
 
 NoteSpec note(NoteKind kind, std::string text = "") { return {kind, std::move(text), ""}; }
@@ -177,17 +180,24 @@ TableSpec ablationTable(int number, Family family) {
 
 // ---- the preconditioned-storage study (issue #31 §3) --------------------------------------------
 
+enum class Study { kAte, kFailures, kSigma };
+
 // Per sequence, each preconditioned storage that ran beside the references that ran (the paper's
 // √-f32 and SC-32, and the square root of an unpreconditioned LDLT, which sqrtp preconditions):
-// the ATE over the seeds, or (failures) the median frame where the failed seeds stopped. Whole
-// sequences only, so that a short group never sits beside whole runs in one row.
-TableSpec preconditionedTable(bool failures) {
+// the ATE over the seeds, the median frame where the failed seeds stopped, or how indefinite the
+// stored prior became. Whole sequences, or (short) a sweep's short group, never both in one row.
+TableSpec preconditionedTable(Study study, bool short_group) {
   TableSpec t;
-  t.id = failures ? "preconditioned_failures" : "preconditioned";
-  t.title = failures ? "Preconditioned Hessian storage: median frame where the failed runs stopped"
-                     : "Preconditioned Hessian storage: absolute trajectory error [m]";
+  const char* const ids[] = {"preconditioned", "preconditioned_failures", "preconditioned_sigma"};
+  const char* const titles[] = {"absolute trajectory error [m]",
+                                "median frame where the failed runs stopped",
+                                "how indefinite the stored prior becomes, median σ_min/σ_max"};
+  const auto s = static_cast<std::size_t>(study);
+  t.id = std::string(ids[s]) + (short_group ? "_short" : "");
+  t.title = std::string("Preconditioned Hessian storage: ") + titles[s] +
+            (short_group ? ", the short group (first N frames)" : "");
   t.row_header = "sequence";
-  t.keys = Keys::kVariantWhole;
+  t.keys = short_group ? Keys::kVariantShort : Keys::kVariantWhole;
   t.rows = {{Family::kVio, "table1"}, {Family::kVo, "table2"}};
   for (const char* reference : {"ns-qr-sqrt-f32", "sc-sc-sq-f32", "sc-sc-sqrt-f32"}) {
     ColumnSpec c = column(reference);
@@ -195,27 +205,34 @@ TableSpec preconditionedTable(bool failures) {
     c.optional = true;
     t.columns.push_back(c);
   }
-  ColumnSpec study;
-  study.matching = isPreconditioned;
-  study.order = {"sc-sc-sqp-f32", "ns-sc-sqp-f32", "sc-sc-sqj-f32", "sc-sc-sqrtp-f32",
+  ColumnSpec group;
+  group.matching = isPreconditioned;
+  group.order = {"sc-sc-sqp-f32", "ns-sc-sqp-f32", "sc-sc-sqj-f32", "sc-sc-sqrtp-f32",
                  "sc-sc-sqp-f64"};
-  t.columns.push_back(study);
-  t.quantities = {{failures ? "failure_frame" : "ate", ate}};
-  t.cell = failures ? CellStat::kFailureFrame : CellStat::kSeeds;
-  t.ours_decimals = failures ? 0 : 4;
-  t.ranked = !failures;
-  t.notes = {note(NoteKind::kText, kStorages),
-             note(NoteKind::kText,
-                  failures ? "Median over the seeds that failed of the frame where the run stopped "
-                             "(index failure_frame); –: no seed failed, or no run."
-                           : "ATE: results /summary ate_rmse, mean ± sample standard deviation "
-                             "over the seeds whose run finished ok; `x k/n`: k of the n finished "
-                             "seeds failed (left out of the mean)."),
-             note(NoteKind::kMode, kWholeOnly),
-             note(NoteKind::kText, failures ? std::string(kNoPaper)
-                                            : std::string("Bold: best of the row; x: failed; –: "
-                                                          "no run. ") +
-                                                  kNoPaper)};
+  t.columns.push_back(group);
+  const char* const quantities[] = {"ate", "failure_frame", "sigma_ratio"};
+  t.quantities = {{quantities[s], study == Study::kSigma ? worstSigmaRatio : ate}};
+  const CellStat cells[] = {CellStat::kSeeds, CellStat::kFailureFrame, CellStat::kMedian};
+  t.cell = cells[s];
+  t.ours_decimals = study == Study::kFailures ? 0 : study == Study::kSigma ? 1 : 4;
+  t.scientific = t.needs_files = study == Study::kSigma;
+  t.ranked = study == Study::kAte;
+  const char* const what[] = {
+      "ATE: results /summary ate_rmse, mean ± sample standard deviation over the seeds whose run "
+      "finished ok; `x k/n`: k of the n finished seeds failed (left out of the mean).",
+      "Median over the seeds that failed of the frame where the run stopped (index "
+      "failure_frame); –: no seed failed, or no run.",
+      "σ_min/σ_max: the most negative ratio of the gauge-free prior's smallest to largest "
+      "eigenvalue over the run (results /marg sigma_min, sigma_max): 0 exactly, about ±1e-7 from "
+      "f32 rounding, below: an indefinite prior; median over the finished seeds whose results "
+      "file is in its folder (their number: n_runs of the CSV); –: none."};
+  t.notes = {note(NoteKind::kText, kStorages), note(NoteKind::kText, what[s]),
+             note(NoteKind::kMode, short_group ? kShortOnly : kWholeOnly),
+             note(NoteKind::kText, study == Study::kAte
+                                       ? std::string("Bold: best of the row; x: failed; –: no "
+                                                     "run. ") +
+                                             kNoPaper
+                                       : std::string(kNoPaper))};
   return t;
 }
 
@@ -333,12 +350,20 @@ bool inFamily(Family family, const std::string& dataset) {
 }
 
 const std::vector<TableSpec>& publishedTables() {
-  static const std::vector<TableSpec> kTables = {
-      ateTable(1, true),          ateTable(2, false),
-      runtimeTable(3, true),      ablationTable(4, Family::kEuroc),
-      runtimeTable(5, false),     ablationTable(6, Family::kVo),
-      preconditionedTable(false), preconditionedTable(true),
-      strategyAccuracy(),         strategyTiming()};
+  static const std::vector<TableSpec> kTables = {ateTable(1, true),
+                                                 ateTable(2, false),
+                                                 runtimeTable(3, true),
+                                                 ablationTable(4, Family::kEuroc),
+                                                 runtimeTable(5, false),
+                                                 ablationTable(6, Family::kVo),
+                                                 preconditionedTable(Study::kAte, false),
+                                                 preconditionedTable(Study::kFailures, false),
+                                                 preconditionedTable(Study::kSigma, false),
+                                                 preconditionedTable(Study::kAte, true),
+                                                 preconditionedTable(Study::kFailures, true),
+                                                 preconditionedTable(Study::kSigma, true),
+                                                 strategyAccuracy(),
+                                                 strategyTiming()};
   return kTables;
 }
 

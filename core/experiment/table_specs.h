@@ -34,11 +34,15 @@ struct RunFileStats {
   int events = 0, recovered = 0;
   Moments opt;   // /frames t_opt_s, every frame
   Moments marg;  // /frames t_marg_s of the frames that marginalized a keyframe
+  // The most negative σ_min/σ_max of the gauge-free prior over the run (/marg): 0 for an exact
+  // prior, about ±ε of the precision from rounding, below for an indefinite prior.
+  double worst_sigma_ratio = std::numeric_limits<double>::quiet_NaN();
 };
 // Reads them (table_run_stats.cpp); throws InputError.
 RunFileStats readRunFileStats(const std::string& path);
 
-// The results files' statistics of a table set's runs, each file read on first use.
+// The results files' statistics of a table set's runs, each file read on first use; NaN for a run
+// whose file is not in its folder.
 class RunFileCache {
  public:
   const RunFileStats& of(const RunRecord& run) const;
@@ -75,6 +79,7 @@ enum class CellStat {
   kSeedsOnRequest,  // kSeeds when --seeds on, or auto and a cell of the rows' families holds
                     // several seeds (then the seed claim table too); kMean otherwise
   kFailureFrame,    // median frame where the failed runs stopped (`–` when none failed)
+  kMedian,          // median over the finished runs with a finite value (`–` without one)
 };
 
 struct ColumnSpec {
@@ -122,6 +127,7 @@ enum class Layout {
 enum class Keys {
   kVariant,       // the run's variant; one table set per override
   kVariantWhole,  // the same, runs over the whole sequence only (a short group is left out)
+  kVariantShort,  // the same, runs over the first N frames only (a sweep's short group)
   kMargStrategy,  // the results attribute marg_strategy, across overrides, one table per variant
                   // that has dense or nfr runs (ids get `_<variant>` when there are several)
 };
@@ -158,7 +164,11 @@ struct TableSpec {
   std::string paper_row_key;          // kPerSequenceAndKey: the row key the paper's values sit by
   CellStat cell = CellStat::kMean;
   int ours_decimals = 4, paper_decimals = 3;
-  bool ranked = true;  // bold: the best of each row among ours and among the paper's
+  bool scientific = false;  // numbers of ours as 1.2e-07, ours_decimals in the mantissa
+  bool ranked = true;       // bold: the best of each row among ours and among the paper's
+  // Cells read the runs' results files: the table is absent when no cell of ours has a value (a
+  // committed folder keeps its index, not its runs).
+  bool needs_files = false;
   std::vector<NoteSpec> notes;
   std::string skipped;  // why the table is absent, with {columns}; "" says nothing
 };

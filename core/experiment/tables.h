@@ -106,9 +106,9 @@ std::string defaultPaperValuesPath();  // <source dir>/experiments/paper_values.
 // ---- our results --------------------------------------------------------------------------------
 
 struct RunRecord {
-  IndexRow row;               // the index row
-  std::string dir;            // the sweep folder it came from
-  std::string results_path;   // absolute or relative to the working directory
+  IndexRow row;              // the index row
+  std::string dir;           // the sweep folder it came from
+  std::string results_path;  // absolute or relative to the working directory
   // kMissing: no complete results file, and not failed.
   enum class State { kOk, kFailed, kMissing } state = State::kMissing;
   std::string mode;           // results file attribute "mode" ("vo" | "vio")
@@ -153,6 +153,7 @@ struct TableRow {
   int paper_decimals = 3;
   bool higher_is_better = false;
   std::string suffix;            // printed after numbers ("x" for the real-time factor)
+  bool scientific = false;       // numbers as 1.2e-07 (decimals of the mantissa), not fixed
   std::vector<TableCell> ours;   // one per column
   std::vector<TableCell> paper;  // one per column
 };
@@ -221,9 +222,10 @@ std::string renderCsv(const std::vector<Table>& tables, const std::string& overr
 std::string renderMarkdown(const SeedClaim& claim);
 std::string renderLatex(const SeedClaim& claim);
 std::string renderCsv(const SeedClaim& claim, const std::string& override_name);
-// A number as the tables print it: fixed decimals, "x" for failures, "–" for missing.
+// A number as the tables print it: fixed decimals (or scientific), "x" for failures, "–" for
+// missing.
 std::string formatCell(const TableCell& cell, std::size_t component, int decimals,
-                       const std::string& suffix);
+                       const std::string& suffix, bool scientific = false);
 
 // ---- files --------------------------------------------------------------------------------------
 
