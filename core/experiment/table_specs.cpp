@@ -241,16 +241,25 @@ TableSpec preconditionedTable(Study study, bool short_group) {
 // Their order of columns: theirs (nfr), the dense prior it sparsifies, OKVIS's (discard).
 const std::vector<std::string> kStrategies = {"nfr", "dense", "discard"};
 
-// Table I analog: ATE per EuRoC sequence and strategy, the nfr runs' KLD and sparsity beside.
-TableSpec strategyAccuracy() {
+// What both strategy tables share: the paper's table of the same id, the EuRoC rows in its order,
+// columns keyed by strategy.
+TableSpec strategyTable(const std::string& id, std::string title, std::string row_header) {
   TableSpec t;
-  t.id = t.paper = "sparsify_table1";
-  t.title =
-      "Table I (Hsiung et al.): absolute trajectory error [m] by marginalization strategy, "
-      "{variant}";
-  t.row_header = "sequence";
+  t.id = t.paper = id;
+  t.title = std::move(title);
+  t.row_header = std::move(row_header);
   t.keys = Keys::kMargStrategy;
   t.rows = {{Family::kEuroc, t.paper}};
+  return t;
+}
+
+// Table I analog: ATE per EuRoC sequence and strategy, the nfr runs' KLD and sparsity beside.
+TableSpec strategyAccuracy() {
+  TableSpec t = strategyTable(
+      "sparsify_table1",
+      "Table I (Hsiung et al.): absolute trajectory error [m] by marginalization strategy, "
+      "{variant}",
+      "sequence");
   for (const std::string& s : kStrategies) t.columns.push_back(column(s, s, s));
   for (const auto& [label, quantity, value] :
        {std::tuple<const char*, const char*, RunValue>{"KLD nfr [nats]", "kld", kld},
@@ -289,15 +298,12 @@ TableSpec strategyAccuracy() {
 // Table II analog: one row per sequence × strategy, the time statistics as columns, the paper's
 // (Proposed) beside the nfr rows.
 TableSpec strategyTiming() {
-  TableSpec t;
-  t.id = t.paper = "sparsify_table2";
-  t.title =
+  TableSpec t = strategyTable(
+      "sparsify_table2",
       "Table II (Hsiung et al.): run time [s] per optimization and per keyframe marginalization "
-      "by marginalization strategy, {variant}";
-  t.row_header = "sequence strategy";
+      "by marginalization strategy, {variant}",
+      "sequence strategy");
   t.layout = Layout::kPerSequenceAndKey;
-  t.keys = Keys::kMargStrategy;
-  t.rows = {{Family::kEuroc, t.paper}};
   t.row_keys = kStrategies;
   t.paper_row_key = "nfr";
   // Column keys are the paper's column ids.

@@ -10,7 +10,9 @@
 #include <fmt/core.h>
 
 #include <cmath>
+#include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/experiment/table_specs.h"
@@ -45,14 +47,21 @@ bool isF32(const std::string& variant) {
   return variant.size() > 4 && variant.substr(variant.size() - 3) == "f32";
 }
 
+// A spec's head: id, title, row header and one group of rows.
+TableSpec head(const std::string& id, const std::string& row_header, RowGroup rows) {
+  TableSpec t;
+  t.id = id;
+  t.title = id;
+  t.row_header = row_header;
+  t.rows = {std::move(rows)};
+  return t;
+}
+
 // The study: ms per frame over the seeds, the √-f64 reference (when it ran) beside every f32
 // variant, EuRoC rows in the order of paper table "t", then by name.
 TableSpec studySpec() {
-  TableSpec t;
-  t.id = "study";
+  TableSpec t = head("study", "sequence", {Family::kEuroc, "t"});
   t.title = "Study: optimization time per frame [ms]";
-  t.row_header = "sequence";
-  t.rows = {{Family::kEuroc, "t"}};
   ColumnSpec reference;
   reference.key = "ns-qr-sqrt-f64";
   reference.label_md = "√-64";
@@ -128,12 +137,8 @@ TEST(TableSpecs, AnAbsentTableSaysWhyWithItsColumns) {
 // Averages over the sequences that have every column: per sequence the mean over seeds, then the
 // mean over sequences; a `per` metric is Σ value / Σ per over all those runs.
 TEST(TableSpecs, ANewAveragesSpecIsOneEntry) {
-  TableSpec t;
-  t.id = "averages";
-  t.title = "Averages";
-  t.row_header = "metric";
+  TableSpec t = head("averages", "metric", {Family::kVo, ""});
   t.layout = Layout::kAverages;
-  t.rows = {{Family::kVo, ""}};
   for (const char* v : {"a-f64", "b-f32"}) {
     ColumnSpec c;
     c.key = v;
@@ -170,6 +175,41 @@ TEST(TableSpecs, ANewAveragesSpecIsOneEntry) {
   EXPECT_TRUE(table.rows[1].ours[0].best[0] && table.rows[1].ours[1].best[0]);  // higher, tied
   EXPECT_EQ(table.notes,
             std::vector<std::string>{"Over 2: kitti/00 (all frames), kitti/05 (all frames)."});
+}
+
+// A median over the seeds, printed in scientific notation, of a value only some runs have (as a
+// statistic of results files that a committed folder does not keep): without any value the table
+// is absent rather than a table of dashes.
+TEST(TableSpecs, AMedianSpecOfValuesSomeRunsLack) {
+  TableSpec t = head("median", "sequence", {Family::kVio, ""});
+  ColumnSpec c;
+  c.key = "v-f32";
+  t.columns = {c};
+  t.quantities = {{"ratio", [](const RunView& r) {
+                     return r.record.ate_rmse > 1 ? std::numeric_limits<double>::quiet_NaN()
+                                                  : -1e-6 * r.record.ate_rmse;
+                   }}};
+  t.cell = CellStat::kMedian;
+  t.scientific = t.needs_files = true;
+  t.ours_decimals = 1;
+  t.ranked = false;
+  ResultSet runs;
+  for (int seed = 1; seed <= 4; ++seed) {
+    runs.runs.push_back(run("euroc/MH_01_easy", "v-f32", seed, seed == 4 ? 9.0 : 0.1 * seed));
+  }
+  std::vector<TableSet> sets = buildTables(runs, PaperValues{}, SeedStats::kAuto, {t}, {});
+  ASSERT_EQ(sets.size(), 1u);
+  ASSERT_EQ(sets[0].tables.size(), 1u);
+  const TableCell& cell = sets[0].tables[0].rows.at(0).ours.at(0);
+  EXPECT_EQ(cell.n_runs, 3);  // the seed without a value is left out
+  EXPECT_DOUBLE_EQ(cell.numbers.at(0), -1e-6 * 0.2);
+  EXPECT_NE(renderMarkdown(sets[0].tables[0]).find("| euroc/MH_01_easy | all | -2.0e-07 |"),
+            std::string::npos)
+      << renderMarkdown(sets[0].tables[0]);
+  for (RunRecord& r : runs.runs) r.ate_rmse = 9.0;
+  sets = buildTables(runs, PaperValues{}, SeedStats::kAuto, {t}, {});
+  ASSERT_EQ(sets.size(), 1u);
+  EXPECT_TRUE(sets[0].tables.empty());
 }
 
 }  // namespace
