@@ -59,8 +59,9 @@
 //
 // One unit per job: paper_values.cpp (loadPaperValues), results_loading.cpp (loadResults),
 // table_specs.cpp (the tables as data), table_builder.cpp (buildTables: any spec from the runs),
-// table_run_stats.cpp (what a cell reads from a results file beyond /summary), table_render.cpp
-// (Markdown / LaTeX / CSV) and tables.cpp (writeTables: the verb's files).
+// table_cells.cpp (a cell from its runs, the paper's cell, the best of a row), table_run_stats.cpp
+// (what a cell reads from a results file beyond /summary), table_render.cpp (Markdown / LaTeX /
+// CSV) and tables.cpp (writeTables: the verb's files).
 
 #include <map>
 #include <optional>
