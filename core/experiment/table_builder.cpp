@@ -454,13 +454,16 @@ class Builder {
     const PaperTable* paper = paperTable(spec.paper);
     for (std::size_t m = 0; m < spec.metrics.size(); ++m) {
       const MetricSpec& metric = spec.metrics[m];
-      TableRow row;
-      row.key = metric.key;
-      row.label = metric.label;
-      row.ours_decimals = metric.ours_decimals;
-      row.paper_decimals = metric.paper_decimals;
-      row.higher_is_better = metric.higher_is_better;
-      row.suffix = metric.suffix;
+      TableRow row{metric.key,
+                   metric.label,
+                   "",
+                   metric.ours_decimals,
+                   metric.paper_decimals,
+                   metric.higher_is_better,
+                   metric.suffix,
+                   /*scientific=*/false,
+                   {},
+                   {}};
       for (std::size_t c = 0; c < columns.size(); ++c) {
         row.ours.push_back(by_column[c][m]);
         row.paper.push_back(paperCell(paper, metric.key, columns[c].column.variant, t->quantities));

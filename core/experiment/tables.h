@@ -50,8 +50,12 @@
 //                            references that ran (ns-qr-sqrt-f32, sc-sc-sq-f32, sc-sc-sqrt-f32),
 //                            with seed statistics
 //   preconditioned_failures  the median frame where the failed seeds of each cell stopped
+//   preconditioned_sigma     the most negative σ_min/σ_max of each run's gauge-free prior (/marg),
+//                            median over the seeds; only when the runs' results files are there
 // Ours only (Table::has_paper false: the paper has no such storage); runs over the first N frames
-// are left out, so that a short group never sits beside whole runs in one row.
+// are left out, so that a short group never sits beside whole runs in one row; the same three
+// over a short group's runs only: preconditioned_short, preconditioned_failures_short,
+// preconditioned_sigma_short.
 //
 // Every table above is one declarative TableSpec (table_specs.h: columns, quantity, seed
 // statistics, rows, paper values, notes), listed in publishedTables() (table_specs.cpp) and made by
