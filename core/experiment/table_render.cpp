@@ -34,10 +34,12 @@ std::string cellMarkdown(const TableCell& cell, const TableRow& row, const Table
                          bool ours) {
   const int decimals = decimalsOf(row, column, ours);
   if (cell.state == TableCell::State::kFailed && cell.seed_stats) return failedText(cell, " ");
-  if (cell.state != TableCell::State::kValue) return formatCell(cell, 0, decimals, row.suffix);
+  if (cell.state != TableCell::State::kValue) {
+    return formatCell(cell, 0, decimals, row.suffix, row.scientific);
+  }
   std::vector<std::string> parts;
   for (std::size_t q = 0; q < cell.numbers.size(); ++q) {
-    const std::string text = formatCell(cell, q, decimals, row.suffix);
+    const std::string text = formatCell(cell, q, decimals, row.suffix, row.scientific);
     parts.push_back((cell.best.size() > q && cell.best[q] ? "**" + text + "**" : text) +
                     spreadText(cell, q, decimals, " ± "));
   }
@@ -54,7 +56,7 @@ std::string cellLatex(const TableCell& cell, const TableRow& row, const TableCol
   }
   std::vector<std::string> parts;
   for (std::size_t q = 0; q < cell.numbers.size(); ++q) {
-    const std::string text = formatCell(cell, q, decimals, row.suffix);
+    const std::string text = formatCell(cell, q, decimals, row.suffix, row.scientific);
     parts.push_back((cell.best.size() > q && cell.best[q] ? "\\textbf{" + text + "}" : text) +
                     spreadText(cell, q, decimals, " $\\pm$ "));
   }
@@ -100,12 +102,13 @@ std::string texNote(const std::string& note) {
 }  // namespace
 
 std::string formatCell(const TableCell& cell, std::size_t component, int decimals,
-                       const std::string& suffix) {
+                       const std::string& suffix, bool scientific) {
   if (cell.state == TableCell::State::kFailed) return "x";
   if (cell.state == TableCell::State::kMissing || component >= cell.numbers.size()) return "–";
   const double v = cell.numbers[component];
   if (std::isnan(v)) return "nan";
-  return fmt::format("{:.{}f}{}", v, decimals, suffix);
+  return scientific ? fmt::format("{:.{}e}{}", v, decimals, suffix)
+                    : fmt::format("{:.{}f}{}", v, decimals, suffix);
 }
 
 std::string renderMarkdown(const Table& table) {

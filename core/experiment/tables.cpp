@@ -29,20 +29,72 @@ void requireSomeTable(const std::vector<TableSet>& sets, const std::vector<std::
                                why.empty() ? "no runs" : fmt::format("{}", fmt::join(why, "; "))));
 }
 
-}  // namespace
-
-// Writes the tables; returns the combined files written (tables[__override].md|tex|csv). Shared
-// with `marglab reproduce`.
-std::vector<std::string> writeTables(const TablesRequest& request, std::string* markdown) {
-  namespace fs = std::filesystem;
+std::vector<std::string> parseFormats(const std::string& text) {
   std::vector<std::string> formats;
-  std::stringstream list(request.formats);
+  std::stringstream list(text);
   for (std::string f; std::getline(list, f, ',');) {
     if (f != "md" && f != "tex" && f != "csv") {
       throw UsageError("--format takes md, tex and csv separated by commas, not '" + f + "'");
     }
     formats.push_back(f);
   }
+  return formats;
+}
+
+// A table (or a set's combined tables) as Markdown, LaTeX and CSV.
+struct Rendered {
+  std::string md, tex, csv;
+};
+
+// Writes <base>.<format> for each format; returns the paths.
+std::vector<std::string> writeFormats(const std::string& base,
+                                      const std::vector<std::string>& formats, const Rendered& r) {
+  std::vector<std::string> paths;
+  for (const std::string& f : formats) {
+    paths.push_back(base + "." + f);
+    writeFileAtomically(paths.back(), f == "md" ? r.md : f == "tex" ? r.tex : r.csv);
+  }
+  return paths;
+}
+
+// The files of one table set (tables.h, writeTables); returns the combined ones, adds its
+// Markdown to *markdown.
+std::vector<std::string> writeSet(const TableSet& set, const std::string& out,
+                                  const std::vector<std::string>& formats, std::string* markdown) {
+  const std::string suffix = set.override_name.empty() ? "" : "__" + set.override_name;
+  const auto base = [&](const std::string& id) { return (fs::path(out) / (id + suffix)).string(); };
+  Rendered all{
+      set.override_name.empty() ? std::string() : "## Override " + set.override_name + "\n\n", "",
+      renderCsv(set.tables, set.override_name)};
+  for (const Table& t : set.tables) {
+    const Rendered one{renderMarkdown(t), renderLatex(t), renderCsv({t}, set.override_name)};
+    all.md += one.md;
+    all.tex += one.tex;
+    writeFormats(base(t.id), formats, one);
+  }
+  if (set.claim) {
+    const Rendered one{renderMarkdown(*set.claim), renderLatex(*set.claim),
+                       renderCsv(*set.claim, set.override_name)};
+    all.md += one.md;
+    all.tex += one.tex;
+    writeFormats(base(set.claim->id), formats, one);
+  }
+  for (const std::string& why : set.skipped) all.md += "_Not produced: " + why + "._\n\n";
+  std::vector<std::string> written = writeFormats(base("tables"), formats, all);
+  if (markdown != nullptr) *markdown += all.md;
+  fmt::print("tables{}: {} table(s) in {} ({})\n",
+             set.override_name.empty() ? "" : " (override " + set.override_name + ")",
+             set.tables.size(), out, fmt::join(formats, ", "));
+  for (const std::string& why : set.skipped) fmt::print("  not produced: {}\n", why);
+  return written;
+}
+
+}  // namespace
+
+// Writes the tables; returns the combined files written (tables[__override].md|tex|csv). Shared
+// with `marglab reproduce`.
+std::vector<std::string> writeTables(const TablesRequest& request, std::string* markdown) {
+  const std::vector<std::string> formats = parseFormats(request.formats);
   for (const std::string& dir : request.dirs) {
     if (!fs::is_regular_file(fs::path(dir) / "index.csv")) {
       throw InputError((fs::path(dir) / "index.csv").string(), 0,
@@ -59,48 +111,7 @@ std::vector<std::string> writeTables(const TablesRequest& request, std::string* 
   if (request.require_tables) requireSomeTable(sets, request.dirs);
   std::vector<std::string> written;
   for (const TableSet& set : sets) {
-    const std::string suffix = set.override_name.empty() ? "" : "__" + set.override_name;
-    std::string md =
-        set.override_name.empty() ? std::string() : "## Override " + set.override_name + "\n\n";
-    std::string tex, csv = renderCsv(set.tables, set.override_name);
-    for (const Table& t : set.tables) {
-      const std::string one_md = renderMarkdown(t);
-      const std::string one_tex = renderLatex(t);
-      md += one_md;
-      tex += one_tex;
-      const std::string base = (fs::path(out) / (t.id + suffix)).string();
-      for (const std::string& f : formats) {
-        const std::string path = base + "." + f;
-        writeFileAtomically(path, f == "md"    ? one_md
-                                  : f == "tex" ? one_tex
-                                               : renderCsv({t}, set.override_name));
-      }
-    }
-    if (set.claim) {
-      const std::string one_md = renderMarkdown(*set.claim);
-      const std::string one_tex = renderLatex(*set.claim);
-      md += one_md;
-      tex += one_tex;
-      const std::string base = (fs::path(out) / (set.claim->id + suffix)).string();
-      for (const std::string& f : formats) {
-        writeFileAtomically(base + "." + f, f == "md" ? one_md
-                                            : f == "tex"
-                                                ? one_tex
-                                                : renderCsv(*set.claim, set.override_name));
-      }
-    }
-    for (const std::string& why : set.skipped) md += "_Not produced: " + why + "._\n\n";
-    const std::string base = (fs::path(out) / ("tables" + suffix)).string();
-    for (const std::string& f : formats) {
-      const std::string path = base + "." + f;
-      writeFileAtomically(path, f == "md" ? md : f == "tex" ? tex : csv);
-      written.push_back(path);
-    }
-    if (markdown != nullptr) *markdown += md;
-    fmt::print("tables{}: {} table(s) in {} ({})\n",
-               set.override_name.empty() ? "" : " (override " + set.override_name + ")",
-               set.tables.size(), out, fmt::join(formats, ", "));
-    for (const std::string& why : set.skipped) fmt::print("  not produced: {}\n", why);
+    for (std::string& path : writeSet(set, out, formats, markdown)) written.push_back(path);
   }
   return written;
 }

@@ -50,12 +50,22 @@
 //                            references that ran (ns-qr-sqrt-f32, sc-sc-sq-f32, sc-sc-sqrt-f32),
 //                            with seed statistics
 //   preconditioned_failures  the median frame where the failed seeds of each cell stopped
+//   preconditioned_sigma     the most negative σ_min/σ_max of each run's gauge-free prior (/marg),
+//                            median over the seeds; only when the runs' results files are there
 // Ours only (Table::has_paper false: the paper has no such storage); runs over the first N frames
-// are left out, so that a short group never sits beside whole runs in one row.
+// are left out, so that a short group never sits beside whole runs in one row; the same three
+// over a short group's runs only: preconditioned_short, preconditioned_failures_short,
+// preconditioned_sigma_short.
+//
+// Every table above is one declarative TableSpec (table_specs.h: columns, quantity, seed
+// statistics, rows, paper values, notes), listed in publishedTables() (table_specs.cpp) and made by
+// the one generic builder; a new study's table is one more entry there.
 //
 // One unit per job: paper_values.cpp (loadPaperValues), results_loading.cpp (loadResults),
-// table_builder.cpp (buildTables), table_render.cpp (Markdown / LaTeX / CSV) and tables.cpp
-// (writeTables: the verb's files).
+// table_specs.cpp (the tables as data), table_builder.cpp (buildTables: any spec from the runs),
+// table_cells.cpp (a cell from its runs, the paper's cell, the best of a row), table_run_stats.cpp
+// (what a cell reads from a results file beyond /summary), table_render.cpp (Markdown / LaTeX /
+// CSV) and tables.cpp (writeTables: the verb's files).
 
 #include <map>
 #include <optional>
@@ -101,9 +111,9 @@ std::string defaultPaperValuesPath();  // <source dir>/experiments/paper_values.
 // ---- our results --------------------------------------------------------------------------------
 
 struct RunRecord {
-  IndexRow row;               // the index row
-  std::string dir;            // the sweep folder it came from
-  std::string results_path;   // absolute or relative to the working directory
+  IndexRow row;              // the index row
+  std::string dir;           // the sweep folder it came from
+  std::string results_path;  // absolute or relative to the working directory
   // kMissing: no complete results file, and not failed.
   enum class State { kOk, kFailed, kMissing } state = State::kMissing;
   std::string mode;           // results file attribute "mode" ("vo" | "vio")
@@ -148,6 +158,7 @@ struct TableRow {
   int paper_decimals = 3;
   bool higher_is_better = false;
   std::string suffix;            // printed after numbers ("x" for the real-time factor)
+  bool scientific = false;       // numbers as 1.2e-07 (decimals of the mantissa), not fixed
   std::vector<TableCell> ours;   // one per column
   std::vector<TableCell> paper;  // one per column
 };
@@ -206,6 +217,7 @@ enum class SeedStats { kAuto, kOn, kOff };
 // False for a name other than "auto", "on", "off".
 bool parseSeedStats(const std::string& text, SeedStats* mode);
 
+// The published tables (publishedTables(), table_specs.h) of the runs, one set per override.
 std::vector<TableSet> buildTables(const ResultSet& results, const PaperValues& paper,
                                   SeedStats seeds = SeedStats::kAuto);
 
@@ -215,16 +227,17 @@ std::string renderCsv(const std::vector<Table>& tables, const std::string& overr
 std::string renderMarkdown(const SeedClaim& claim);
 std::string renderLatex(const SeedClaim& claim);
 std::string renderCsv(const SeedClaim& claim, const std::string& override_name);
-// A number as the tables print it: fixed decimals, "x" for failures, "–" for missing.
+// A number as the tables print it: fixed decimals (or scientific), "x" for failures, "–" for
+// missing.
 std::string formatCell(const TableCell& cell, std::size_t component, int decimals,
-                       const std::string& suffix);
+                       const std::string& suffix, bool scientific = false);
 
 // ---- files --------------------------------------------------------------------------------------
 
 struct TablesRequest {
   std::vector<std::string> dirs;
   std::string formats = "md,tex,csv";
-  std::string out;           // default <first dir>/tables  // default <first dir>/tables
+  std::string out;           // default <first dir>/tables
   std::string paper_values;  // default defaultPaperValuesPath()
   SeedStats seeds = SeedStats::kAuto;
   bool print = false;

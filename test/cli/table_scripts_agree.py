@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """The table scripts' shared conventions (tools/scripts/table_common.py; used by
 test/cli/test_analysis.cpp):
-- a published "mean ± std" uses the sample std (n − 1), as core/experiment/tables.cpp does, with no
-  spread for a single value, and "x k/n" for k failed runs of n — in table_common.seed_cell and in
-  the per-sequence cells of nfr_topology_table.py;
+- a published "mean ± std" uses the sample std (n − 1), as `marglab tables` does (sampleStdOf,
+  core/experiment/table_run_stats.cpp), with no spread for a single value, and "x k/n" for k
+  failed runs of n — in table_common.seed_cell and in the per-sequence cells of
+  nfr_topology_table.py;
 - table_common.ate_rmse is the ATE of core/diagnostics/ate.h: zero on an exactly rotated and
   shifted copy, the reflection fix on a planar set, non-finite rows skipped, and equal to the
   independent checker's value (check_results.py, which the tables must not import);

@@ -229,8 +229,8 @@ TEST(AnalysisCli, NfrLengthTablePrefixIsTheShortRun) {
   EXPECT_NE(other.output.find("p_est of SHORT differs"), std::string::npos) << other.output;
 }
 
-// Issue #30: the table scripts publish "mean ± std" with the sample std of tables.cpp, align with
-// the project's ATE (not the independent checker's) and write their files atomically.
+// Issue #30: the table scripts publish "mean ± std" with the sample std of `marglab tables`,
+// align with the project's ATE (not the independent checker's) and write their files atomically.
 TEST(AnalysisCli, TableScriptsShareTheSeedStatisticsAndAlignment) {
   const std::string python = pythonWith("h5py, numpy, pandas, scipy");
   if (python.empty()) GTEST_SKIP() << "no python3 with h5py, numpy, pandas and scipy";

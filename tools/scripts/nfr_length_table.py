@@ -21,6 +21,11 @@ datasets/*/gt_tum.txt.gz. With nfr_deflated runs: the same comparisons of nfr_de
 discard and against nfr, a summary of the three by run length, and the median information
 ratio εᵀΛ_sε / εᵀΛ_tε of nfr and nfr_deflated along the gauge directions (/sparsify), which shows
 whether the deflation did what it is for (1 along x … yaw).
+
+Why not `marglab tables`: a cell there reduces one number per run over the seeds of one dataset ×
+column (core/experiment/table_specs.h); this script re-aligns prefixes and segments of each run's
+trajectory, compares two strategies pair by pair on the same (sequence, seed), reads the shipped
+ground-truth orientations and draws figures.
 """
 import gzip
 import math

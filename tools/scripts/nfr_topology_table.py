@@ -11,6 +11,11 @@ replaced the prior, the share of such events, the mean nnz_sparse / nnz_dense an
 replaced the prior to the dense prior's (/sparsify info_sparse / info_dense). Against discard: per (sequence, seed) pair, whether the ATE is lower, and the
 geometric mean of ATE / ATE(discard) over all pairs. Needs numpy, h5py and pandas
 (marglab_results.py).
+
+Why not `marglab tables`: a cell there reduces one number per run over the seeds of one dataset ×
+column (core/experiment/table_specs.h); the comparison against discard here is paired — the same
+(sequence, seed) of two overrides — and the information ratios are medians over the gauge
+directions of every /sparsify event.
 """
 import csv
 import math

@@ -8,6 +8,10 @@ Per run: ATE RMSE (index.csv), mean LM iterations (linearizations) per frame and
 per frame (the results file's /frames/lm_iterations and t_opt_total_s). Rule effect: the relative
 ATE change basalt vs marglab of the same dataset, variant and seed. Seed noise: the relative ATE
 change seed 2 vs seed 1 of the same dataset, variant and rule. Needs numpy and h5py.
+
+Why not `marglab tables`: a cell there reduces one number per run over the seeds of one dataset ×
+column (core/experiment/table_specs.h); the rule effect and the seed noise here are paired
+differences between runs of two groups, and of two seeds, of the same dataset and variant.
 """
 import csv
 import os

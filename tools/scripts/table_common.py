@@ -1,10 +1,12 @@
-"""What the table scripts (nfr_topology_table.py, nfr_length_table.py, stop_rule_table.py) share:
+"""What the table scripts (nfr_topology_table.py, nfr_length_table.py, stop_rule_table.py: the
+paired comparisons that `marglab tables` does not make; each script's header says why) share:
 the seed statistics of a published cell, the ATE alignment and the atomic output files.
 
-Seed statistics: the convention of core/experiment/tables.cpp (sampleStd, spreadText,
-failedText), so a "mean ± std" reads the same in every published table — the mean and the sample
-standard deviation s = sqrt(Σ (x_i − x̄)² / (n − 1)) of the values; with fewer than two values
-there is no spread and the cell shows the mean alone. "x k/n": k of n runs failed.
+Seed statistics: the convention of core/experiment/table_run_stats.cpp and table_render.cpp
+(sampleStdOf, spreadText, failedText), so a "mean ± std" reads the same in every published table
+— the mean and the sample standard deviation s = sqrt(Σ (x_i − x̄)² / (n − 1)) of the values; with
+fewer than two values there is no spread and the cell shows the mean alone. "x k/n": k of n runs
+failed.
 
 Alignment: the project's own ATE (core/diagnostics/ate.h, computeAte), not the independent
 checker's (check_results.py must stay independent of what it checks). Pairs are the rows where
@@ -40,7 +42,8 @@ def mean(values):
 
 
 def sample_std(values):
-    """Sample standard deviation (n − 1); NaN for fewer than two values (tables.cpp sampleStd)."""
+    """Sample standard deviation (n − 1); NaN for fewer than two values (sampleStdOf of
+    table_run_stats.cpp)."""
     return statistics.stdev(values) if len(values) >= 2 else float("nan")
 
 
