@@ -16,6 +16,7 @@
 #include <tuple>
 #include <utility>
 
+#include "core/estimator/config.h"
 #include "core/experiment/table_cells.h"
 #include "core/experiment/table_specs.h"
 #include "core/experiment/tables.h"
@@ -675,8 +676,10 @@ void addStrategyTables(const ResultSet& results, const PaperValues& paper,
                        const std::vector<TableSpec>& specs, std::vector<TableSet>* sets) {
   std::set<std::string> variants;
   for (const RunRecord& r : results.runs) {
-    if (r.marg_strategy == "dense" || r.marg_strategy == "nfr")
+    MargStrategy strategy = MargStrategy::kDiscard;
+    if (parseMargStrategy(r.marg_strategy, &strategy) && strategy != MargStrategy::kDiscard) {
       variants.insert(r.row.get("variant"));
+    }
   }
   if (variants.empty()) return;
   if (sets->empty() || !sets->front().override_name.empty())
