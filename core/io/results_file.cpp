@@ -13,6 +13,7 @@
 #include "core/common/error.h"
 #include "core/common/utc_time.h"
 #include "core/diagnostics/ate.h"
+#include "core/io/hdf5_trust.h"
 #include "core/io/results_schema.h"
 #include "core/io/results_table_io.h"
 #include "core/linalg/isa.h"
@@ -314,7 +315,30 @@ const std::string& ResultsWriter::path() const { return impl_->file.path(); }
 
 // ---- reader ---------------------------------------------------------------------------------
 
+namespace {
+
+// Every read a ResultsReader offers, the results discarded: what the trust boundary's child runs,
+// so that each later read of the parent's reader replays one that ended there.
+void readWhole(const ResultsReader& r) {
+  r.frameRecords();
+  r.margs(true);
+  r.sparsifyRecords();
+  r.frontendRecords();
+  for (const std::int64_t k : r.storedPriors()) r.prior(k);
+  r.summary();
+}
+
+}  // namespace
+
 ResultsReader::ResultsReader(const std::string& path) : path_(path) {
+  h5::checkReadableInChild(path, [&path] { readWhole(ResultsReader(path, Unchecked{})); });
+  open();
+}
+
+ResultsReader::ResultsReader(const std::string& path, Unchecked) : path_(path) { open(); }
+
+void ResultsReader::open() {
+  const std::string& path = path_;
   file_ = h5::File::openReadOnly(path);
   if (!file_.hasAttr("schema_version")) {
     throw InputError(path, 0, "not a marglab results file (no schema_version attribute)");

@@ -211,7 +211,9 @@ struct FrameColumns {
 };
 
 // Read access; every failure (missing file, not a results file, newer schema, missing object)
-// throws InputError naming the file.
+// throws InputError naming the file. A results file is a user's input: the constructor first
+// reads it whole — every read below — in a child process (core/io/hdf5_trust.h), so a file
+// libhdf5 does not survive, or with any part unreadable, is refused there.
 class ResultsReader {
  public:
   explicit ResultsReader(const std::string& path);
@@ -233,6 +235,9 @@ class ResultsReader {
   const h5::File& file() const { return file_; }
 
  private:
+  struct Unchecked {};
+  ResultsReader(const std::string& path, Unchecked);  // without the child (the child's reader)
+  void open();
   std::string path_;
   h5::File file_;
   RunInfo info_;
