@@ -5,9 +5,9 @@
 #include "core/io/hdf5_trust.h"
 
 #include <gtest/gtest.h>
-#include <sys/resource.h>
 
 #include "common/cli_runner.h"
+#include "common/memory.h"
 #include "common/temp_dir.h"
 
 #include <cstdint>
@@ -454,12 +454,6 @@ std::string readThroughTheBoundary(const std::string& path, const ReadLimits& li
   return {};
 }
 
-long maxRssKb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss;
-}
-
 // libhdf5 1.10 loops forever in H5Aread on a variable-length string whose global heap collection
 // holds a free-space object of size 0 (fuzz_track_hdf5's finding; h5py hangs on it too): the
 // child's read is stopped at its CPU limit and the file refused. Made here from a good file: the
@@ -518,7 +512,7 @@ TEST_F(Hdf5Test, StringsClaimingMoreThanTheyHoldAreRefusedInTheChild) {
   ReadLimits limits;
   limits.address_space_bytes = std::uint64_t{64} << 20;
   EXPECT_EQ(readThroughTheBoundary(good, limits), "");
-  const long rss_before = maxRssKb();
+  const long rss_before = test::maxRssKb();
   const std::pair<std::size_t, std::uint32_t> corruptions[] = {
       {at - 4, 0xfffffff0u},       // 4 GB of 1-byte characters
       {type_at + 12, 0x01000000u}  // 16 characters of 16 MB
@@ -531,7 +525,7 @@ TEST_F(Hdf5Test, StringsClaimingMoreThanTheyHoldAreRefusedInTheChild) {
     const std::string message = readThroughTheBoundary(bad, limits);
     EXPECT_EQ(message.rfind(bad + ": ", 0), 0u) << message;
   }
-  EXPECT_LT(maxRssKb() - rss_before, 100 * 1024);
+  EXPECT_LT(test::maxRssKb() - rss_before, 100 * 1024);
 }
 
 TEST_F(Hdf5Test, WritingAnExistingNameThrows) {

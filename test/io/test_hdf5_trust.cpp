@@ -7,7 +7,6 @@
 #include "core/io/hdf5_trust.h"
 
 #include <gtest/gtest.h>
-#include <sys/resource.h>
 #include <unistd.h>
 
 #include <csignal>
@@ -16,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "common/asan.h"
+#include "common/memory.h"
 #include "core/common/error.h"
 
 namespace marglab::h5 {
@@ -34,12 +33,6 @@ std::string refusal(const std::function<void()>& read, const ReadLimits& limits 
   }
   ADD_FAILURE() << "no InputError";
   return {};
-}
-
-long maxRssKb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss;
 }
 
 TEST(Hdf5Trust, ReadThatEndsPassesAndLeavesTheCallerAlone) {
@@ -95,7 +88,7 @@ TEST(Hdf5Trust, ReadThatNeverEndsIsStoppedAtTheTimeout) {
 TEST(Hdf5Trust, AllocationBeyondTheBudgetIsRefusedInTheChild) {
   ReadLimits limits;
   limits.address_space_bytes = std::uint64_t{256} << 20;
-  const long rss_before = maxRssKb();
+  const long rss_before = test::maxRssKb();
   const std::string message = refusal(
       [] {
         std::vector<char> huge(std::size_t{64} << 30, 1);
@@ -108,7 +101,7 @@ TEST(Hdf5Trust, AllocationBeyondTheBudgetIsRefusedInTheChild) {
   EXPECT_EQ(message, kPath + ": reading it needed more than 256 MiB of memory: the file claims "
                              "sizes it does not hold");
 #endif
-  EXPECT_LT(maxRssKb() - rss_before, 100 * 1024);
+  EXPECT_LT(test::maxRssKb() - rss_before, 100 * 1024);
 }
 
 }  // namespace

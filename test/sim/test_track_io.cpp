@@ -2,7 +2,6 @@
 // and InputError with file and line for bad input.
 
 #include <gtest/gtest.h>
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -12,7 +11,7 @@
 #include <limits>
 #include <utility>
 
-#include "common/asan.h"
+#include "common/memory.h"
 #include "common/fault_injection.h"
 #include "core/common/source_dir.h"
 #include "core/io/hdf5.h"
@@ -223,12 +222,6 @@ TEST(TrackIo, Hdf5BadInput) {
   }
 }
 
-long maxRssKb() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss;
-}
-
 // What the release build and ASan see of a read outside libhdf5's buffers: in the release build it
 // goes unnoticed and the file is refused for what the read gave; ASan's report ends the child.
 std::string outOfBoundsRead(const char* release) {
@@ -271,12 +264,12 @@ TEST(TrackIo, Hdf5FuzzFindingsAreInputErrors) {
       {"findings/track_hdf5/oom-root-object-header-larger-than-the-file.h5",
        "not an HDF5 file or unreadable (HDF5: memory allocation failed for on disk image buffer)"},
   };
-  const long rss_before = maxRssKb();
+  const long rss_before = test::maxRssKb();
   for (const auto& [name, expected] : findings) {
     const std::string path = fuzz + name;
     expectInputError([&] { readTrackFile(path); }, path, 0, expected);
   }
-  EXPECT_LT(maxRssKb() - rss_before, 200 * 1024);
+  EXPECT_LT(test::maxRssKb() - rss_before, 200 * 1024);
 }
 
 // libhdf5 1.10 loops forever on a global heap object of size 0 (fuzz_track_hdf5's first finding):
