@@ -36,11 +36,6 @@ std::uint64_t mappedBytes() {
   return 0;
 }
 
-void limit(int resource, rlim_t value) {
-  const rlimit r{value, value};
-  setrlimit(resource, &r);
-}
-
 void writeAll(int fd, const std::string& s) {
   for (std::size_t done = 0; done < s.size();) {
     const ssize_t n = ::write(fd, s.data() + done, s.size() - done);
@@ -55,7 +50,11 @@ void writeAll(int fd, const std::string& s) {
   if (::getppid() != parent) ::_exit(kException);  // the parent died before prctl
   std::signal(SIGINT, SIG_IGN);
   std::signal(SIGTERM, SIG_IGN);
-  limit(RLIMIT_AS, mappedBytes() + limits.address_space_bytes);
+  // Without /proc the budget cannot be placed above what is mapped: no address-space limit then.
+  if (const std::uint64_t mapped = mappedBytes(); mapped > 0) {
+    const rlimit address{mapped + limits.address_space_bytes, mapped + limits.address_space_bytes};
+    setrlimit(RLIMIT_AS, &address);
+  }
   // SIGXCPU at the soft limit; the hard one, a second later, is SIGKILL.
   const rlimit cpu{static_cast<rlim_t>(limits.cpu_seconds),
                    static_cast<rlim_t>(limits.cpu_seconds) + 1};
@@ -125,12 +124,11 @@ std::string bytesText(std::uint64_t bytes) {
 
 // Throws the InputError for a child that did not end normally.
 void throwUnlessClean(const std::string& path, const ChildEnd& end, const ReadLimits& limits) {
-  constexpr const char* kStopped = "its reader was stopped: libhdf5 can loop forever on a "
-                                   "corrupted file";
+  constexpr const char* kStopped =
+      "its reader was stopped: libhdf5 can loop forever on a corrupted file";
   if (end.timed_out) {
-    throw InputError(path, 0,
-                     fmt::format("reading it took more than {} s ({})", limits.wall_seconds,
-                                 kStopped));
+    throw InputError(
+        path, 0, fmt::format("reading it took more than {} s ({})", limits.wall_seconds, kStopped));
   }
   if (WIFSIGNALED(end.status)) {
     const int signal = WTERMSIG(end.status);
@@ -161,8 +159,8 @@ void checkReadableInChild(const std::string& path, const std::function<void()>& 
                           const ReadLimits& limits) {
   int fds[2];
   if (::pipe2(fds, O_CLOEXEC) != 0) {
-    throw InputError(path, 0, std::string("cannot read it in a child: pipe: ") +
-                                  std::strerror(errno));
+    throw InputError(path, 0,
+                     std::string("cannot read it in a child: pipe: ") + std::strerror(errno));
   }
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
@@ -174,8 +172,8 @@ void checkReadableInChild(const std::string& path, const std::function<void()>& 
   ::close(fds[1]);
   if (pid < 0) {
     ::close(fds[0]);
-    throw InputError(path, 0, std::string("cannot read it in a child: fork: ") +
-                                  std::strerror(fork_error));
+    throw InputError(path, 0,
+                     std::string("cannot read it in a child: fork: ") + std::strerror(fork_error));
   }
   throwUnlessClean(path, awaitChild(pid, fds[0], limits.wall_seconds), limits);
 }

@@ -96,12 +96,10 @@ void writeTracksHdf5(const std::string& path, const TrackStream& stream, bool wi
   file.commit();
 }
 
-namespace {
-
-// Decodes a track file as far as tracksFromContent looks: a file of another format or version is
-// refused on its attributes alone, whatever else it holds. Absent optional columns are filled
-// with their defaults.
-TrackFileContent readContent(const h5::File& file) {
+// Decodes as far as tracksFromContent looks: a file of another format or version is refused on its
+// attributes alone, whatever else it holds.
+TrackFileContent readTrackFileContent(const std::string& path) {
+  const h5::File file = h5::File::openReadOnly(path);
   TrackFileContent c;
   if (file.hasAttr("format")) c.format = file.attr<std::string>("format");
   if (c.format != kTrackFormatName) return c;
@@ -126,6 +124,8 @@ TrackFileContent readContent(const h5::File& file) {
   if (file.exists("landmarks_w")) c.landmarks_w = file.readMatrix<double>("landmarks_w");
   return c;
 }
+
+namespace {
 
 using Fail = std::function<void(const std::string&)>;
 
@@ -227,10 +227,6 @@ TrackStream tracksFromContent(const std::string& path, const TrackFileContent& c
     });
   }
   return stream;
-}
-
-TrackFileContent readTrackFileContent(const std::string& path) {
-  return readContent(h5::File::openReadOnly(path));
 }
 
 // Read whole in a child first (the trust boundary: a track file is a user's input), then here.

@@ -445,7 +445,8 @@ TEST_F(Hdf5Test, OpeningMissingOrNonHdf5FilesThrowsWithThePath) {
 std::string readThroughTheBoundary(const std::string& path, const ReadLimits& limits = {}) {
   try {
     const auto read = [&path] { return File::openReadOnly(path).attr<std::string>("sequence"); };
-    checkReadableInChild(path, [&read] { read(); }, limits);
+    checkReadableInChild(
+        path, [&read] { read(); }, limits);
     read();
   } catch (const InputError& e) {
     EXPECT_EQ(e.file(), path) << e.what();
@@ -484,8 +485,9 @@ TEST_F(Hdf5Test, GlobalHeapThatStallsLibhdf5IsStoppedInTheChild) {
   limits.cpu_seconds = 1;
   EXPECT_EQ(readThroughTheBoundary(good, limits), "");
   const std::string message = readThroughTheBoundary(bad, limits);
-  EXPECT_EQ(message, bad + ": reading it took more than 1 s of CPU time (its reader was stopped: "
-                           "libhdf5 can loop forever on a corrupted file)");
+  EXPECT_EQ(message, bad +
+                         ": reading it took more than 1 s of CPU time (its reader was stopped: "
+                         "libhdf5 can loop forever on a corrupted file)");
 }
 
 // libhdf5 1.10 allocates the length a variable-length string's descriptor claims (length 4 bytes,

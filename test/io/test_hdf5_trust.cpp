@@ -98,8 +98,9 @@ TEST(Hdf5Trust, AllocationBeyondTheBudgetIsRefusedInTheChild) {
 #ifdef MARGLAB_UNDER_ASAN
   EXPECT_NE(message.find("reading it crashed (signal 6"), std::string::npos) << message;
 #else
-  EXPECT_EQ(message, kPath + ": reading it needed more than 256 MiB of memory: the file claims "
-                             "sizes it does not hold");
+  EXPECT_EQ(message, kPath +
+                         ": reading it needed more than 256 MiB of memory: the file claims "
+                         "sizes it does not hold");
 #endif
   EXPECT_LT(test::maxRssKb() - rss_before, 100 * 1024);
 }

@@ -11,8 +11,8 @@
 #include <limits>
 #include <utility>
 
-#include "common/memory.h"
 #include "common/fault_injection.h"
+#include "common/memory.h"
 #include "core/common/source_dir.h"
 #include "core/io/hdf5.h"
 #include "core/io/hdf5_trust.h"
@@ -245,8 +245,7 @@ std::string outOfBoundsRead(const char* release) {
 TEST(TrackIo, Hdf5FuzzFindingsAreInputErrors) {
   const std::string fuzz = std::string(sourceDir()) + "/fuzz/";
   const std::pair<const char*, std::string> findings[] = {
-      {"corpus/track_hdf5/crash-global-heap-object-past-its-end.h5",
-       "reading it crashed (signal "},
+      {"corpus/track_hdf5/crash-global-heap-object-past-its-end.h5", "reading it crashed (signal "},
       {"corpus/track_hdf5/crash-shape-beyond-the-stored-bytes.h5",
        "/observations/track_id: its shape claims more elements than the 611 bytes"},
       {"corpus/track_hdf5/crash-chunk-larger-than-the-file.h5",
