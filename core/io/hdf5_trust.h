@@ -12,10 +12,10 @@
 // The child is a copy of this process at the fork and runs the same deterministic code on the same
 // bytes, so the caller's read replays one that ended: what the child did not survive — a crash
 // (libhdf5 or the reader), a loop, a request beyond the limit — is an InputError naming the file
-// and what happened, and the caller never meets it. An InputError (or any exception) of the read
-// in the child is the answer too, thrown here as the child threw it: it may come from an
-// allocation libhdf5 reported as failed under the limit, which the caller, without the limit, would
-// make. What no limit sees is a stray read or write that neither crashes nor changes what the
+// and what happened, and the caller never meets it. An exception of the read in the child is the
+// answer too — an InputError thrown here as the child threw it, another as "reading it failed: …" —
+// since it may come from an allocation libhdf5 reported as failed under the limit, which the
+// caller, without the limit, would make. What no limit sees is a stray read or write that neither crashes nor changes what the
 // reader checks: the caller then reads the same values as the child (its own checks still apply).
 //
 // The address space is limited to what the process has mapped at the fork plus the budget: what
