@@ -15,8 +15,9 @@
 // and what happened, and the caller never meets it. An exception of the read in the child is the
 // answer too — an InputError thrown here as the child threw it, another as "reading it failed: …" —
 // since it may come from an allocation libhdf5 reported as failed under the limit, which the
-// caller, without the limit, would make. What no limit sees is a stray read or write that neither crashes nor changes what the
-// reader checks: the caller then reads the same values as the child (its own checks still apply).
+// caller, without the limit, would make. What no limit sees is a stray read or write that neither
+// crashes nor changes what the reader checks: the caller then reads the same values as the child
+// (its own checks still apply).
 //
 // The address space is limited to what the process has mapped at the fork plus the budget: what
 // a process maps before reading (libraries, thread stacks, malloc arenas) varies, and under
