@@ -2,9 +2,10 @@
 """Builds the committed text seed corpus of the fuzzers (fuzz/corpus/<target>/) from the shipped
 data: the first lines of each dataset file kind, the calibration files, the experiments' sweep
 files and the configs inside them. Run from anywhere; rewrites fuzz/corpus/ (except the crash
-regression inputs, fuzz/corpus/*/crash-*, which stay). The binary seeds are not made here:
-fuzz_track_hdf5's are committed track files (fuzz/README.md says how they were made), the captured
-windows are decompressed from datasets/windows by fuzz/run_fuzzers.sh.
+regression inputs, fuzz/corpus/*/crash-*, which stay). fuzz_track_content's seeds are
+fuzz_track_hdf5's committed track files (fuzz/README.md says how they were made) in that harness's
+binary form (read with h5py); the captured windows are decompressed from datasets/windows by
+fuzz/run_fuzzers.sh.
 
 The harnesses that serve several parsers read the parser from the first byte (fuzz_dataset_text:
 byte % 6, fuzz_calib: byte % 4); the digits '0'..'5' select parser 0..5 since ord('0') = 48.
@@ -109,8 +110,44 @@ def track_text():
           "300000000 2 11 21 nan nan\n")
 
 
+def track_content():
+    """fuzz_track_content's seeds: the committed track files, decoded by h5py into the harness's
+    binary form (fuzz/fuzz_track_content.cpp)."""
+    import struct
+
+    import h5py
+    import numpy
+
+    def text(s):
+        b = s.encode()
+        return struct.pack("<B", len(b)) + b
+
+    def column(values, dtype):
+        a = numpy.asarray(values, dtype=dtype)
+        return struct.pack("<I", len(a)) + a.tobytes()
+
+    for name in ["tracked2", "tracked3"]:
+        with h5py.File(CORPUS / "track_hdf5" / f"{name}.h5", "r") as f:
+            o = f["observations"]
+            out = text(f.attrs["format"]) + struct.pack("<i", f.attrs["format_version"])
+            out += text(f.attrs["sequence"]) + struct.pack("<q", f.attrs["seed"])
+            out += column(f["frames/t_ns"][()], "<i8")
+            for c in ["offsets", "track_id", "landmark_id"]:
+                out += column(o[c][()], "<i8")
+            for c in ["u0", "v0", "u1", "v1"]:
+                out += column(o[c][()], "<f8")
+            for c in ["has_right", "is_outlier"]:
+                out += column(o[c][()], "u1")
+            xyz = f["landmarks_w"][()] if "landmarks_w" in f else None
+            out += struct.pack("<B", 0) if xyz is None else (
+                struct.pack("<BIB", 1, xyz.shape[0], xyz.shape[1]) + xyz.astype("<f8").tobytes())
+        folder = CORPUS / "track_content"
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / f"{name}.bin").write_bytes(out)
+
+
 def main():
-    for target in ["dataset_text", "calib", "sweep", "config", "track_text"]:
+    for target in ["dataset_text", "calib", "sweep", "config", "track_text", "track_content"]:
         folder = CORPUS / target
         if folder.exists():
             for f in folder.iterdir():
@@ -120,6 +157,7 @@ def main():
     calib()
     sweeps_and_configs()
     track_text()
+    track_content()
 
 
 if __name__ == "__main__":

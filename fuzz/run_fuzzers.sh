@@ -3,7 +3,10 @@
 # for SECONDS each, one after the other; exits 1 when a target found anything (the input is left in
 # BUILD_DIR/fuzz-out/artifacts/). scripts/run_sanitizers.sh runs all of them for a fixed number of inputs in CI; a
 # longer campaign runs them for longer (fuzz/README.md).
-#   usage: fuzz/run_fuzzers.sh BUILD_DIR SECONDS [TARGET...]     (default: every target)
+#   usage: fuzz/run_fuzzers.sh BUILD_DIR SECONDS [TARGET...]
+#   (default: every target but fuzz_track_hdf5, the campaign through libhdf5 itself, which is run
+#   by name and gates nothing: its findings are libhdf5's, contained by the trust boundary of
+#   core/io/hdf5_trust.h — fuzz/README.md)
 #   MARGLAB_FUZZ_FLAGS   extra libFuzzer flags; a campaign that should go on after a finding uses
 #                        "-fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1"
 #   MARGLAB_FUZZ_RUNS    stop each target after this many inputs (libFuzzer -runs), SECONDS being
@@ -18,7 +21,7 @@ SECONDS_PER_TARGET="$2"
 shift 2
 TARGETS=("$@")
 if ((${#TARGETS[@]} == 0)); then
-  TARGETS=(dataset_text calib config sweep track_text track_hdf5 window)
+  TARGETS=(dataset_text calib config sweep track_text track_content window)
 fi
 OUT="${MARGLAB_FUZZ_OUT:-$BUILD_DIR/fuzz-out}"
 mkdir -p "$OUT/seeds" "$OUT/artifacts" "$OUT/logs"

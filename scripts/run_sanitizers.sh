@@ -4,12 +4,17 @@
 # instrumentation serves both:
 #   1. the reduced test suite under the sanitizers (the test modules below, minus the long
 #      end-to-end tests), which must be clean;
-#   2. a short bounded run of every fuzz target (fuzz/README.md) from its seed corpus, seed 1.
+#   2. a short bounded run of every fuzz target (fuzz/README.md) from its seed corpus, seed 1, but
+#      fuzz_track_hdf5, the campaign through libhdf5 (MARGLAB_FUZZ_LIBHDF5 below).
 # Setup (scripts/setup.sh) must have run: it installs clang, libFuzzer and llvm-symbolizer.
 #   MARGLAB_SAN_BUILD_DIR   build folder (default: build-san)
 #   MARGLAB_JOBS            parallel build and test jobs (default: number of cores)
 #   MARGLAB_FUZZ_RUNS       inputs per fuzz target (default: 2000: the same inputs on every machine)
 #   MARGLAB_FUZZ_SECONDS    a cap in seconds per fuzz target (default: 300; 0 skips the fuzzers)
+#   MARGLAB_FUZZ_LIBHDF5    inputs of the campaign through libhdf5 (fuzz_track_hdf5) run after
+#                           the others (default: 0, none). It gates nothing: what it finds inside
+#                           libhdf5 is contained by the trust boundary (core/io/hdf5_trust.h) and
+#                           is triaged by hand (fuzz/README.md, "The campaign through libhdf5")
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR="${MARGLAB_SAN_BUILD_DIR:-build-san}"
@@ -49,4 +54,11 @@ ctest --test-dir "$BUILD_DIR" --output-on-failure -R "$REPRESENTATIVE"
 
 if [ "$FUZZ_SECONDS" -gt 0 ]; then
   bash fuzz/run_fuzzers.sh "$BUILD_DIR" "$FUZZ_SECONDS"
+fi
+# In fork mode, going on after each finding: its seeds include inputs libhdf5 does not survive.
+if [ "${MARGLAB_FUZZ_LIBHDF5:-0}" -gt 0 ]; then
+  MARGLAB_FUZZ_RUNS="$MARGLAB_FUZZ_LIBHDF5" MARGLAB_FUZZ_OUT="$BUILD_DIR/fuzz-libhdf5" \
+    MARGLAB_FUZZ_FLAGS="-fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1" \
+    bash fuzz/run_fuzzers.sh "$BUILD_DIR" "$FUZZ_SECONDS" track_hdf5 ||
+    echo "fuzz_track_hdf5 (non-gating): inputs to triage in $BUILD_DIR/fuzz-libhdf5/artifacts"
 fi

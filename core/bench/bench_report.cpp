@@ -150,7 +150,7 @@ WholeRun wholeRun(const BenchOptions& o, const std::string& dataset, const std::
     run.status = fmt::format("failed (exit {})", child.exit_code);
     return run;
   }
-  const SummaryValues s = ResultsReader(out).summary();
+  const SummaryValues s = ResultsReader(out, ResultsReader::Scope::kSummary).summary();
   run.frames = static_cast<int>(s.n_frames);
   run.data_s = s.duration_s;
   run.opt_s = s.t_opt_total_s;

@@ -3,7 +3,9 @@
 // `datasets track` children, the notebook runner, the report's scripts and headless Chromium, the
 // bench's whole runs, the Python probes) is started and waited for here, so that a helper never
 // outlives the marglab process that started it and never writes into a folder after that process
-// released it (its sweep lock, its output folder).
+// released it (its sweep lock, its output folder). The one process started elsewhere runs no
+// program: the child that reads a user's HDF5 file first (core/io/hdf5_trust.h), bounded by its
+// own limits and ended with the thread that forked it.
 //
 // Contract of a child started by startChild:
 //   - it leads its own process group (setpgid), so that one killpg reaches everything it started

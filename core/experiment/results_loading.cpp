@@ -74,7 +74,7 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
       if (!has_file) r.row.set("dataset", tableDataset(row.get("dataset"), nullptr));
       if (has_file) {
         try {
-          const ResultsReader reader(r.results_path);
+          const ResultsReader reader(r.results_path, ResultsReader::Scope::kSummary);
           const RunInfo& info = reader.info();
           if (info.metadata.variant != row.get("variant")) {
             throw InputError(r.results_path, 0,

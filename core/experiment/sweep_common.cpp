@@ -87,7 +87,7 @@ bool readCompleteResults(const std::string& path, IndexRow* row, const char* git
                          bool* other_revision) {
   if (!fs::is_regular_file(path)) return false;
   try {
-    const ResultsReader reader(path);
+    const ResultsReader reader(path, ResultsReader::Scope::kSummary);
     if (git_sha != nullptr && reader.info().git_sha != git_sha) {
       if (other_revision != nullptr) *other_revision = true;
       return false;

@@ -5,8 +5,6 @@
 #include <filesystem>
 
 #include "core/common/error.h"
-#include "core/io/hdf5_global_heap.h"
-#include "core/io/hdf5_vlen_check.h"
 
 namespace marglab::h5 {
 
@@ -250,12 +248,7 @@ std::vector<std::string> Object::readStrings(const std::string& name, bool scala
   if (H5Tis_variable_str(file_type) > 0) {
     const TypeId mem = utf8StringType(H5Tget_cset(file_type));
     std::vector<char*> ptrs(a.n, nullptr);
-    std::string refusal;
-    const herr_t read =
-        detail::readVlenStrings(a.attr.get(), mem.get(), ptrs.size(), ptrs.data(), heaps_.get(),
-                                &refusal);
-    if (!refusal.empty()) fail(id(), "", what + ": " + refusal);
-    check(read, id(), "", what.c_str());
+    check(H5Aread(a.attr.get(), mem.get(), ptrs.data()), id(), "", what.c_str());
     for (char* p : ptrs) {
       out.emplace_back(p != nullptr ? p : "");
       H5free_memory(p);
@@ -389,8 +382,7 @@ bool Group::exists(const std::string& path) const {
 
 Group Group::openGroup(const std::string& path) const {
   if (!exists(path)) fail(id(), path, "no such group");
-  return Group(check(H5Gopen2(id(), path.c_str(), H5P_DEFAULT), id(), path, "not a group"),
-               heaps_);
+  return Group(check(H5Gopen2(id(), path.c_str(), H5P_DEFAULT), id(), path, "not a group"));
 }
 
 // Each missing group along the path is created here rather than by HDF5's intermediate-group
@@ -413,8 +405,7 @@ Group Group::group(const std::string& path) const {
 
 Dataset Group::openDataset(const std::string& path) const {
   if (!exists(path)) fail(id(), path, "no such dataset");
-  return Dataset(check(H5Dopen2(id(), path.c_str(), H5P_DEFAULT), id(), path, "not a dataset"),
-                 heaps_);
+  return Dataset(check(H5Dopen2(id(), path.c_str(), H5P_DEFAULT), id(), path, "not a dataset"));
 }
 
 std::vector<std::string> Group::members() const {
@@ -505,10 +496,6 @@ File File::openReadOnly(const std::string& path) {
   detail::silenceErrors();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw InputError(path, 0, "no such file");
-  const auto bytes = detail::readFileBytes(path);
-  auto heaps = std::make_shared<const detail::GlobalHeapObjects>(
-      bytes ? detail::scanGlobalHeaps(*bytes) : detail::GlobalHeapObjects{});
-  if (heaps->bad) throw InputError(path, 0, "corrupted HDF5 file (" + *heaps->bad + ")");
   const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (file < 0) {
     throw InputError(path, 0, "not an HDF5 file or unreadable (HDF5: " + errorDetail() + ")");
@@ -517,7 +504,6 @@ File File::openReadOnly(const std::string& path) {
   f.path_ = path;
   f.file_ = FileId(file);
   f.id_ = ObjectId(check(H5Gopen2(file, "/", H5P_DEFAULT), file, "/", "cannot open root group"));
-  f.heaps_ = std::move(heaps);
   return f;
 }
 

@@ -113,10 +113,6 @@ using AttrId = Id<H5Aclose>;
 using PropId = Id<H5Pclose>;
 using ObjectId = Id<H5Oclose>;
 
-namespace detail {
-struct GlobalHeapObjects;
-}  // namespace detail
-
 // A group or dataset: the things that carry attributes.
 class Object {
  public:
@@ -137,12 +133,8 @@ class Object {
 
  protected:
   Object() = default;
-  Object(hid_t owned, std::shared_ptr<const detail::GlobalHeapObjects> heaps)
-      : id_(owned), heaps_(std::move(heaps)) {}
+  explicit Object(hid_t owned) : id_(owned) {}
   ObjectId id_;
-  // The global heap of a file opened read-only, scanned when it was opened: every variable-length
-  // string read from it is checked against it (hdf5_vlen_check.h). Null for a file being written.
-  std::shared_ptr<const detail::GlobalHeapObjects> heaps_;
 
  private:
   void writeDoubles(const std::string& name, const std::vector<double>& v, bool scalar) const;
@@ -157,8 +149,7 @@ class Object {
 class Dataset : public Object {
  public:
   Dataset() = default;
-  explicit Dataset(hid_t owned, std::shared_ptr<const detail::GlobalHeapObjects> heaps = nullptr)
-      : Object(owned, std::move(heaps)) {}
+  explicit Dataset(hid_t owned) : Object(owned) {}
   std::vector<hsize_t> shape() const;
   // All elements in row-major order.
   template <typename T>
@@ -174,8 +165,7 @@ class Dataset : public Object {
 class Group : public Object {
  public:
   Group() = default;
-  explicit Group(hid_t owned, std::shared_ptr<const detail::GlobalHeapObjects> heaps = nullptr)
-      : Object(owned, std::move(heaps)) {}
+  explicit Group(hid_t owned) : Object(owned) {}
 
   // Opens the group at path (relative or absolute), creating it and missing parents.
   Group group(const std::string& path) const;
@@ -220,7 +210,8 @@ class File : public Group {
   File() = default;
   // Writes to a temporary sibling of path; nothing appears at path before commit().
   static File create(const std::string& path);
-  // Objects taken from a read-only File keep the file open after the File is destroyed.
+  // Objects taken from a read-only File keep the file open after the File is destroyed. libhdf5
+  // trusts the file: one a user hands in is read through hdf5_trust.h first.
   static File openReadOnly(const std::string& path);
   ~File();
   File(File&& other) noexcept;

@@ -13,6 +13,7 @@
 #include "core/common/error.h"
 #include "core/common/utc_time.h"
 #include "core/diagnostics/ate.h"
+#include "core/io/hdf5_trust.h"
 #include "core/io/results_schema.h"
 #include "core/io/results_table_io.h"
 #include "core/linalg/isa.h"
@@ -314,7 +315,40 @@ const std::string& ResultsWriter::path() const { return impl_->file.path(); }
 
 // ---- reader ---------------------------------------------------------------------------------
 
-ResultsReader::ResultsReader(const std::string& path) : path_(path) {
+namespace {
+
+// Every read a ResultsReader offers beyond the summary, the results discarded: what the trust
+// boundary's child runs for Scope::kEverything, so that each later read of the parent's reader
+// replays one that ended there.
+void readWhole(const ResultsReader& r) {
+  r.frameRecords();
+  r.margs(true);
+  r.sparsifyRecords();
+  r.frontendRecords();
+  for (const std::int64_t k : r.storedPriors()) r.prior(k);
+}
+
+}  // namespace
+
+ResultsReader::ResultsReader(const std::string& path, Scope scope) : path_(path), scope_(scope) {
+  h5::checkReadableInChild(path, [&path, scope] {
+    const ResultsReader r(path, Unchecked{});
+    if (scope == Scope::kEverything) readWhole(r);
+    r.summary();
+  });
+  open();
+}
+
+ResultsReader::ResultsReader(const std::string& path, Unchecked) : path_(path) { open(); }
+
+void ResultsReader::requireEverything() const {
+  if (scope_ != Scope::kEverything) {
+    throw std::logic_error(path_ + ": ResultsReader opened for its summary only");
+  }
+}
+
+void ResultsReader::open() {
+  const std::string& path = path_;
   file_ = h5::File::openReadOnly(path);
   if (!file_.hasAttr("schema_version")) {
     throw InputError(path, 0, "not a marglab results file (no schema_version attribute)");
@@ -341,6 +375,7 @@ ResultsReader::ResultsReader(const std::string& path) : path_(path) {
 }
 
 std::vector<FrameRecord> ResultsReader::frameRecords() const {
+  requireEverything();
   return results_schema::readTable(file_.openGroup("frames"), results_schema::frameTable());
 }
 
@@ -365,16 +400,19 @@ FrameColumns ResultsReader::frames() const {
 }
 
 std::size_t ResultsReader::margCount() const {
+  requireEverything();
   return static_cast<std::size_t>(file_.openDataset("marg/frame_index").shape().at(0));
 }
 
 std::vector<MargRecord> ResultsReader::margs(bool with_eigenvalues) const {
+  requireEverything();
   return results_schema::readTable(file_.openGroup("marg"), results_schema::margTable(),
                                    with_eigenvalues ? results_schema::RaggedColumns::kRead
                                                     : results_schema::RaggedColumns::kSkip);
 }
 
 VecXd ResultsReader::eigenvalues(std::size_t k) const {
+  requireEverything();
   const h5::RaggedReader<double> eig(file_.openGroup("marg"), "eigenvalues");
   if (k >= eig.rows()) {
     throw InputError(
@@ -398,16 +436,19 @@ MargRecord ResultsReader::marg(std::size_t k) const {
 
 // Both groups are absent in files written before them: no rows.
 std::vector<SparsifyRecord> ResultsReader::sparsifyRecords() const {
+  requireEverything();
   if (!file_.exists("sparsify")) return {};
   return results_schema::readTable(file_.openGroup("sparsify"), results_schema::sparsifyTable());
 }
 
 std::vector<FrontendRecord> ResultsReader::frontendRecords() const {
+  requireEverything();
   if (!file_.exists("frontend")) return {};
   return results_schema::readTable(file_.openGroup("frontend"), results_schema::frontendTable());
 }
 
 std::vector<std::int64_t> ResultsReader::storedPriors() const {
+  requireEverything();
   std::vector<std::int64_t> ks;
   if (!file_.exists("marg/priors")) return ks;
   for (const std::string& name : file_.openGroup("marg/priors").members()) {
@@ -422,6 +463,7 @@ std::vector<std::int64_t> ResultsReader::storedPriors() const {
 }
 
 std::optional<StoredPrior> ResultsReader::prior(std::int64_t k) const {
+  requireEverything();
   const std::string where = fmt::format("marg/priors/{}", k);
   if (!file_.exists(where)) return std::nullopt;
   const h5::Group g = file_.openGroup(where);

@@ -148,10 +148,16 @@ struct FrameColumns {
 };
 
 // Read access; every failure (missing file, not a results file, newer schema, missing object)
-// throws InputError naming the file.
+// throws InputError naming the file. A results file is a user's input: the constructor first
+// reads in a child process (core/io/hdf5_trust.h) what the scope allows, so a file libhdf5 does
+// not survive, or with any part of that unreadable, is refused there.
 class ResultsReader {
  public:
-  explicit ResultsReader(const std::string& path);
+  // kSummary: the root attributes (info()) and summary() — what `tables` and a sweep's resume
+  // read of each run, at a fraction of the cost of the whole file; kEverything: any read below.
+  // A read beyond the scope is a std::logic_error: the child would not have made it first.
+  enum class Scope { kSummary, kEverything };
+  explicit ResultsReader(const std::string& path, Scope scope = Scope::kEverything);
   const std::string& path() const { return path_; }
   const RunInfo& info() const { return info_; }
   std::vector<FrameRecord> frameRecords() const;
@@ -170,7 +176,12 @@ class ResultsReader {
   const h5::File& file() const { return file_; }
 
  private:
+  struct Unchecked {};
+  ResultsReader(const std::string& path, Unchecked);  // without the child (the child's reader)
+  void open();
+  void requireEverything() const;
   std::string path_;
+  Scope scope_ = Scope::kEverything;
   h5::File file_;
   RunInfo info_;
 };

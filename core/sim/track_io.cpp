@@ -17,6 +17,7 @@
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/io/hdf5.h"
+#include "core/io/hdf5_trust.h"
 
 namespace marglab {
 namespace {
@@ -95,19 +96,17 @@ void writeTracksHdf5(const std::string& path, const TrackStream& stream, bool wi
   file.commit();
 }
 
-namespace {
-
-// The /observations columns of a track file (one row per observation, offsets per frame), with
-// their lengths checked against each other.
-struct ObservationColumns {
-  std::vector<int64_t> t_ns, offsets, track_id, landmark_id;
-  std::vector<double> u0, v0, u1, v1;
-  std::vector<uint8_t> has_right, is_outlier;
-};
-
-ObservationColumns readObservationColumns(const h5::File& file,
-                                          const std::function<void(const std::string&)>& fail) {
-  ObservationColumns c;
+// Decodes as far as tracksFromContent looks: a file of another format or version is refused on its
+// attributes alone, whatever else it holds.
+TrackFileContent readTrackFileContent(const std::string& path) {
+  const h5::File file = h5::File::openReadOnly(path);
+  TrackFileContent c;
+  if (file.hasAttr("format")) c.format = file.attr<std::string>("format");
+  if (c.format != kTrackFormatName) return c;
+  c.format_version = file.attr<int>("format_version");
+  if (c.format_version != kTrackFormatVersion) return c;
+  if (file.hasAttr("sequence")) c.sequence = file.attr<std::string>("sequence");
+  if (file.hasAttr("seed")) c.seed = static_cast<uint64_t>(file.attr<int64_t>("seed"));
   c.t_ns = file.readVector<int64_t>("frames/t_ns");
   const h5::Group obs = file.openGroup("observations");
   c.offsets = obs.readVector<int64_t>("offsets");
@@ -122,11 +121,28 @@ ObservationColumns readObservationColumns(const h5::File& file,
                                             : std::vector<int64_t>(K, -1);
   c.is_outlier =
       obs.exists("is_outlier") ? obs.readVector<uint8_t>("is_outlier") : std::vector<uint8_t>(K, 0);
+  if (file.exists("landmarks_w")) c.landmarks_w = file.readMatrix<double>("landmarks_w");
+  return c;
+}
 
+namespace {
+
+using Fail = std::function<void(const std::string&)>;
+
+// The format and version, and the lengths of the columns against each other.
+void checkLayout(const TrackFileContent& c, const Fail& fail) {
+  if (c.format != kTrackFormatName) {
+    fail(fmt::format("not a track file: attribute format = \"{}\" expected", kTrackFormatName));
+  }
+  if (c.format_version != kTrackFormatVersion) {
+    fail(fmt::format("format_version {} not supported (expected {})", c.format_version,
+                     kTrackFormatVersion));
+  }
   if (c.offsets.size() != c.t_ns.size() + 1) {
     fail(fmt::format("/observations/offsets has {} entries, expected {} (frames + 1)",
                      c.offsets.size(), c.t_ns.size() + 1));
   }
+  const std::size_t K = c.track_id.size();
   const std::pair<const char*, std::size_t> columns[] = {{"u0", c.u0.size()},
                                                          {"v0", c.v0.size()},
                                                          {"has_right", c.has_right.size()},
@@ -142,13 +158,13 @@ ObservationColumns readObservationColumns(const h5::File& file,
   if (c.offsets.front() != 0 || c.offsets.back() != static_cast<int64_t>(K)) {
     fail(fmt::format("/observations/offsets must start at 0 and end at {}", K));
   }
-  return c;
+  if (c.landmarks_w && c.landmarks_w->cols() != 3) fail("/landmarks_w: expected 3 columns");
 }
 
 // Observation row k, checked: finite left pixel, right pixel finite exactly when has_right, a
 // landmark id within /landmarks_w (n_landmarks; 0: the file has none).
-StereoObservation observationAt(const ObservationColumns& c, std::size_t k, std::size_t n_landmarks,
-                                const std::function<void(const std::string&)>& fail) {
+StereoObservation observationAt(const TrackFileContent& c, std::size_t k, std::size_t n_landmarks,
+                                const Fail& fail) {
   if (!std::isfinite(c.u0[k]) || !std::isfinite(c.v0[k])) {
     fail(fmt::format("/observations row {}: u0, v0 must be finite", k));
   }
@@ -176,33 +192,20 @@ StereoObservation observationAt(const ObservationColumns& c, std::size_t k, std:
 
 }  // namespace
 
-TrackStream readTracksHdf5(const std::string& path) {
-  const h5::File file = h5::File::openReadOnly(path);
-  const std::function<void(const std::string&)> fail = [&](const std::string& what) {
-    throw InputError(path, 0, what);
-  };
-  if (!file.hasAttr("format") || file.attr<std::string>("format") != kTrackFormatName) {
-    fail(fmt::format("not a track file: attribute format = \"{}\" expected", kTrackFormatName));
-  }
-  const int version = file.attr<int>("format_version");
-  if (version != kTrackFormatVersion) {
-    fail(
-        fmt::format("format_version {} not supported (expected {})", version, kTrackFormatVersion));
-  }
+TrackStream tracksFromContent(const std::string& path, const TrackFileContent& c) {
+  const Fail fail = [&](const std::string& what) { throw InputError(path, 0, what); };
+  checkLayout(c, fail);
   TrackStream stream;
-  if (file.hasAttr("sequence")) stream.sequence = file.attr<std::string>("sequence");
-  if (file.hasAttr("seed")) stream.seed = static_cast<uint64_t>(file.attr<int64_t>("seed"));
-  const ObservationColumns c = readObservationColumns(file, fail);
+  stream.sequence = c.sequence;
+  stream.seed = c.seed;
+  if (c.landmarks_w) {
+    for (Eigen::Index i = 0; i < c.landmarks_w->rows(); ++i) {
+      stream.landmarks_w.push_back(c.landmarks_w->row(i));
+    }
+  }
   const std::vector<int64_t>& t_ns = c.t_ns;
   const std::vector<int64_t>& offsets = c.offsets;
   const std::size_t K = c.track_id.size();
-
-  if (file.exists("landmarks_w")) {
-    const auto xyz = file.readMatrix<double>("landmarks_w");
-    if (xyz.cols() != 3) fail("/landmarks_w: expected 3 columns");
-    for (Eigen::Index i = 0; i < xyz.rows(); ++i) stream.landmarks_w.push_back(xyz.row(i));
-  }
-
   stream.frames.resize(t_ns.size());
   for (std::size_t i = 0; i < t_ns.size(); ++i) {
     if (i > 0 && t_ns[i] <= t_ns[i - 1]) {
@@ -224,6 +227,13 @@ TrackStream readTracksHdf5(const std::string& path) {
     });
   }
   return stream;
+}
+
+// Read whole in a child first (the trust boundary: a track file is a user's input), then here.
+TrackStream readTracksHdf5(const std::string& path) {
+  const auto read = [&path] { return tracksFromContent(path, readTrackFileContent(path)); };
+  h5::checkReadableInChild(path, [&read] { read(); });
+  return read();
 }
 
 // ---- Text ---------------------------------------------------------------------------------------

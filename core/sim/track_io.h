@@ -32,8 +32,15 @@
 // Reading validates and throws InputError(file, line, what): text errors name the line; HDF5
 // errors use line 0 and name the dataset and row (wrong sizes, offsets, non-increasing t_ns,
 // non-finite u0/v0, duplicate track ids in a frame, u1/v1 not NaN exactly when has_right = 0).
+// An HDF5 track file is a user's input: readTracksHdf5 reads it in a child process first
+// (core/io/hdf5_trust.h), then decodes it (TrackFileContent) and checks what it decoded
+// (tracksFromContent — the part fuzzed in CI, fuzz_track_content).
 
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "core/data/types.h"
 #include "core/sim/tracks.h"
@@ -42,6 +49,26 @@ namespace marglab {
 
 inline constexpr const char* kTrackFormatName = "marglab-tracks";
 inline constexpr int kTrackFormatVersion = 1;
+
+// An HDF5 track file as libhdf5 decoded it, before any check: the attributes ("" and 0 when
+// absent) and the datasets of the layout above, absent optional columns filled with their
+// defaults. A file of another format or version is decoded no further than its attributes.
+struct TrackFileContent {
+  std::string format;
+  int format_version = 0;
+  std::string sequence;
+  uint64_t seed = 0;
+  std::vector<int64_t> t_ns, offsets, track_id, landmark_id;
+  std::vector<double> u0, v0, u1, v1;
+  std::vector<uint8_t> has_right, is_outlier;
+  std::optional<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> landmarks_w;
+};
+
+// The HDF5 track file at path decoded by libhdf5 in this process, without the trust boundary:
+// readTracksHdf5 runs it in its child, fuzz_track_hdf5 (the campaign through libhdf5) directly.
+TrackFileContent readTrackFileContent(const std::string& path);
+// The stream a decoded track file holds, checked as described above (InputError(path, 0, what)).
+TrackStream tracksFromContent(const std::string& path, const TrackFileContent& content);
 
 void writeTracksHdf5(const std::string& path, const TrackStream& stream,
                      bool with_landmarks = true);

@@ -11,6 +11,7 @@
 
 #include "common/cli_runner.h"
 #include "common/temp_dir.h"
+#include "core/common/source_dir.h"
 #include "core/data/sequence.h"
 
 namespace marglab {
@@ -60,6 +61,20 @@ TEST_F(ExitCodes, Run) {
              ": expected a file, found a folder");
   expectExit("run --dataset " + folder("empty") + " --variant ns-qr-sqrt-f32 -o x.h5", 1,
              "expected a sequence folder");
+}
+
+// Track files libhdf5 does not survive (fuzz/README.md): a crash inside libhdf5 and a 4 GB
+// allocation happen in the child that reads a user's file first (core/io/hdf5_trust.h); marglab
+// exits 1 naming the file.
+TEST_F(ExitCodes, RunWithATrackFileLibhdf5DoesNotSurvive) {
+  const std::string corpus = std::string(sourceDir()) + "/fuzz/corpus/track_hdf5/";
+  const std::string run = "run --dataset euroc/V1_01_easy_images --variant ns-qr-sqrt-f64 -o " +
+                          quoted("x.h5") + " --tracks ";
+  const std::string crash = corpus + "crash-global-heap-object-past-its-end.h5";
+  expectExit(run + "'" + crash + "'", 1, crash + ": reading it crashed (signal 11, ");
+  const std::string claim = corpus + "crash-vlen-string-longer-than-its-heap-object.h5";
+  expectExit(run + "'" + claim + "'", 1,
+             claim + ": /: cannot read attribute 'format' (HDF5: memory allocation failed");
 }
 
 TEST_F(ExitCodes, Datasets) {

@@ -16,6 +16,7 @@
 #include <limits>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -437,6 +438,20 @@ TEST_F(ResultsFileTest, FailedRunIsACompleteFileWithItsReason) {
   EXPECT_EQ(r.info().failure_reason, "position error 7.2 m > 5 m");
   EXPECT_EQ(r.frames().size(), 8u);
   EXPECT_EQ(r.summary().n_frames, 8);
+}
+
+// Scope::kSummary: the child of the trust boundary read the root attributes and /summary only,
+// so nothing else may be read here.
+TEST_F(ResultsFileTest, SummaryScopeReadsTheSummaryAndNothingElse) {
+  const std::string path = file("run.h5");
+  writeSmallRun(path);
+  const ResultsReader whole(path);
+  const ResultsReader r(path, ResultsReader::Scope::kSummary);
+  EXPECT_EQ(r.info().metadata.variant, whole.info().metadata.variant);
+  EXPECT_EQ(r.summary().n_frames, whole.summary().n_frames);
+  EXPECT_THROW(r.frames(), std::logic_error);
+  EXPECT_THROW(r.margs(), std::logic_error);
+  EXPECT_THROW(r.storedPriors(), std::logic_error);
 }
 
 TEST_F(ResultsFileTest, ReaderRejectsMissingAndForeignFiles) {
