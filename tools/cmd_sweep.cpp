@@ -109,20 +109,7 @@ class PlanValidator {
 // validated as `marglab run` would validate it.
 experiment::ParseOptions sweepParseOptions() {
   experiment::ParseOptions options;
-  options.check_run_args = [](const std::vector<std::string>& extra) -> std::string {
-    CLI::App app{"run"};
-    RunArgs args;
-    addRunOptions(app, args);
-    std::vector<std::string> reversed(extra.rbegin(), extra.rend());  // CLI11's order
-    try {
-      app.parse(reversed);
-    } catch (const CLI::ParseError& e) {
-      return e.what();
-    } catch (const InputError& e) {  // a missing --tracks file
-      return e.what();
-    }
-    return {};
-  };
+  options.check_run_args = runOptionsProblem;
   auto validator = std::make_shared<PlanValidator>();
   options.check_run = [validator](experiment::PlannedRun* run) { return validator->check(run); };
   return options;

@@ -200,17 +200,40 @@ RunSpec runSpecFrom(const RunArgs& args) {
   });
 }
 
+namespace {
+
+// `arguments` (without "run") parsed into args with the options of `marglab run` on `app`. Throws
+// UsageError with CLI11's message, InputError for a missing input path.
+void parseArguments(const std::vector<std::string>& arguments, CLI::App* app, RunArgs* args) {
+  addRunOptions(*app, *args);
+  std::vector<std::string> reversed(arguments.rbegin(), arguments.rend());  // CLI11's order
+  try {
+    app->parse(reversed);
+  } catch (const CLI::ParseError& e) {
+    throw UsageError(e.what());
+  }
+}
+
+}  // namespace
+
+std::string runOptionsProblem(const std::vector<std::string>& arguments) {
+  CLI::App app{"run"};
+  RunArgs args;
+  try {
+    parseArguments(arguments, &app, &args);
+  } catch (const UsageError& e) {
+    return e.what();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return {};
+}
+
 RunSpec parseRunArguments(const std::vector<std::string>& arguments, const std::string& config_text,
                           const std::string& config_name) {
   CLI::App app{"run"};
   RunArgs args;
-  addRunOptions(app, args);
-  std::vector<std::string> reversed(arguments.rbegin(), arguments.rend());  // CLI11's order
-  try {
-    app.parse(reversed);
-  } catch (const CLI::ParseError& e) {
-    throw UsageError(e.what());
-  }
+  parseArguments(arguments, &app, &args);
   if (!args.spec_file.empty()) return runSpecFrom(args);
   return specOfOptions(args, [&](EstimatorConfig* config) {
     if (!config_text.empty()) config->loadTomlString(config_text, config_name);

@@ -39,6 +39,9 @@ void addRunOptions(CLI::App& app, RunArgs& args);
 // Throws UsageError (a missing --dataset, a bad --set) and InputError (a bad config or spec file).
 RunSpec runSpecFrom(const RunArgs& args);
 
+// What is wrong with a list of `marglab run` options ("" when they parse): a sweep group's `args`.
+std::string runOptionsProblem(const std::vector<std::string>& arguments);
+
 // The spec of a `marglab run` argument list (without "run"), with config_text (a sweep's merged
 // config, named config_name in messages) in place of a --config file. For the sweep's plan.
 // Throws what runSpecFrom throws, and UsageError with CLI11's message for a bad option.

@@ -188,5 +188,30 @@ TEST_F(RunSpecTest, RunRepeatedFromItsSpecIsBitIdentical) {
       << beside.output;
 }
 
+// A sweep group's `set` reaches the run's config; the sweep's child ran the spec file beside the
+// index, and running that file again gives the same numbers.
+TEST_F(RunSpecTest, SweepRunRepeatedFromItsSpecFileIsBitIdentical) {
+  const fs::path file =
+      sweepFile("datasets = [\"kitti/05\"]\nvariants = [\"sc-sc-sq-f32\"]\nframes = 30\n"
+                "set = [\"lm.max_iterations=4\"]\n");
+  const fs::path out = dir_ / "out";
+  const auto sweep = runCli("sweep " + quote(file) + " -o " + quote(out));
+  ASSERT_EQ(sweep.exit_code, 0) << sweep.output;
+  const std::string id = "g__kitti-05__sc-sc-sq-f32__s1";
+  const fs::path results = out / "runs" / (id + ".h5");
+  EXPECT_NE(rootAttribute(results, "config_toml").find("max_iterations = 4"), std::string::npos);
+  EXPECT_NE(test::readText(out / "logs" / (id + ".log"))
+                .find("# run as: marglab run --spec runs/" + id + ".spec.toml"),
+            std::string::npos);
+  const fs::path again = dir_ / "again.h5";
+  const auto rerun = test::runShell("cd " + quote(out) + " && '" + test::cliPath() +
+                                    "' run --spec runs/" + id + ".spec.toml -o " + quote(again));
+  ASSERT_EQ(rerun.exit_code, 0) << rerun.output;
+  const auto compare = test::runShell("/usr/bin/python3 '" + std::string(sourceDir()) +
+                                      "/tools/scripts/compare_runs.py' " + quote(results) + " " +
+                                      quote(again));
+  EXPECT_EQ(compare.exit_code, 0) << compare.output;
+}
+
 }  // namespace
 }  // namespace marglab
