@@ -2,7 +2,7 @@
 // The sliding-window estimator of the paper (Demmel et al., ICCV 2021, §3–5; numbers of
 // docs/design.md §3) for stereo visual odometry (VO) and visual-inertial odometry (VIO): one
 // template for every variant. The Variant picks landmark elimination (ns|sc), marginalization
-// (qr|sc) and prior storage (sqrt|sq); Scalar is the precision of the state (mixed: double, with
+// (qr|sc) and prior storage (variant.h); Scalar is the precision of the state (mixed: double, with
 // the landmarks eliminated in float).
 //
 // The estimator keeps the window (window.h: variables, factors, their cost and linearization),
@@ -31,8 +31,8 @@
 // replaces the prior by recovered factors (prior_sparsifier.h).
 //
 // Gauge. The initial prior fixes the gauge: VO all 6 dof of the first pose (gauge_prior_weight);
-// VIO position and yaw of the first state (gauge_prior_weight) and its biases (gauge_prior_bg,
-// gauge_prior_ba) — gravity makes roll and pitch observable.
+// VIO position and yaw of the first state (gauge.prior_weight) and its biases
+// (gauge.prior_bias_gyro, gauge.prior_bias_accel) — gravity makes roll and pitch observable.
 //
 // Diagnostics. A shadow prior starts empty (no gauge prior) and is marginalized with the identical
 // procedure, in the same precision (as Basalt does); its Hessian, in double, is what the paper's

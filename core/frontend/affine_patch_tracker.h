@@ -20,9 +20,8 @@
 // a coarse level's few pixels of a small patch cannot fix six parameters, and the start's A (the
 // predicted scale) is what makes the coarse levels' shift right. Level 0 estimates all six
 // (PatchWarp::kAffine) or again the shift under the given A (kShift: the patch compared after a
-// known zoom, which the front-end uses — in a diagnostic run on KITTI 06 it recovered 733 of 4041
-// failed tracks where the free affine recovered 499: six parameters from an 11×11 patch slide along
-// edges). Each level iterates until ‖Δt‖ < 0.01 px (coarse levels 0.1 px: they only bring the next
+// known zoom, which the front-end uses: six parameters from an 11×11 patch slide along edges, and
+// the shift under the predicted zoom recovers more tracks — README, "Real images", has the counts). Each level iterates until ‖Δt‖ < 0.01 px (coarse levels 0.1 px: they only bring the next
 // level within reach) or max_iterations; converged: a last step < 0.05 px at level 0. Failed: H
 // singular, A degenerate (det ≤ 0.25 or ≥ 4: more than 2× scaling) or the patch leaves the image.
 // The converged result carries the zero-mean NCC of the template and the warped patch (the

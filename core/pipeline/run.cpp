@@ -432,9 +432,10 @@ void addTrackSourceProblems(const RunSpec& spec, const RunInputs& inputs,
   if (!spec.tracks_file.empty()) return;
   const bool images = inputs.dataset.images.has_value();
   if (spec.frontend == FrontendKind::kImages && !images) {
-    out->push_back({ProblemKind::kInput, sequence.directory, 0,
-                    "frontend images on a folder without images (expected mav0/cam0/data/ or "
-                    "image_0/ and image_1/)"});
+    out->push_back({ProblemKind::kUsage, "", 0,
+                    fmt::format("--frontend images: {} has no images (expected mav0/cam0/data/ or "
+                                "image_0/ and image_1/)",
+                                sequence.directory)});
   }
   const bool simulate = spec.frontend == FrontendKind::kSimulated ||
                         (spec.frontend == FrontendKind::kAuto && !images);
