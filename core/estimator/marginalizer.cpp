@@ -278,12 +278,12 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
     return Status::Ok();
   }
 
-  // The new prior's LDLT square root, its negative pivots clamped.
+  // The new prior's LDLT square root, its pivots clamped as the psd projection says.
   LdltSqrt<Scalar> factorize(const MatX<Scalar>& H, const VecX<Scalar>& b) const {
-    return hessianToSqrtLdlt<Scalar>(H, b);
+    return hessianToSqrtLdlt<Scalar>(H, b, ldltPivotFloor<Scalar>(storage_.psd, H.rows()));
   }
 
-  // A psd projection of a Hessian prior (c): the Hessian of the clamped LDLT square root
+  // A psd projection of a Hessian prior (c, g): the Hessian of the clamped LDLT square root
   // instead of the Schur complement itself, ½‖r + Jδ‖² = c + (Jᵀr)ᵀδ + ½ δᵀ JᵀJ δ. It differs
   // from H by the rounding of the Schur complement and the pivots the LDLT set to zero: the stored
   // prior is positive semidefinite, as a square-root prior is, while the storage stays a Hessian.
@@ -298,6 +298,13 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
 }  // namespace
 
 template <typename Scalar>
+Scalar ldltPivotFloor(PsdProjection psd, Eigen::Index n) {
+  return psd == PsdProjection::kGaugeExact
+             ? NumericTraits<Scalar>::ldltPivotRelativeTolerance(static_cast<int>(n))
+             : Scalar(0);
+}
+
+template <typename Scalar>
 std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
                                                        const PriorStorage& storage,
                                                        const EstimatorConfig& config) {
@@ -306,6 +313,7 @@ std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
 }
 
 #define MARGLAB_INST(S)                                                                          \
+  template S ldltPivotFloor<S>(PsdProjection, Eigen::Index);                                     \
   template std::unique_ptr<Marginalizer<S>> makeMarginalizer<S>(MargMethod, const PriorStorage&, \
                                                                 const EstimatorConfig&);
 MARGLAB_INSTANTIATE(MARGLAB_INST)

@@ -45,5 +45,10 @@ std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
                                                        const PriorStorage& storage,
                                                        const EstimatorConfig& config);
 
+// The relative floor below which the new prior's LDLT pivots are set to 0 (hessianToSqrtLdlt):
+// NumericTraits' n·ε for the gauge-exact projection g, else 0 (only negative pivots, which no
+// square root can keep).
+template <typename Scalar>
+Scalar ldltPivotFloor(PsdProjection psd, Eigen::Index n);
 
 }  // namespace marglab

@@ -25,8 +25,10 @@ inline constexpr EnumNames<Preconditioning, 3> kPreconditioningNames{
     {{Preconditioning::kNone, ""},
      {Preconditioning::kBlockJacobi, "p"},
      {Preconditioning::kJacobi, "j"}}};
-inline constexpr EnumNames<PsdProjection, 2> kPsdNames{
-    {{PsdProjection::kNone, ""}, {PsdProjection::kClampNegative, "c"}}};
+inline constexpr EnumNames<PsdProjection, 3> kPsdNames{
+    {{PsdProjection::kNone, ""},
+     {PsdProjection::kClampNegative, "c"},
+     {PsdProjection::kGaugeExact, "g"}}};
 inline constexpr EnumNames<Precision, 3> kPrecisionNames{
     {{Precision::kF32, "f32"}, {Precision::kF64, "f64"}, {Precision::kMixed, "mixed"}}};
 
@@ -69,7 +71,7 @@ std::string variantSyntax() {
          describeNames(kMargNames) + ", storage " + describeNames(kRepresentationNames) +
          " followed by a preconditioning (" + describeSuffixes(kPreconditioningNames) +
          ") and a psd projection (" + describeSuffixes(kPsdNames) + "), precision " +
-         describeNames(kPrecisionNames) + " (e.g. ns-qr-sqrt-f32, sc-sc-sqpc-f32)";
+         describeNames(kPrecisionNames) + " (e.g. ns-qr-sqrt-f32, sc-sc-sqpg-f32)";
 }
 
 std::string storageName(const PriorStorage& s) {

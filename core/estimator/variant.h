@@ -7,7 +7,7 @@
 //                       by the flat QR (paper §4.2), or everything by Schur complement on the
 //                       Hessian with a pseudo-inverse of H_μμ (eqs. 22–23);
 //   storage             three axes, spelled representation + preconditioning + psd projection
-//                       (e.g. sq + p + c = sqpc), from the one table in variant.cpp:
+//                       (e.g. sq + p + g = sqpg), from the one table in variant.cpp:
 //     representation  sqrt | sq   prior stored as (J_m, r_m) (eq. 4) or (H_m, b_m) (eq. 3); `sc` +
 //                                 `sqrt` factorizes the new prior by LDLT (√D Lᵀ P);
 //     preconditioning – | p | j   none, 3×3 block Jacobi per physical quantity (our reading of
@@ -15,8 +15,10 @@
 //                                 (docs/preconditioned_storage.md): every factorization of the
 //                                 marginalization and of the LM step runs on the scaled matrix, a
 //                                 Hessian prior is kept as (Q, Ĥ_m, b̂_m) with H_m = Qᵀ Ĥ_m Q;
-//     psd projection  – | c       the new prior as computed; replaced by its LDLT with negative
+//     psd projection  – | c | g   the new prior as computed; replaced by its LDLT with negative
 //                                 pivots set to zero (c, a Hessian prior: JᵀJ of that square root);
+//                                 or with pivots below a threshold relative to the largest set to
+//                                 zero (g), which keeps the gauge nullspace exact;
 //                       the rules (qr: plain sqrt only, …) are storageProblem() beside the table;
 //   precision f32 | f64 the scalar type of the whole estimator;
 //             mixed     (ns only) landmark linearization storage and elimination in f32, reduced
@@ -34,7 +36,7 @@ namespace marglab {
 enum class OptElimination { kNullspace, kSchur };
 enum class MargMethod { kQr, kSchur };
 enum class Representation { kSqrt, kHessian };
-enum class PsdProjection { kNone, kClampNegative };
+enum class PsdProjection { kNone, kClampNegative, kGaugeExact };
 enum class Precision { kF32, kF64, kMixed };
 
 // One value of each storage axis.
@@ -57,7 +59,7 @@ constexpr bool hessianStorage(const PriorStorage& s) {
 }
 constexpr bool sqrtStorage(const PriorStorage& s) { return !hessianStorage(s); }
 
-// "sqrt", "sqp", "sqpc", …
+// "sqrt", "sqp", "sqpg", …
 std::string storageName(const PriorStorage& storage);
 // Every combination of the storage axes' values, valid or not (variantProblem says which).
 std::vector<PriorStorage> storageCombinations();

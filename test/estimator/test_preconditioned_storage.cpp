@@ -194,5 +194,20 @@ TEST(PsdHessianPrior, ConfigKeyIsTheClampProjection) {
   EXPECT_EQ(by_config, by_name);
 }
 
+// The gauge-exact projection g (pivots below NumericTraits' relative floor set to zero; its
+// nullspace against an SVD: test/linalg LdltGaugeExactFloorKeepsTheNullspace): the f32 Hessian
+// storages and the f32 square root with it track the scenario, every stored Hessian prior
+// positive semidefinite to the rounding of forming JᵀJ in float.
+TEST(PsdGaugeExact, SinglePrecisionRunsHoldWithAPositiveSemidefinitePrior) {
+  const test::VioScenario scenario(10.0, 12.0);
+  const double bound = 30 * NumericTraits<float>::kEpsilon;
+  for (const char* variant : {"sc-sc-sqg-f32", "sc-sc-sqpg-f32", "sc-sc-sqrtg-f32"}) {
+    SCOPED_TRACE(variant);
+    double min_eigen = 0;
+    EXPECT_LT(maxPositionError<float>(scenario, variant, nullptr, false, &min_eigen), 0.05);
+    EXPECT_GE(min_eigen, -bound);
+  }
+}
+
 }  // namespace
 }  // namespace marglab

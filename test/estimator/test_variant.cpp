@@ -56,14 +56,14 @@ TEST(VariantAxes, EveryCombinationRoundTripsOrIsRefused) {
       }
     }
   }
-  // qr: sqrt only (ns, sc × 3 precisions but sc-mixed: 5); sc: 12 storages less sqrtc, sqrtpc,
-  // sqrtjc (psd c is for Hessians) = 9, × 5 opt-precision pairs = 45.
-  EXPECT_EQ(valid, 5 + 45);
+  // qr: sqrt only (ns, sc × 3 precisions but sc-mixed: 5); sc: 18 storages less sqrtc, sqrtpc,
+  // sqrtjc (psd c is for Hessians) = 15, × 5 opt-precision pairs = 75.
+  EXPECT_EQ(valid, 5 + 75);
 }
 
 TEST(VariantAxes, RulesNameTheirReason) {
   EXPECT_THROW(Variant::parse("ns-qr-sq-f32"), UsageError);
-  EXPECT_THROW(Variant::parse("ns-qr-sqrtp-f32"), UsageError);
+  EXPECT_THROW(Variant::parse("ns-qr-sqrtg-f32"), UsageError);
   EXPECT_THROW(Variant::parse("sc-sc-sqx-f32"), UsageError);
   const Variant sqrt_c{OptElimination::kSchur, MargMethod::kSchur,
                        {Representation::kSqrt, Preconditioning::kNone, PsdProjection::kClampNegative},
@@ -83,7 +83,7 @@ TEST(VariantAxes, PsdHessianPriorIsTheClampProjection) {
   EXPECT_EQ(withPsdHessianPrior(sq.storage, false), sq.storage);
   EXPECT_TRUE(psdHessianPriorProblem(sq).empty());
   EXPECT_FALSE(psdHessianPriorProblem(Variant::parse("sc-sc-sqrt-f32")).empty());
-  EXPECT_FALSE(psdHessianPriorProblem(Variant::parse("sc-sc-sqc-f32")).empty());
+  EXPECT_FALSE(psdHessianPriorProblem(Variant::parse("sc-sc-sqg-f32")).empty());
 }
 
 }  // namespace
