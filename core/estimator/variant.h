@@ -19,7 +19,7 @@
 //                                 pivots set to zero (c, a Hessian prior: JᵀJ of that square root);
 //                                 or with pivots below a threshold relative to the largest set to
 //                                 zero (g), which keeps the gauge nullspace exact;
-//                       the rules (qr: plain sqrt only, …) are storageProblem() beside the table;
+//                       the rules (qr: plain sqrt only, …) are variantProblem() beside the tables;
 //   precision f32 | f64 the scalar type of the whole estimator;
 //             mixed     (ns only) landmark linearization storage and elimination in f32, reduced
 //                       system, prior and marginalization in f64 (core/estimator/linearization.h).
