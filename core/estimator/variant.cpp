@@ -25,10 +25,9 @@ inline constexpr EnumNames<Preconditioning, 3> kPreconditioningNames{
     {{Preconditioning::kNone, ""},
      {Preconditioning::kBlockJacobi, "p"},
      {Preconditioning::kJacobi, "j"}}};
-inline constexpr EnumNames<PsdProjection, 3> kPsdNames{
-    {{PsdProjection::kNone, ""},
-     {PsdProjection::kClampNegative, "c"},
-     {PsdProjection::kGaugeExact, "g"}}};
+inline constexpr EnumNames<PsdProjection, 3> kPsdNames{{{PsdProjection::kNone, ""},
+                                                        {PsdProjection::kClampNegative, "c"},
+                                                        {PsdProjection::kGaugeExact, "g"}}};
 inline constexpr EnumNames<Precision, 3> kPrecisionNames{
     {{Precision::kF32, "f32"}, {Precision::kF64, "f64"}, {Precision::kMixed, "mixed"}}};
 
@@ -117,9 +116,8 @@ Variant Variant::parse(const std::string& text) {
     throw UsageError(fmt::format("unknown variant '{}': expected {}", text, variantSyntax()));
   }
   auto bad = [&](const char* what, const std::string& part) {
-    return UsageError(
-        fmt::format("unknown variant '{}': bad {} '{}'; expected {}", text, what, part,
-                    variantSyntax()));
+    return UsageError(fmt::format("unknown variant '{}': bad {} '{}'; expected {}", text, what,
+                                  part, variantSyntax()));
   };
   Variant v;
   if (!parseName(kOptNames, parts[0], &v.opt)) throw bad("opt", parts[0]);

@@ -85,7 +85,8 @@ LdltSqrt<Scalar> hessianToSqrtLdlt(const MatX<Scalar>& H, const VecX<Scalar>& b,
   // Eigen: H = Pᵀ L D Lᵀ P with P a product of transpositions.
   VecX<Scalar> D = ldlt.vectorD();
   // Without a floor the cut is exactly 0 (no product with max D that could be 0 · inf).
-  const Scalar cut = relative_floor > Scalar(0) && n > 0 ? relative_floor * D.maxCoeff() : Scalar(0);
+  const Scalar cut =
+      relative_floor > Scalar(0) && n > 0 ? relative_floor * D.maxCoeff() : Scalar(0);
   for (Eigen::Index i = 0; i < n; ++i) {
     if (D[i] < cut) {
       D[i] = Scalar(0);

@@ -19,12 +19,9 @@ TEST(VariantAxes, NamesInUseKeepTheirMeaning) {
   const struct {
     const char* name;
     PriorStorage storage;
-  } expected[] = {{"ns-qr-sqrt-f32", {kS}},
-                  {"sc-sc-sq-f64", {kH}},
-                  {"sc-sc-sqp-f32", {kH, kBj}},
-                  {"sc-sc-sqj-f32", {kH, Preconditioning::kJacobi}},
-                  {"sc-sc-sqrtp-f32", {kS, kBj}},
-                  {"ns-sc-sqrt-mixed", {kS, kNo}},
+  } expected[] = {{"ns-qr-sqrt-f32", {kS}},       {"sc-sc-sq-f64", {kH}},
+                  {"sc-sc-sqp-f32", {kH, kBj}},   {"sc-sc-sqj-f32", {kH, Preconditioning::kJacobi}},
+                  {"sc-sc-sqrtp-f32", {kS, kBj}}, {"ns-sc-sqrt-mixed", {kS, kNo}},
                   {"sc-qr-sqrt-f64", {kS}}};
   for (const auto& e : expected) {
     const Variant v = Variant::parse(e.name);
@@ -65,10 +62,13 @@ TEST(VariantAxes, RulesNameTheirReason) {
   EXPECT_THROW(Variant::parse("ns-qr-sq-f32"), UsageError);
   EXPECT_THROW(Variant::parse("ns-qr-sqrtg-f32"), UsageError);
   EXPECT_THROW(Variant::parse("sc-sc-sqx-f32"), UsageError);
-  const Variant sqrt_c{OptElimination::kSchur, MargMethod::kSchur,
-                       {Representation::kSqrt, Preconditioning::kNone, PsdProjection::kClampNegative},
-                       Precision::kF32};
-  EXPECT_NE(variantProblem(sqrt_c).find("positive semidefinite by construction"), std::string::npos);
+  const Variant sqrt_c{
+      OptElimination::kSchur,
+      MargMethod::kSchur,
+      {Representation::kSqrt, Preconditioning::kNone, PsdProjection::kClampNegative},
+      Precision::kF32};
+  EXPECT_NE(variantProblem(sqrt_c).find("positive semidefinite by construction"),
+            std::string::npos);
   EXPECT_NE(variantProblem({OptElimination::kSchur, MargMethod::kQr, {}, Precision::kMixed})
                 .find("nullspace"),
             std::string::npos);

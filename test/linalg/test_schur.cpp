@@ -179,8 +179,8 @@ TYPED_TEST(SchurTest, LdltGaugeExactFloorKeepsTheNullspace) {
     SCOPED_TRACE(along_gauge);
     const MatXd H = H_exact + along_gauge * G * G.transpose();
     const VecXd b = B.transpose() * test::randomGaussian(rng, 4 * n, 1);
-    const auto sqrt = hessianToSqrtLdlt<Scalar>(H.cast<Scalar>(), b.cast<Scalar>(),
-                                                NumericTraits<Scalar>::ldltPivotRelativeTolerance(n));
+    const auto sqrt = hessianToSqrtLdlt<Scalar>(
+        H.cast<Scalar>(), b.cast<Scalar>(), NumericTraits<Scalar>::ldltPivotRelativeTolerance(n));
     ASSERT_TRUE(sqrt.status.ok()) << sqrt.status.toString();
     EXPECT_EQ(sqrt.rank, n - g);
     const MatXd J = sqrt.prior.J.template cast<double>();
