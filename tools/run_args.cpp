@@ -52,9 +52,7 @@ void addRunSubject(CLI::App& app, RunArgs& args) {
   app.add_option("--dataset", spec.dataset,
                  "Sequence name (see `marglab datasets list`, e.g. kitti/10) or a folder in "
                  "EuRoC/TUM-VI (mav0/) or KITTI layout");
-  app.add_option("--variant", args.variant,
-                 "opt-marg-storage-precision, e.g. ns-qr-sqrt-f32 (opt ns|sc, marg qr|sc, "
-                 "storage sqrt|sq|sqp|sqj|sqrtp, precision f32|f64|mixed)");
+  app.add_option("--variant", args.variant, variantSyntax());
   app.add_option("--isa", spec.isa,
                  "Instruction set of the kernels (auto: the widest this CPU has); recorded in "
                  "the results file's isa attribute")

@@ -670,8 +670,8 @@ Variant IterationCell::variant() const {
   Variant v;
   v.opt = elimination;
   v.marg = elimination == OptElimination::kNullspace ? MargMethod::kQr : MargMethod::kSchur;
-  v.storage =
-      elimination == OptElimination::kNullspace ? PriorStorage::kSqrt : PriorStorage::kHessian;
+  v.storage.representation =
+      elimination == OptElimination::kNullspace ? Representation::kSqrt : Representation::kHessian;
   v.precision = precision;
   return v;
 }

@@ -349,7 +349,7 @@ void addImuAndPrior(const WindowSnapshot& w, CeresWindowProblem& p) {
   }
   if (w.prior_blocks.empty()) return;
   MargPrior<double> prior;
-  prior.storage = PriorStorage::kSqrt;
+  prior.storage = PriorStorage{};
   std::vector<double*> blocks;
   for (const auto& b : w.prior_blocks) {
     prior.blocks.push_back({b.var, b.offset, b.T0, b.sb0});
@@ -436,7 +436,7 @@ CeresWindowResult resultOf(const ceres::Solver::Summary& summary, const WindowSn
 }  // namespace
 
 CeresWindowResult solveWindowWithCeres(const WindowSnapshot& w, const CeresWindowOptions& opt) {
-  if (w.prior_storage != PriorStorage::kSqrt && !w.prior_blocks.empty()) {
+  if (w.prior_representation != Representation::kSqrt && !w.prior_blocks.empty()) {
     throw InputError("", 0, "Ceres peer: the window's prior must be in square-root storage");
   }
   CeresWindowProblem p;

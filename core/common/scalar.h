@@ -29,6 +29,11 @@ struct NumericTraits {
   // Relative rank threshold for SVD / eigen based pseudo-inverses: σ ≤ tol · σ_max counts as 0.
   // n·ε is the usual numerical-rank rule (Golub & Van Loan §5.4.1) with n the matrix size.
   static Scalar pinvRelativeTolerance(int n) { return static_cast<Scalar>(n) * kEpsilon; }
+  // Relative pivot floor of the gauge-exact psd projection (psd axis `g`, docs/design.md §2): an
+  // LDLT pivot D_i < tol · max D of an n×n prior is rounding, not information, and is set to 0.
+  // The same n·ε rule: the pivots of a nullspace direction come out of the elimination at the
+  // size of its rounding, about n·ε·max D, however they fall around zero.
+  static Scalar ldltPivotRelativeTolerance(int n) { return static_cast<Scalar>(n) * kEpsilon; }
   static constexpr std::string_view name() {
     if constexpr (std::is_same_v<Scalar, float>) {
       return "f32";

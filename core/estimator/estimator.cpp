@@ -38,11 +38,12 @@ SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorConfig& co
       variant_(variant),
       window_(config, rig, std::move(imu)),
       policy_(config_),
-      marginalizer_(makeMarginalizer<Scalar>(variant.marg, variant.storage, config)),
+      marginalizer_(makeMarginalizer<Scalar>(
+          variant.marg, withPsdHessianPrior(variant.storage, config.psd_hessian_prior), config)),
       last_pose_(window_.isVio() ? window_.imu()->initial.T_w_i : T_w_i_initial),
       lambda_(static_cast<Scalar>(config.lambda_init)) {
-  window_.prior.storage = variant.storage;
-  shadow_prior_.storage = variant.storage;
+  window_.prior.storage = withPsdHessianPrior(variant.storage, config.psd_hessian_prior);
+  shadow_prior_.storage = window_.prior.storage;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -588,16 +589,19 @@ template <typename Scalar>
 Status SlidingWindowEstimator<Scalar>::trialMarginalization(const MargPlan& plan, MargMethod method,
                                                             MatXd* H_m) const {
   MargPrior<Scalar> prior = shadow_prior_;
+  // qr: the plain square root it produces; sc: the plain Hessian (with the config's psd alias).
   const PriorStorage storage =
-      method == MargMethod::kQr ? PriorStorage::kSqrt : PriorStorage::kHessian;
-  if (method == MargMethod::kQr && prior.storage != PriorStorage::kSqrt && !prior.empty()) {
+      method == MargMethod::kQr
+          ? PriorStorage{}
+          : withPsdHessianPrior({Representation::kHessian}, config_.psd_hessian_prior);
+  if (method == MargMethod::kQr && hessianStorage(prior.storage) && !prior.empty()) {
     return Status::Error(Status::Code::kInvalidArgument,
                          "qr marginalization needs a square-root shadow prior");
   }
   Status s = makeMarginalizer<Scalar>(method, storage, config_)
                  ->marginalize(window_, plan, &prior, nullptr);
   if (!s.ok()) return s;
-  if (storage == PriorStorage::kSqrt) {
+  if (sqrtStorage(storage)) {
     MatX<Scalar> J;
     VecX<Scalar> r;
     prior.sqrtRows(VecX<Scalar>::Zero(prior.cols()), &J, &r);

@@ -48,11 +48,8 @@ struct VarKey {
 };
 
 // The preconditioning a storage applies before its factorizations.
-constexpr Preconditioning preconditioningOf(PriorStorage storage) {
-  return storage == PriorStorage::kHessianBlockJacobi || storage == PriorStorage::kSqrtBlockJacobi
-             ? Preconditioning::kBlockJacobi
-             : (storage == PriorStorage::kHessianJacobi ? Preconditioning::kJacobi
-                                                        : Preconditioning::kNone);
+constexpr Preconditioning preconditioningOf(const PriorStorage& storage) {
+  return storage.preconditioning;
 }
 
 template <typename Scalar>
@@ -66,9 +63,9 @@ struct MargPrior {
     Vec3<Scalar> p0 = Vec3<Scalar>::Zero();  // linearization point p_w of a landmark block
   };
 
-  PriorStorage storage = PriorStorage::kSqrt;
+  PriorStorage storage;
   std::vector<Block> blocks;     // variable layout, in column order
-  SqrtPrior<Scalar> sqrt;        // used when storage == kSqrt
+  SqrtPrior<Scalar> sqrt;        // used by every square-root storage (unscaled for sqrtp)
   HessianPrior<Scalar> hessian;  // used by every Hessian storage (scaled for sqp, sqj)
   BlockScaling<Scalar> scaling;  // sqp, sqj: y = Q δ of `hessian`; empty otherwise
 

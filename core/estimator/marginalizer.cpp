@@ -1,7 +1,5 @@
 #include "core/estimator/marginalizer.h"
 
-#include <stdexcept>
-
 #include "core/common/scalar.h"
 #include "core/estimator/system_blocks.h"
 #include "core/linalg/flat_qr.h"
@@ -137,7 +135,7 @@ class QrMarginalizer final : public Marginalizer<Scalar> {
 
   Status marginalize(const Window<Scalar>& w, const MargPlan& plan, MargPrior<Scalar>* prior,
                      int* qr_rank) const override {
-    MargProblem<Scalar> p = gatherProblem(w, plan, *prior, PriorStorage::kSqrt);
+    MargProblem<Scalar> p = gatherProblem(w, plan, *prior, PriorStorage{});
     std::vector<LandmarkBlockNs<Scalar>> blocks(p.lins.size());
     int rows = prior->empty() ? 0 : prior->rows();
     for (size_t l = 0; l < p.lins.size(); ++l) {
@@ -193,8 +191,7 @@ class QrMarginalizer final : public Marginalizer<Scalar> {
 template <typename Scalar>
 class SchurMarginalizer final : public Marginalizer<Scalar> {
  public:
-  SchurMarginalizer(PriorStorage storage, bool psd_hessian)
-      : storage_(storage), psd_hessian_(psd_hessian) {}
+  explicit SchurMarginalizer(const PriorStorage& storage) : storage_(storage) {}
 
   Status marginalize(const Window<Scalar>& w, const MargPlan& plan, MargPrior<Scalar>* prior,
                      int* /*qr_rank*/) const override {
@@ -241,7 +238,7 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
     BlockScaling<Scalar> P = P_kept.then(P2);
     MatX<Scalar> H_m = P2.scaled(marginal.H);
     VecX<Scalar> b_m = P2.scaledGradient(marginal.b) - H_m * P.toScaled(new_delta);
-    LdltSqrt<Scalar> ldlt = hessianToSqrtLdlt<Scalar>(H_m, b_m);
+    LdltSqrt<Scalar> ldlt = factorize(H_m, b_m);
     if (!ldlt.status.ok()) {
       return Status::Error(ldlt.status.code(),
                            "the preconditioned prior's LDLT: " + ldlt.status.message());
@@ -251,7 +248,7 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
       return Status::Ok();
     }
     const Scalar c = Scalar(0.5) * ldlt.prior.r.squaredNorm();
-    if (psd_hessian_) psdHessian(ldlt.prior, &H_m, &b_m);
+    if (storage_.psd != PsdProjection::kNone) psdHessian(ldlt.prior, &H_m, &b_m);
     next->setScaledHessian(std::move(H_m), std::move(b_m), c, std::move(P));
     return Status::Ok();
   }
@@ -264,16 +261,16 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
   Status store(HessianPrior<Scalar> marginal, const VecX<Scalar>& new_delta,
                MargPrior<Scalar>* next) const {
     VecX<Scalar> b_m = marginal.b - marginal.H * new_delta;
-    LdltSqrt<Scalar> ldlt = hessianToSqrtLdlt<Scalar>(marginal.H, b_m);
+    LdltSqrt<Scalar> ldlt = factorize(marginal.H, b_m);
     if (!ldlt.status.ok()) {
-      return storage_ == PriorStorage::kHessian
+      return hessianStorage(storage_)
                  ? Status::Error(ldlt.status.code(),
                                  "the constant of the Hessian prior: " + ldlt.status.message())
                  : ldlt.status;
     }
-    if (storage_ == PriorStorage::kHessian) {
+    if (hessianStorage(storage_)) {
       const Scalar c = Scalar(0.5) * ldlt.prior.r.squaredNorm();
-      if (psd_hessian_) psdHessian(ldlt.prior, &marginal.H, &b_m);
+      if (storage_.psd != PsdProjection::kNone) psdHessian(ldlt.prior, &marginal.H, &b_m);
       next->setHessian(std::move(marginal.H), std::move(b_m), c);
     } else {
       next->setSqrt(std::move(ldlt.prior.J), std::move(ldlt.prior.r));
@@ -281,9 +278,14 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
     return Status::Ok();
   }
 
-  // [marginalization] psd_hessian_prior: the Hessian of the clamped LDLT square root instead of
-  // the Schur complement itself, ½‖r + Jδ‖² = c + (Jᵀr)ᵀδ + ½ δᵀ JᵀJ δ. It differs from H by the
-  // rounding of the Schur complement and the negative pivots the LDLT set to zero: the stored
+  // The new prior's LDLT square root, its pivots clamped as the psd projection says.
+  LdltSqrt<Scalar> factorize(const MatX<Scalar>& H, const VecX<Scalar>& b) const {
+    return hessianToSqrtLdlt<Scalar>(H, b, ldltPivotFloor<Scalar>(storage_.psd, H.rows()));
+  }
+
+  // A psd projection of a Hessian prior (c, g): the Hessian of the clamped LDLT square root
+  // instead of the Schur complement itself, ½‖r + Jδ‖² = c + (Jᵀr)ᵀδ + ½ δᵀ JᵀJ δ. It differs
+  // from H by the rounding of the Schur complement and the pivots the LDLT set to zero: the stored
   // prior is positive semidefinite, as a square-root prior is, while the storage stays a Hessian.
   static void psdHessian(const SqrtPrior<Scalar>& sqrt, MatX<Scalar>* H, VecX<Scalar>* b) {
     *H = sqrt.J.transpose() * sqrt.J;
@@ -291,25 +293,28 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
   }
 
   PriorStorage storage_;
-  bool psd_hessian_;
 };
 
 }  // namespace
 
 template <typename Scalar>
-std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method, PriorStorage storage,
-                                                       const EstimatorConfig& config) {
-  if (method == MargMethod::kQr) {
-    if (storage != PriorStorage::kSqrt) {
-      throw std::invalid_argument("qr marginalization produces a square-root prior");
-    }
-    return std::make_unique<QrMarginalizer<Scalar>>(config);
-  }
-  return std::make_unique<SchurMarginalizer<Scalar>>(storage, config.psd_hessian_prior);
+Scalar ldltPivotFloor(PsdProjection psd, Eigen::Index n) {
+  return psd == PsdProjection::kGaugeExact
+             ? NumericTraits<Scalar>::ldltPivotRelativeTolerance(static_cast<int>(n))
+             : Scalar(0);
 }
 
-#define MARGLAB_INST(S)                                                                   \
-  template std::unique_ptr<Marginalizer<S>> makeMarginalizer<S>(MargMethod, PriorStorage, \
+template <typename Scalar>
+std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
+                                                       const PriorStorage& storage,
+                                                       const EstimatorConfig& config) {
+  if (method == MargMethod::kQr) return std::make_unique<QrMarginalizer<Scalar>>(config);
+  return std::make_unique<SchurMarginalizer<Scalar>>(storage);
+}
+
+#define MARGLAB_INST(S)                                                                          \
+  template S ldltPivotFloor<S>(PsdProjection, Eigen::Index);                                     \
+  template std::unique_ptr<Marginalizer<S>> makeMarginalizer<S>(MargMethod, const PriorStorage&, \
                                                                 const EstimatorConfig&);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST

@@ -38,10 +38,17 @@ class Marginalizer {
                              MargPrior<Scalar>* prior, int* qr_rank) const = 0;
 };
 
-// The marginalizer of a method and prior storage (qr requires sqrt; throws std::invalid_argument
-// otherwise); the flat QR's rank threshold comes from the config.
+// The marginalizer of a method and prior storage, a combination variantProblem accepts (qr: the
+// storage is sqrt, which the flat QR produces); the flat QR's rank threshold comes from the config.
 template <typename Scalar>
-std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method, PriorStorage storage,
+std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
+                                                       const PriorStorage& storage,
                                                        const EstimatorConfig& config);
+
+// The relative floor below which the new prior's LDLT pivots are set to 0 (hessianToSqrtLdlt):
+// NumericTraits' n·ε for the gauge-exact projection g, else 0 (only negative pivots, which no
+// square root can keep).
+template <typename Scalar>
+Scalar ldltPivotFloor(PsdProjection psd, Eigen::Index n);
 
 }  // namespace marglab

@@ -34,7 +34,7 @@ Window<Scalar>::Window(const EstimatorConfig& config, const StereoRig<double>& r
     T_c_i_[cam] = T_i_c_[cam].inverse();
     T_c_h_host_[cam] = T_c_i_[cam] * T_i_c_[0];
   }
-  prior.storage = PriorStorage::kSqrt;
+  prior.storage = PriorStorage{};
 }
 
 template <typename Scalar>

@@ -266,7 +266,7 @@ void writeStates(Writer& out, const WindowSnapshot& w) {
 
 void writePrior(Writer& out, const WindowSnapshot& w) {
   out.word("prior");
-  out.word(w.prior_storage == PriorStorage::kSqrt ? "sqrt" : "hessian");
+  out.word(w.prior_representation == Representation::kSqrt ? "sqrt" : "hessian");
   out.integer(static_cast<int64_t>(w.prior_blocks.size()));
   out.newline();
   for (const auto& b : w.prior_blocks) {
@@ -426,7 +426,7 @@ void readPrior(Reader& in, WindowSnapshot& w) {
   in.expect("prior");
   const std::string storage = in.word();
   if (storage != "sqrt" && storage != "hessian") in.fail("prior storage must be sqrt or hessian");
-  w.prior_storage = storage == "sqrt" ? PriorStorage::kSqrt : PriorStorage::kHessian;
+  w.prior_representation = storage == "sqrt" ? Representation::kSqrt : Representation::kHessian;
   w.prior_blocks.resize(in.count(100000));
   for (auto& b : w.prior_blocks) {
     b.var.frame_id = in.integer();

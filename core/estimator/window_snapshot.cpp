@@ -111,7 +111,7 @@ WindowSnapshot snapshotOf(const Window<Scalar>& w_in) {
   if (const std::optional<ImuSetup>& imu = w_in.imu()) snapshotImu(w_in, *imu, &w);
   const MargPrior<Scalar>& prior = w_in.prior;
   // A preconditioned Hessian prior is captured unscaled, as a Hessian prior.
-  w.prior_storage = hessianStorage(prior.storage) ? PriorStorage::kHessian : PriorStorage::kSqrt;
+  w.prior_representation = prior.storage.representation;
   for (const auto& block : prior.blocks) {
     w.prior_blocks.push_back(
         {block.var, block.offset, widen(block.T0), block.sb0.template cast<double>()});
@@ -137,7 +137,7 @@ std::optional<ImuSetup> imuSetupOf(const WindowSnapshot& w) {
 }
 
 template <typename Scalar>
-void restoreWindow(const WindowSnapshot& w, PriorStorage storage, Window<Scalar>* window) {
+void restoreWindow(const WindowSnapshot& w, const PriorStorage& storage, Window<Scalar>* window) {
   Window<Scalar>& est = *window;
   for (const auto& fs : w.frames) {
     typename Window<Scalar>::Frame f;
@@ -181,13 +181,13 @@ void restoreWindow(const WindowSnapshot& w, PriorStorage storage, Window<Scalar>
     block.sb0 = b.sb0.template cast<Scalar>();
     prior.blocks.push_back(block);
   }
-  if (hessianStorage(w.prior_storage) == hessianStorage(storage)) {
+  if (w.prior_representation == storage.representation) {
     prior.sqrt.J = w.prior_J.template cast<Scalar>();
     prior.sqrt.r = w.prior_r.template cast<Scalar>();
     prior.hessian.H = w.prior_H.template cast<Scalar>();
     prior.hessian.b = w.prior_b.template cast<Scalar>();
     prior.hessian.c = static_cast<Scalar>(w.prior_c);
-  } else if (w.prior_storage == PriorStorage::kSqrt) {
+  } else if (w.prior_representation == Representation::kSqrt) {
     // E_m = ½‖r + Jδ‖² = ½δᵀ(JᵀJ)δ + (Jᵀr)ᵀδ + ½‖r‖², formed in double.
     prior.hessian.H = (w.prior_J.transpose() * w.prior_J).template cast<Scalar>();
     prior.hessian.b = (w.prior_J.transpose() * w.prior_r).template cast<Scalar>();
@@ -208,7 +208,7 @@ void restoreWindow(const WindowSnapshot& w, PriorStorage storage, Window<Scalar>
 #define MARGLAB_INST(S)                                                               \
   template WindowSnapshot snapshotOf<S>(const Window<S>&);                            \
   template std::optional<ImuSetup> imuSetupOf<S>(const WindowSnapshot&);               \
-  template void restoreWindow<S>(const WindowSnapshot&, PriorStorage, Window<S>*);
+  template void restoreWindow<S>(const WindowSnapshot&, const PriorStorage&, Window<S>*);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

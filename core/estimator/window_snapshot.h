@@ -76,7 +76,7 @@ struct WindowSnapshot {
   std::vector<FrameState> frames;
   std::vector<LandmarkState> landmarks;
   std::vector<ImuLinkState> imu_links;
-  PriorStorage prior_storage = PriorStorage::kSqrt;
+  Representation prior_representation = Representation::kSqrt;
   std::vector<PriorBlockState> prior_blocks;
   MatXd prior_J, prior_H;
   VecXd prior_r, prior_b;
@@ -95,6 +95,6 @@ std::optional<ImuSetup> imuSetupOf(const WindowSnapshot& w);
 // landmarks, IMU factors and prior in `storage` (a square-root prior may be replayed as a Hessian
 // one, not the reverse). Throws InputError on an inconsistent window.
 template <typename Scalar>
-void restoreWindow(const WindowSnapshot& w, PriorStorage storage, Window<Scalar>* window);
+void restoreWindow(const WindowSnapshot& w, const PriorStorage& storage, Window<Scalar>* window);
 
 }  // namespace marglab

@@ -72,7 +72,8 @@ SchurMarginalization<Scalar> schurMarginalize(const MatX<Scalar>& H, const VecX<
 }
 
 template <typename Scalar>
-LdltSqrt<Scalar> hessianToSqrtLdlt(const MatX<Scalar>& H, const VecX<Scalar>& b) {
+LdltSqrt<Scalar> hessianToSqrtLdlt(const MatX<Scalar>& H, const VecX<Scalar>& b,
+                                   Scalar relative_floor) {
   LdltSqrt<Scalar> result;
   const Eigen::Index n = H.rows();
   if (!H.allFinite() || !b.allFinite()) {
@@ -83,8 +84,11 @@ LdltSqrt<Scalar> hessianToSqrtLdlt(const MatX<Scalar>& H, const VecX<Scalar>& b)
   Eigen::LDLT<MatX<Scalar>> ldlt(H);
   // Eigen: H = Pᵀ L D Lᵀ P with P a product of transpositions.
   VecX<Scalar> D = ldlt.vectorD();
+  // Without a floor the cut is exactly 0 (no product with max D that could be 0 · inf).
+  const Scalar cut =
+      relative_floor > Scalar(0) && n > 0 ? relative_floor * D.maxCoeff() : Scalar(0);
   for (Eigen::Index i = 0; i < n; ++i) {
-    if (D[i] < Scalar(0)) {
+    if (D[i] < cut) {
       D[i] = Scalar(0);
       ++result.n_clamped;
     } else if (D[i] > Scalar(0)) {
@@ -112,7 +116,7 @@ LdltSqrt<Scalar> hessianToSqrtLdlt(const MatX<Scalar>& H, const VecX<Scalar>& b)
   template PseudoInverse<S> pseudoInverseSelfAdjoint<S>(const MatX<S>&, const PinvOptions<S>&); \
   template SchurMarginalization<S> schurMarginalize<S>(const MatX<S>&, const VecX<S>&, int,     \
                                                        const PinvOptions<S>&);                  \
-  template LdltSqrt<S> hessianToSqrtLdlt<S>(const MatX<S>&, const VecX<S>&);
+  template LdltSqrt<S> hessianToSqrtLdlt<S>(const MatX<S>&, const VecX<S>&, S);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

@@ -19,7 +19,9 @@
 // Also: conversion of a Hessian prior (H, b) to square-root form by LDLT (paper §4.3.1 and its
 // ablation `sc` marginalization + `sqrt` storage): H = Pᵀ L D Lᵀ P  ⇒  J = √D Lᵀ P, and
 // r = √D⁺ L⁻¹ P b so that Jᵀr = b whenever b ∈ range(H). Negative pivots D_i (rounding on a
-// semi-definite H) are clamped to 0 and counted.
+// semi-definite H) are clamped to 0 and counted; with a relative floor t > 0 so is every pivot
+// D_i < t · max D, which makes a nullspace that rounding left with small positive pivots exact
+// again: J's nullspace is then spanned by the directions Pᵀ L⁻ᵀ e_i of the clamped pivots.
 
 #include "core/common/eigen_types.h"
 #include "core/common/scalar.h"
@@ -72,12 +74,13 @@ SchurMarginalization<Scalar> schurMarginalize(const MatX<Scalar>& H, const VecX<
 template <typename Scalar>
 struct LdltSqrt {
   SqrtPrior<Scalar> prior;  // J = √D Lᵀ P (square, zero rows where D was clamped), r
-  int n_clamped = 0;        // pivots D_i < 0 set to 0
+  int n_clamped = 0;        // pivots D_i < 0 (or below the relative floor) set to 0
   int rank = 0;             // pivots D_i > 0
   Status status;
 };
 
 template <typename Scalar>
-LdltSqrt<Scalar> hessianToSqrtLdlt(const MatX<Scalar>& H, const VecX<Scalar>& b);
+LdltSqrt<Scalar> hessianToSqrtLdlt(const MatX<Scalar>& H, const VecX<Scalar>& b,
+                                   Scalar relative_floor = Scalar(0));
 
 }  // namespace marglab

@@ -515,14 +515,13 @@ std::vector<Problem> runProblems(const RunSpec& spec, const RunInputs& inputs) {
   std::vector<Problem> out = spec.config.locatedProblems();
   addTrackSourceProblems(spec, inputs, &out);
   addModeProblems(spec, inputs, &out);
-  // A square-root prior is positive semidefinite already: the option would silently do nothing.
-  if (spec.config.psd_hessian_prior && sqrtStorage(spec.variant.storage)) {
+  // The config's alias of the psd axis `c` (core/estimator/variant.h) would do nothing or clash.
+  const std::string psd = psdHessianPriorProblem(spec.variant);
+  if (spec.config.psd_hessian_prior && !psd.empty()) {
     out.push_back(spec.config.located(
         {"marginalization.psd_hessian_prior",
-         fmt::format("marginalization.psd_hessian_prior = true with variant {}: expected a "
-                     "Hessian prior storage (sq, sqp, sqj); a square-root prior is positive "
-                     "semidefinite by construction",
-                     spec.variant.name())}));
+         fmt::format("marginalization.psd_hessian_prior = true with variant {}: {}",
+                     spec.variant.name(), psd)}));
   }
   addCaptureProblems(spec, inputs.dataset.sequence, &out);
   return out;

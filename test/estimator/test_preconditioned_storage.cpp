@@ -16,15 +16,18 @@
 namespace marglab {
 namespace {
 
+constexpr PriorStorage kHessianBlockJacobi{Representation::kHessian, Preconditioning::kBlockJacobi};
+constexpr PriorStorage kHessianJacobi{Representation::kHessian, Preconditioning::kJacobi};
+
 TEST(PreconditionedStorage, VariantNamesRoundTrip) {
   for (const char* name :
        {"sc-sc-sqp-f32", "ns-sc-sqp-f32", "sc-sc-sqj-f32", "sc-sc-sqp-f64", "sc-sc-sqrtp-f32"}) {
     EXPECT_EQ(Variant::parse(name).name(), name);
   }
-  EXPECT_EQ(Variant::parse("sc-sc-sqp-f32").storage, PriorStorage::kHessianBlockJacobi);
-  EXPECT_EQ(Variant::parse("sc-sc-sqj-f32").storage, PriorStorage::kHessianJacobi);
-  EXPECT_EQ(Variant::parse("sc-sc-sqrtp-f32").storage, PriorStorage::kSqrtBlockJacobi);
-  EXPECT_TRUE(sqrtStorage(PriorStorage::kSqrtBlockJacobi));
+  EXPECT_EQ(Variant::parse("sc-sc-sqp-f32").storage, kHessianBlockJacobi);
+  EXPECT_EQ(Variant::parse("sc-sc-sqj-f32").storage, kHessianJacobi);
+  EXPECT_EQ(Variant::parse("sc-sc-sqrtp-f32").storage,
+            (PriorStorage{Representation::kSqrt, Preconditioning::kBlockJacobi}));
   // qr marginalization produces a square-root prior.
   EXPECT_THROW(Variant::parse("ns-qr-sqp-f32"), UsageError);
   EXPECT_THROW(Variant::parse("ns-qr-sqrtp-f32"), UsageError);
@@ -34,11 +37,11 @@ TEST(PreconditionedStorage, VariantNamesRoundTrip) {
 // A pose + speed-bias prior with an ill-scaled random Hessian, stored unscaled (sq) and
 // preconditioned (sqp, sqj): E_m, its gradient and Hessian and the cost change along a step agree.
 template <typename Scalar>
-void expectSameFunction(PriorStorage storage) {
+void expectSameFunction(const PriorStorage& storage) {
   std::mt19937_64 rng(41);
   std::normal_distribution<double> normal;
   MargPrior<Scalar> plain;
-  plain.storage = PriorStorage::kHessian;
+  plain.storage = {Representation::kHessian};
   plain.addBlock({1, StateBlock::kPose}, SE3<Scalar>(), Vec<Scalar, kSpeedBiasDim>::Zero());
   plain.addBlock({1, StateBlock::kSpeedBias}, SE3<Scalar>(), Vec<Scalar, kSpeedBiasDim>::Zero());
   const int n = plain.cols();
@@ -78,13 +81,13 @@ void expectSameFunction(PriorStorage storage) {
 }
 
 TEST(PreconditionedStorage, StoredPriorIsTheSameFunctionF32) {
-  expectSameFunction<float>(PriorStorage::kHessianBlockJacobi);
-  expectSameFunction<float>(PriorStorage::kHessianJacobi);
+  expectSameFunction<float>(kHessianBlockJacobi);
+  expectSameFunction<float>(kHessianJacobi);
 }
 
 TEST(PreconditionedStorage, StoredPriorIsTheSameFunctionF64) {
-  expectSameFunction<double>(PriorStorage::kHessianBlockJacobi);
-  expectSameFunction<double>(PriorStorage::kHessianJacobi);
+  expectSameFunction<double>(kHessianBlockJacobi);
+  expectSameFunction<double>(kHessianJacobi);
 }
 
 // Runs the scenario, returns the largest position error; every frame must succeed.
@@ -177,6 +180,31 @@ TEST(PsdHessianPrior, DoublePrecisionRunsFollowThePlainHessianStorage) {
     maxPositionError<double>(scenario, variant, &psd, true);
     ASSERT_EQ(plain.size(), psd.size());
     for (size_t i = 0; i < plain.size(); ++i) EXPECT_LT((psd[i] - plain[i]).norm(), 1e-6) << i;
+  }
+}
+
+// The config key is the psd axis c: `sc-sc-sq-f32` + psd_hessian_prior runs `sc-sc-sqc-f32` bit
+// for bit (docs/design.md §2, §9).
+TEST(PsdHessianPrior, ConfigKeyIsTheClampProjection) {
+  const test::VioScenario scenario(10.0, 4.0);
+  std::vector<Eigen::Vector3d> by_config, by_name;
+  maxPositionError<float>(scenario, "sc-sc-sqp-f32", &by_config, true);
+  maxPositionError<float>(scenario, "sc-sc-sqpc-f32", &by_name);
+  EXPECT_EQ(by_config, by_name);
+}
+
+// The gauge-exact projection g (pivots below NumericTraits' relative floor set to zero; its
+// nullspace against an SVD: test/linalg LdltGaugeExactFloorKeepsTheNullspace): the f32 Hessian
+// storages and the f32 square root with it track the scenario, every stored Hessian prior
+// positive semidefinite to the rounding of forming JᵀJ in float.
+TEST(PsdGaugeExact, SinglePrecisionRunsHoldWithAPositiveSemidefinitePrior) {
+  const test::VioScenario scenario(10.0, 12.0);
+  const double bound = 30 * NumericTraits<float>::kEpsilon;
+  for (const char* variant : {"sc-sc-sqg-f32", "sc-sc-sqpg-f32", "sc-sc-sqrtg-f32"}) {
+    SCOPED_TRACE(variant);
+    double min_eigen = 0;
+    EXPECT_LT(maxPositionError<float>(scenario, variant, nullptr, false, &min_eigen), 0.05);
+    EXPECT_GE(min_eigen, -bound);
   }
 }
 

@@ -1,6 +1,7 @@
 // Schur-complement marginalization, pseudo-inverse and LDLT square root against independent
 // computations (SVD pseudo-inverse, Moore–Penrose conditions, the long-double reference).
 
+#include <Eigen/QR>
 #include <Eigen/SVD>
 
 #include "core/linalg/schur.h"
@@ -150,6 +151,61 @@ TYPED_TEST(SchurTest, LdltSquareRootClampsNegativePivots) {
   EXPECT_NEAR(H_psd(0, 0), 4, 4 * eps<Scalar>());
   EXPECT_EQ(H_psd(1, 1), Scalar(0));
   EXPECT_NEAR(H_psd(2, 2), 1, 4 * eps<Scalar>());
+}
+
+// The gauge-exact psd projection (psd axis g): a prior whose exact Hessian has a g-dimensional
+// nullspace G (the gauge), rounded to the scalar type — rank deficient, or near-singular with
+// information along G far below the scalar's resolution. With the relative pivot floor of
+// NumericTraits the LDLT square root J has g zero rows, so an exact g-dimensional nullspace, and an
+// SVD of J in double finds it to be span(G) within ε·κ (κ over the observable directions), while
+// JᵀJ keeps the observable information. The gauge's pivots come out of the elimination at about
+// ε·κ·max D, so the floor n·ε·max D finds them only in a well-conditioned prior (κ here ≈ 10, the
+// block-scaled priors of sqp about 1e2 on KITTI; docs/preconditioned_storage.md §4).
+TYPED_TEST(SchurTest, LdltGaugeExactFloorKeepsTheNullspace) {
+  using Scalar = TypeParam;
+  constexpr int n = 15, g = 4;
+  std::mt19937_64 rng(29);
+  const MatXd G = Eigen::HouseholderQR<MatXd>(test::randomGaussian(rng, n, g)).householderQ() *
+                  MatXd::Identity(n, g);
+  const MatXd projector = MatXd::Identity(n, n) - G * G.transpose();
+  const MatXd B = test::randomGaussian(rng, 4 * n, n) * projector;
+  const MatXd H_exact = B.transpose() * B;
+  Eigen::JacobiSVD<MatXd> svd_h(H_exact);
+  const double kappa = svd_h.singularValues()[0] / svd_h.singularValues()[n - g - 1];
+  const double floor = static_cast<double>(NumericTraits<Scalar>::ldltPivotRelativeTolerance(n));
+  const double tol = 100 * n * eps<Scalar>() * kappa;
+  // Near-singular: information along G at a hundredth of the floor times the smallest diagonal.
+  for (double along_gauge : {0.0, 1e-2 * floor * H_exact.diagonal().minCoeff()}) {
+    SCOPED_TRACE(along_gauge);
+    const MatXd H = H_exact + along_gauge * G * G.transpose();
+    const VecXd b = B.transpose() * test::randomGaussian(rng, 4 * n, 1);
+    const auto sqrt = hessianToSqrtLdlt<Scalar>(
+        H.cast<Scalar>(), b.cast<Scalar>(), NumericTraits<Scalar>::ldltPivotRelativeTolerance(n));
+    ASSERT_TRUE(sqrt.status.ok()) << sqrt.status.toString();
+    EXPECT_EQ(sqrt.rank, n - g);
+    const MatXd J = sqrt.prior.J.template cast<double>();
+    EXPECT_EQ((J.rowwise().norm().array() == 0.0).count(), g);  // an exact nullspace
+    Eigen::JacobiSVD<MatXd> svd_j(J, Eigen::ComputeFullV);
+    // sin of the largest principal angle between J's nullspace and the gauge directions.
+    const MatXd null_j = svd_j.matrixV().rightCols(g);
+    EXPECT_LE((projector * null_j).norm(), tol);
+    EXPECT_LE((J * G).norm() / J.norm(), tol);
+    EXPECT_LE(relError(J.transpose() * J, H_exact), tol);
+  }
+}
+
+// A floor of 0 is the negative clamp bit for bit (every storage without psd projection g); a
+// positive pivot below floor · max D is clamped too.
+TYPED_TEST(SchurTest, LdltPivotFloorIsRelativeToTheLargestPivot) {
+  using Scalar = TypeParam;
+  MatX<Scalar> H = MatX<Scalar>::Zero(3, 3);
+  H.diagonal() << Scalar(4), Scalar(-1e-3), Scalar(1);
+  const auto plain = hessianToSqrtLdlt<Scalar>(H, VecX<Scalar>::Ones(3));
+  const auto floored = hessianToSqrtLdlt<Scalar>(H, VecX<Scalar>::Ones(3), Scalar(0));
+  EXPECT_EQ(plain.prior.J, floored.prior.J);
+  H(1, 1) = Scalar(1e-3);
+  EXPECT_EQ(hessianToSqrtLdlt<Scalar>(H, VecX<Scalar>::Ones(3), Scalar(1e-3)).n_clamped, 1);
+  EXPECT_EQ(hessianToSqrtLdlt<Scalar>(H, VecX<Scalar>::Ones(3), Scalar(1e-4)).n_clamped, 0);
 }
 
 }  // namespace
