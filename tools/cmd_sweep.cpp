@@ -12,7 +12,7 @@
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
-#include "core/estimator/config.h"
+#include "core/pipeline/run_config.h"
 #include "core/pipeline/run.h"
 #include "core/experiment/slurm_backend.h"
 #include "core/experiment/sweep_def.h"

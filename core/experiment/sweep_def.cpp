@@ -13,8 +13,8 @@
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
-#include "core/estimator/config.h"
 #include "core/estimator/variant.h"
+#include "core/pipeline/run_config.h"
 
 namespace marglab::experiment {
 namespace {
@@ -202,7 +202,7 @@ class Parser {
     return args;
   }
 
-  // An inline [config] table: validated key by key against EstimatorConfig, so that an error
+  // An inline [config] table: validated key by key against RunConfig, so that an error
   // names the line of the offending key.
   toml::table configTable(const toml::table& table) const {
     const toml::node* node = table.get("config");
@@ -221,7 +221,7 @@ class Parser {
         value.visit([&, k = key](const auto& v) { inner.insert_or_assign(k, v); });
         single.insert_or_assign(section_key, inner);
         try {
-          EstimatorConfig probe;
+          RunConfig probe;
           probe.loadTomlString(toTomlText(single), "config");
         } catch (const InputError& e) {
           throw error(value, "config: " + stripLocation(e));
@@ -236,7 +236,7 @@ class Parser {
   // (docs/design.md §9), every one reported at the line of the group or override.
   void checkMergedConfig(const std::string& config_toml, int line, const std::string& where) const {
     if (config_toml.empty()) return;
-    EstimatorConfig probe;
+    RunConfig probe;
     probe.loadTomlString(config_toml, "config");
     const std::vector<ConfigProblem> problems = probe.problems();
     if (problems.empty()) return;
@@ -387,7 +387,7 @@ class Parser {
     if (!fs::is_regular_file(path)) {
       throw error(*node, "config_file " + path.string() + " does not exist");
     }
-    EstimatorConfig probe;
+    RunConfig probe;
     probe.loadToml(path.string());  // its own errors name its own lines
     try {
       return toml::parse_file(path.string());
