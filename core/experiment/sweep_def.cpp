@@ -305,7 +305,7 @@ class Parser {
     int frames = 0;
     double timeout_s = 0;
     std::vector<std::string> args;
-    std::string frontend;
+    std::optional<FrontendKind> frontend;
     toml::table config;  // config_file merged with [group.config]
     std::vector<Override> overrides;  // one without name when the group has none
   };
@@ -362,12 +362,14 @@ class Parser {
     return *v;
   }
 
-  std::string parseFrontend(const toml::table& group, const std::vector<std::string>& args) const {
+  std::optional<FrontendKind> parseFrontend(const toml::table& group,
+                                            const std::vector<std::string>& args) const {
     const toml::node* node = group.get("frontend");
-    if (node == nullptr) return "";
+    if (node == nullptr) return std::nullopt;
     const auto v = node->value<std::string>();
-    if (!v || (*v != "images" && *v != "simulated" && *v != "auto")) {
-      throw error(*node, "frontend must be \"images\", \"simulated\" or \"auto\"");
+    FrontendKind kind = FrontendKind::kAuto;
+    if (!v || !parseName(kFrontendKindNames, *v, &kind)) {
+      throw error(*node, "frontend must be " + describeNames(kFrontendKindNames, true));
     }
     for (const std::string& arg : args) {
       const std::string option = arg.substr(0, arg.find('='));
@@ -375,7 +377,7 @@ class Parser {
         throw error(*node, "frontend is set here: args must not hold " + option + " too");
       }
     }
-    return *v;
+    return kind;
   }
 
   toml::table parseConfigFile(const toml::table& group) const {
@@ -592,13 +594,13 @@ std::vector<std::string> runArguments(const PlannedRun& run, const std::string& 
     args.push_back("--config");
     args.push_back(config_path);
   }
-  if (run.frontend == "images") {
+  if (run.frontend == FrontendKind::kImages) {
     // Tracked once per dataset by the runner: ten variants must not track the images ten times.
     args.push_back("--tracks");
     args.push_back(sweepTrackFile(run));
-  } else if (!run.frontend.empty()) {
+  } else if (run.frontend) {
     args.push_back("--frontend");
-    args.push_back(run.frontend);
+    args.push_back(nameOf(kFrontendKindNames, *run.frontend));
   }
   args.insert(args.end(), run.extra_args.begin(), run.extra_args.end());
   args.push_back("-o");

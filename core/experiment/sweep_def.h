@@ -47,8 +47,11 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "core/frontend/track_source.h"
 
 namespace marglab::experiment {
 
@@ -61,7 +64,7 @@ struct PlannedRun {
   int frames = 0;                       // 0: whole sequence
   double timeout_s = 0;                 // 0: none
   std::string override_name;            // "" for the unnamed override
-  std::string frontend;                 // "" (not passed), "images", "simulated", "auto"
+  std::optional<FrontendKind> frontend;  // nullopt: not passed (the run's default, auto)
   std::vector<std::string> extra_args;  // group args, then override args
   std::string config_toml;              // merged config overrides (TOML text), "" when none
   // The spec its child runs (`marglab run --spec runs/<id>.spec.toml`, core/pipeline/run_spec.h),

@@ -181,7 +181,7 @@ frontend = "simulated"
 )");
   ASSERT_EQ(plan.runs.size(), 3u);
   for (int i = 0; i < 2; ++i) {
-    EXPECT_EQ(plan.runs[i].frontend, "images");
+    EXPECT_EQ(plan.runs[i].frontend, FrontendKind::kImages);
     EXPECT_EQ(sweepTrackFile(plan.runs[i]), "tracks/euroc-V1_01_easy_images.h5");
     const std::vector<std::string> args = runArguments(plan.runs[i], "runs/x.h5", "");
     const auto it = std::find(args.begin(), args.end(), "--tracks");
