@@ -30,7 +30,7 @@
 #include "core/common/error.h"
 #include "core/common/interrupt.h"
 #include "core/data/sequence.h"
-#include "core/estimator/config.h"
+#include "core/pipeline/run_config.h"
 #include "core/frontend/rendered_folder.h"
 #include "core/frontend/image_check.h"
 #include "core/frontend/track_source.h"
@@ -270,7 +270,7 @@ CommandRun setupTrack(CLI::App& app) {
   return [options] {
     checkDatasetArgument(options->dataset);
     cli::checkOutputFile(options->output, "-o");
-    EstimatorConfig config;
+    RunConfig config;
     if (!options->config.empty()) config.loadToml(options->config);
     cli::refuseOverwritingInputs({options->output},
                                  {{}, cli::datasetInputFolders(options->dataset)});

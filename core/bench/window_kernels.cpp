@@ -25,7 +25,7 @@ struct WindowKernels<Scalar>::State {
     lm.setFailedSolves(w.failed_solves);
     lm_once.setFailedSolves(w.failed_solves);
   }
-  static EstimatorConfig oneIteration(EstimatorConfig config) {
+  static EstimatorSettings oneIteration(EstimatorSettings config) {
     config.lm_max_iterations = 1;
     return config;
   }

@@ -11,8 +11,8 @@ namespace {
 
 template <typename Scalar>
 ReplayResult replayAs(const WindowSnapshot& window, const Variant& variant,
-                      const std::optional<EstimatorConfig>& config) {
-  const EstimatorConfig& cfg = config ? *config : window.config;
+                      const std::optional<EstimatorSettings>& config) {
+  const EstimatorSettings& cfg = config ? *config : window.config;
   Window<Scalar> w = restoredWindow<Scalar>(window, variant, cfg);
   LevenbergMarquardt<Scalar> lm(cfg, variant);
   lm.setFailedSolves(window.failed_solves);
@@ -35,7 +35,7 @@ bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) =
 }  // namespace
 
 ReplayResult replayWindow(const WindowSnapshot& window, const std::optional<Variant>& variant,
-                          const std::optional<EstimatorConfig>& config) {
+                          const std::optional<EstimatorSettings>& config) {
   const Variant v = variant ? *variant : Variant::parse(window.variant);
   return v.precision == Precision::kF32 ? replayAs<float>(window, v, config)
                                         : replayAs<double>(window, v, config);

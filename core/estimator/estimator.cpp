@@ -26,12 +26,14 @@ int MargEvent::numPoses() const {
 }
 
 template <typename Scalar>
-SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorConfig& config,
+SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorSettings& config,
                                                        const Variant& variant,
                                                        const StereoRig<double>& rig,
                                                        const SE3<double>& T_w_i_initial,
-                                                       std::optional<ImuSetup> imu)
+                                                       std::optional<ImuSetup> imu,
+                                                       EstimatorReporting reporting)
     : config_(config),
+      reporting_(reporting),
       variant_(variant),
       window_(config, rig, std::move(imu)),
       policy_(config_),
@@ -142,7 +144,7 @@ std::vector<std::pair<int64_t, Eigen::Vector3d>> SlidingWindowEstimator<Scalar>:
 template <typename Scalar>
 void SlidingWindowEstimator<Scalar>::countInconsistent(int64_t id, FrameResult* result) const {
   const std::vector<Scalar> errors = window_.frameReprojectionErrors(id);
-  const Scalar bound = static_cast<Scalar>(config_.inconsistent_px);
+  const Scalar bound = static_cast<Scalar>(reporting_.inconsistent_px);
   result->n_checked = static_cast<int>(errors.size());
   result->n_inconsistent = static_cast<int>(
       std::count_if(errors.begin(), errors.end(), [bound](Scalar e) { return !(e <= bound); }));
@@ -288,11 +290,13 @@ WindowSnapshot SlidingWindowEstimator<Scalar>::snapshot() const {
 
 template <typename Scalar>
 SlidingWindowEstimator<Scalar> SlidingWindowEstimator<Scalar>::fromSnapshot(
-    const WindowSnapshot& w, const Variant& variant, const std::optional<EstimatorConfig>& config) {
-  EstimatorConfig cfg = config ? *config : w.config;
-  cfg.diagnostics = false;  // a restored window has no shadow prior
-  Window<Scalar> window = restoredWindow<Scalar>(w, variant, cfg);
-  SlidingWindowEstimator est(cfg, variant, w.rig, w.frames.front().T_w_i, imuSetupOf<Scalar>(w));
+    const WindowSnapshot& w, const Variant& variant, const std::optional<EstimatorSettings>& config) {
+  const EstimatorSettings& settings = config ? *config : w.config;
+  Window<Scalar> window = restoredWindow<Scalar>(w, variant, settings);
+  EstimatorReporting reporting;
+  reporting.shadow_prior = false;  // a restored window has no shadow prior
+  SlidingWindowEstimator est(settings, variant, w.rig, w.frames.front().T_w_i,
+                             imuSetupOf<Scalar>(w), reporting);
   est.window_ = std::move(window);
   for (const auto& fs : w.frames) {
     if (fs.is_keyframe) est.last_keyframe_ = std::max(est.last_keyframe_, fs.id);
@@ -340,7 +344,7 @@ Status SlidingWindowEstimator<Scalar>::marginalizePlan(const MargPlan& plan, boo
     result->sparsify_event = std::move(event);
   }
   // The gauge diagnostics analyse a prior over frame states (the shadow prior of discard).
-  if (config_.diagnostics && !policy_.keepsLandmarks(window_)) {
+  if (reporting_.shadow_prior && !policy_.keepsLandmarks(window_)) {
     if (Status s = marginalizeShadow(plan, result); !s.ok()) return s;
   }
   window_.removeMarginalized(plan);

@@ -44,7 +44,7 @@
 #include "core/common/eigen_types.h"
 #include "core/common/status.h"
 #include "core/diagnostics/gauge.h"
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/estimator/levenberg_marquardt.h"
 #include "core/estimator/marg_policy.h"
 #include "core/estimator/marg_prior.h"
@@ -56,7 +56,7 @@
 #include "core/geometry/camera.h"
 #include "core/geometry/se3.h"
 #include "core/io/results_records.h"
-#include "core/sim/tracks.h"
+#include "core/data/tracks.h"
 
 namespace marglab {
 
@@ -97,10 +97,12 @@ class SlidingWindowEstimator {
   // VO: T_w_i_initial is the first cam0 pose (the rig's T_i_c0 is ignored: body = cam0).
   // VIO (imu given): the first state is imu->initial; the rig's extrinsics map body to cameras.
   // config is used as given: the run validated it (prepareRun); min_frames_after_kf −1 (no
-  // dataset default applied) spaces keyframes as 1 does.
-  SlidingWindowEstimator(const EstimatorConfig& config, const Variant& variant,
+  // dataset default applied) spaces keyframes as 1 does. `reporting`: the shadow prior and the
+  // consistency count (estimator_settings.h).
+  SlidingWindowEstimator(const EstimatorSettings& config, const Variant& variant,
                          const StereoRig<double>& rig, const SE3<double>& T_w_i_initial,
-                         std::optional<ImuSetup> imu = std::nullopt);
+                         std::optional<ImuSetup> imu = std::nullopt,
+                         EstimatorReporting reporting = {});
 
   // Throws InputError when a VIO frame lies outside the IMU stream.
   FrameResult processFrame(const TrackFrame& frame);
@@ -133,7 +135,7 @@ class SlidingWindowEstimator {
   // The estimator of a captured window, in this Scalar and the given variant (precision aside);
   // `config` replaces the captured one when given. Throws InputError on an inconsistent window.
   static SlidingWindowEstimator fromSnapshot(const WindowSnapshot& window, const Variant& variant,
-                                             const std::optional<EstimatorConfig>& config = {});
+                                             const std::optional<EstimatorSettings>& config = {});
 
  private:
   // Frame intake: the new frame's state (VIO: predicted through its IMU factor; VO: constant
@@ -143,7 +145,7 @@ class SlidingWindowEstimator {
   void initializeGaugePrior(int64_t frame_id);
   void addImuLink(int64_t from, int64_t to);
   void updateKeyframe(int64_t id, const TrackFrame& frame, int connected);
-  // result->n_checked / n_inconsistent of the optimized frame id (config failure.inconsistent_px).
+  // result->n_checked / n_inconsistent of the optimized frame id (reporting_.inconsistent_px).
   void countInconsistent(int64_t id, FrameResult* result) const;
 
   // Marginalization after frame `current` (the policy's plan), of the shadow prior alike.
@@ -152,7 +154,8 @@ class SlidingWindowEstimator {
   Status marginalizeShadow(const MargPlan& plan, FrameResult* result);
   MargEvent shadowEvent() const;
 
-  EstimatorConfig config_;
+  EstimatorSettings config_;
+  EstimatorReporting reporting_;
   Variant variant_;
   Window<Scalar> window_;
   MargPrior<Scalar> shadow_prior_;

@@ -11,7 +11,7 @@
 namespace marglab {
 
 template <typename Scalar>
-LevenbergMarquardt<Scalar>::LevenbergMarquardt(const EstimatorConfig& config,
+LevenbergMarquardt<Scalar>::LevenbergMarquardt(const EstimatorSettings& config,
                                                const Variant& variant)
     : config_(config), variant_(variant), lambda_(static_cast<Scalar>(config.lambda_init)) {}
 

@@ -22,7 +22,7 @@
 // as far as LM can tell). λ and ν restart at lambda_init and 2 every frame (as Basalt's
 // optimize()).
 //
-// Stop rules (lm.stop_rule, LmStopRule in config.h), after an accepted step of max |δ|:
+// Stop rules (lm.stop_rule, LmStopRule in estimator_settings.h), after an accepted step of max |δ|:
 //   marglab — at most lm.max_iterations linearizations; stop when (E − E_new) / E <
 //             stop_relative_cost or max |δ| < stop_max_step;
 //   basalt  — at most lm.max_iterations + 1 cost evaluations in all (a rejected λ trial counts, so
@@ -39,7 +39,7 @@
 
 #include "core/common/eigen_types.h"
 #include "core/common/status.h"
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/estimator/linearization.h"
 #include "core/estimator/variant.h"
 #include "core/estimator/window.h"
@@ -59,7 +59,7 @@ class LevenbergMarquardt {
  public:
   // config: the [lm] keys (and lm.landmark_damping); variant: the linearization's landmark
   // elimination, precision and the prior storage's preconditioning.
-  LevenbergMarquardt(const EstimatorConfig& config, const Variant& variant);
+  LevenbergMarquardt(const EstimatorSettings& config, const Variant& variant);
 
   // Optimizes the window in place; the states stay where the last accepted step left them.
   LmSummary optimize(Window<Scalar>* window);
@@ -92,7 +92,7 @@ class LevenbergMarquardt {
   void increaseDamping();
   static Status checkFinite(const Window<Scalar>& window);
 
-  EstimatorConfig config_;
+  EstimatorSettings config_;
   Variant variant_;
   Scalar lambda_;
   Scalar nu_ = Scalar(2);

@@ -128,7 +128,7 @@ MargProblem<Scalar> gatherProblem(const Window<Scalar>& w, const MargPlan& plan,
 template <typename Scalar>
 class QrMarginalizer final : public Marginalizer<Scalar> {
  public:
-  explicit QrMarginalizer(const EstimatorConfig& config) {
+  explicit QrMarginalizer(const EstimatorSettings& config) {
     options_.mode = config.qr_threshold_mode;
     if (config.qr_threshold >= 0) options_.threshold = static_cast<Scalar>(config.qr_threshold);
   }
@@ -307,7 +307,7 @@ Scalar ldltPivotFloor(PsdProjection psd, Eigen::Index n) {
 template <typename Scalar>
 std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
                                                        const PriorStorage& storage,
-                                                       const EstimatorConfig& config) {
+                                                       const EstimatorSettings& config) {
   if (method == MargMethod::kQr) return std::make_unique<QrMarginalizer<Scalar>>(config);
   return std::make_unique<SchurMarginalizer<Scalar>>(storage);
 }
@@ -341,7 +341,7 @@ Status trialMarginalization(const Window<Scalar>& window, MargPrior<Scalar> prio
 #define MARGLAB_INST(S)                                                                          \
   template S ldltPivotFloor<S>(PsdProjection, Eigen::Index);                                     \
   template std::unique_ptr<Marginalizer<S>> makeMarginalizer<S>(MargMethod, const PriorStorage&, \
-                                                                const EstimatorConfig&);         \
+                                                                const EstimatorSettings&);         \
   template Status trialMarginalization<S>(const Window<S>&, MargPrior<S>, const MargPlan&,       \
                                           MargMethod, MatXd*);
 MARGLAB_INSTANTIATE(MARGLAB_INST)

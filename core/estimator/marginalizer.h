@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "core/common/status.h"
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/estimator/window.h"
 
 namespace marglab {
@@ -43,7 +43,7 @@ class Marginalizer {
 template <typename Scalar>
 std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
                                                        const PriorStorage& storage,
-                                                       const EstimatorConfig& config);
+                                                       const EstimatorSettings& config);
 
 // The prior Hessian H_m, in double, that marginalizing `plan` with `method` makes of `prior`
 // (a copy; the window stays as it is): qr produces a plain square root (and needs one, or an empty

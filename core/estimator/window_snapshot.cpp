@@ -207,7 +207,7 @@ void restoreWindow(const WindowSnapshot& w, const PriorStorage& storage, Window<
 
 template <typename Scalar>
 Window<Scalar> restoredWindow(const WindowSnapshot& w, const Variant& variant,
-                              const EstimatorConfig& config) {
+                              const EstimatorSettings& config) {
   if (w.frames.empty()) throw InputError("", 0, "window: no frames");
   Window<Scalar> window(config, w.rig, imuSetupOf<Scalar>(w));
   // restoreWindow preconditions the prior as its storage says.
@@ -236,7 +236,7 @@ WindowSnapshot::Step stepOf(const Window<Scalar>& window, int lm_iterations, dou
   template std::optional<ImuSetup> imuSetupOf<S>(const WindowSnapshot&);                  \
   template void restoreWindow<S>(const WindowSnapshot&, const PriorStorage&, Window<S>*); \
   template Window<S> restoredWindow<S>(const WindowSnapshot&, const Variant&,             \
-                                       const EstimatorConfig&);                           \
+                                       const EstimatorSettings&);                           \
   template WindowSnapshot::Step stepOf<S>(const Window<S>&, int, double, double);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST

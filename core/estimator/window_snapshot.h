@@ -9,7 +9,7 @@
 
 #include "core/common/eigen_types.h"
 #include "core/data/types.h"
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/estimator/marg_prior.h"
 #include "core/estimator/variant.h"
 #include "core/geometry/camera.h"
@@ -65,7 +65,7 @@ struct WindowSnapshot {
   std::string dataset, variant;
   int64_t frame_index = -1;  // index of the newest frame in the run
   // Setup.
-  EstimatorConfig config;
+  EstimatorSettings config;
   StereoRig<double> rig;
   bool vio = false;
   ImuNoise imu_noise;
@@ -102,7 +102,7 @@ void restoreWindow(const WindowSnapshot& w, const PriorStorage& storage, Window<
 // psd_hessian_prior), then restored. Throws InputError on an inconsistent window.
 template <typename Scalar>
 Window<Scalar> restoredWindow(const WindowSnapshot& w, const Variant& variant,
-                              const EstimatorConfig& config);
+                              const EstimatorSettings& config);
 // The step an optimization took, as WindowSnapshot::after: its outcome and the states of `window`
 // after it (landmarks without their observations, which a step does not change).
 template <typename Scalar>
