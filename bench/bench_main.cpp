@@ -1,7 +1,7 @@
 // The benchmark suite of issue #8 on the shipped captured windows (datasets/windows/):
 //   LmPhase/<phase>/<variant>/<window>  one LM iteration's phases — linearize, eliminate the
 //       landmarks, form + solve the reduced camera system — their sum (iteration), and the
-//       estimator's optimize() limited to one iteration (with its cost evaluations);
+//       estimator's optimizer limited to one iteration (with its cost evaluations);
 //       variants ns-qr-sqrt (√BA, nullspace projection) and sc-sc-sq (Schur baseline) × f32/f64;
 //   Marginalize/<qr|sc>/<f32|f64>/<window>  one marginalization event (oldest keyframe with its
 //       landmarks, VIO: and the oldest state's speed-bias) by the flat QR or the Schur complement;

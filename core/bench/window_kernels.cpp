@@ -1,7 +1,7 @@
 #include "core/bench/window_kernels.h"
 
 #include "core/common/scalar.h"
-#include "core/estimator/estimator_probe.h"
+#include "core/estimator/marg_policy.h"
 #include "core/estimator/system_blocks.h"
 
 namespace marglab {
@@ -12,19 +12,25 @@ double landmarkQrFlops(int m, int n) {
   return flops;
 }
 
+// The captured window, the optimizer as the run configured it and as with one LM iteration, and
+// the linearization whose phases linearize() / eliminate() / solve() time.
 template <typename Scalar>
 struct WindowKernels<Scalar>::State {
-  using Est = SlidingWindowEstimator<Scalar>;
   State(const WindowSnapshot& w, const Variant& v)
-      : est(Est::fromSnapshot(w, v)),
-        est_once(Est::fromSnapshot(w, v, oneIteration(w.config))),
-        lin(EstimatorProbe<Scalar>::variantLinearization(est)),
-        lambda(static_cast<Scalar>(w.config.lambda_init)) {}
+      : window(restoredWindow<Scalar>(w, v, w.config)),
+        lm(w.config, v),
+        lm_once(oneIteration(w.config), v),
+        lin(lm.makeLinearization()),
+        lambda(static_cast<Scalar>(w.config.lambda_init)) {
+    lm.setFailedSolves(w.failed_solves);
+    lm_once.setFailedSolves(w.failed_solves);
+  }
   static EstimatorSettings oneIteration(EstimatorSettings config) {
     config.lm_max_iterations = 1;
     return config;
   }
-  Est est, est_once;
+  Window<Scalar> window;
+  LevenbergMarquardt<Scalar> lm, lm_once;
   std::unique_ptr<Linearization<Scalar>> lin;
   Scalar lambda;
   LinearStep<Scalar> step;
@@ -39,7 +45,7 @@ WindowKernels<Scalar>::~WindowKernels() = default;
 
 template <typename Scalar>
 void WindowKernels<Scalar>::linearize() {
-  s_->lin->linearize(s_->est.window());
+  s_->lin->linearize(s_->window);
 }
 
 template <typename Scalar>
@@ -61,36 +67,36 @@ Status WindowKernels<Scalar>::iteration() {
 
 template <typename Scalar>
 Status WindowKernels<Scalar>::optimizeOnce() {
-  typename State::Est copy = s_->est_once;
-  FrameResult result;
-  return EstimatorProbe<Scalar>::optimize(copy, &result);
+  Window<Scalar> window = s_->window;
+  LevenbergMarquardt<Scalar> lm = s_->lm_once;
+  return lm.optimize(&window).status;
 }
 
 template <typename Scalar>
 Status WindowKernels<Scalar>::optimizeFull(int* iterations, double* cost_final) {
-  typename State::Est copy = s_->est;
-  FrameResult result;
-  Status st = EstimatorProbe<Scalar>::optimize(copy, &result);
-  *iterations = result.lm_iterations;
-  if (cost_final) *cost_final = result.cost_final;
-  return st;
+  Window<Scalar> window = s_->window;
+  LevenbergMarquardt<Scalar> lm = s_->lm;
+  const LmSummary summary = lm.optimize(&window);
+  *iterations = summary.lm_iterations;
+  if (cost_final) *cost_final = summary.cost_final;
+  return summary.status;
 }
 
 template <typename Scalar>
 Status WindowKernels<Scalar>::marginalize(MargMethod method) {
-  const auto& est = s_->est;
+  const Window<Scalar>& window = s_->window;
+  const MarginalizationPolicy<Scalar> policy(window.config());
   MargPlan plan;
-  using Probe = EstimatorProbe<Scalar>;
-  if (const auto state_plan = Probe::planStateMarginalization(est, true)) plan = *state_plan;
-  const std::vector<int64_t> kfs = est.keyframeIds();
+  if (const auto state_plan = policy.stateMarginalization(window, true)) plan = *state_plan;
+  const std::vector<int64_t> kfs = window.keyframeIds();
   if (!kfs.empty()) {
-    const MargPlan kf = Probe::planKeyframeMarginalization(est, kfs.front());
+    const MargPlan kf = policy.keyframeMarginalization(window, kfs.front());
     plan.vars.insert(kf.vars.begin(), kf.vars.end());
     plan.landmarks = kf.landmarks;
   }
-  MargPrior<Scalar> prior = est.prior();
-  return makeMarginalizer<Scalar>(method, prior.storage, est.window().config())
-      ->marginalize(est.window(), plan, &prior, nullptr);
+  MargPrior<Scalar> prior = window.prior;
+  return makeMarginalizer<Scalar>(method, prior.storage, window.config())
+      ->marginalize(window, plan, &prior, nullptr);
 }
 
 template <typename Scalar>

@@ -8,15 +8,17 @@
 //                and the Q2ᵀ rows into the reduced camera system; sc: Schur complement);
 //   solve()      damped LDLT of the reduced system, back-substitution of the landmarks and the
 //                model cost change.
-// iteration() is the three in a row; optimizeOnce() is the estimator's optimize() itself with one
-// LM iteration (including the cost evaluations and λ trials). marginalize() is one marginalization
-// event (the oldest keyframe with its landmarks; for VIO also the oldest state's speed-bias) by the
-// variant's Marginalizer (flat QR or Schur complement), on a copy of the prior.
+// iteration() is the three in a row; optimizeOnce() is the estimator's optimizer itself
+// (LevenbergMarquardt::optimize) with one LM iteration (including the cost evaluations and λ
+// trials). marginalize() is one marginalization event as the policy plans it (the oldest keyframe
+// with its landmarks; for VIO also the oldest state's speed-bias) by the variant's Marginalizer
+// (flat QR or Schur complement), on a copy of the prior.
 
 #include <memory>
 #include <vector>
 
-#include "core/estimator/estimator.h"
+#include "core/estimator/levenberg_marquardt.h"
+#include "core/estimator/window_snapshot.h"
 #include "core/linalg/landmark_block.h"
 
 namespace marglab {
@@ -36,9 +38,9 @@ class WindowKernels {
   Status eliminate();
   Status solve();
   Status iteration();
-  // optimize() with lm_max_iterations = 1 on a copy of the window; returns the status.
+  // LevenbergMarquardt::optimize with lm_max_iterations = 1 on a copy of the window.
   Status optimizeOnce();
-  // optimize() to convergence on a copy; iterations in *iterations.
+  // LevenbergMarquardt::optimize to convergence on a copy; iterations in *iterations.
   Status optimizeFull(int* iterations, double* cost_final = nullptr);
   Status marginalize(MargMethod method);
 

@@ -4,20 +4,21 @@
 
 #include <cstring>
 
-#include "core/estimator/estimator_probe.h"
+#include "core/estimator/levenberg_marquardt.h"
+
 namespace marglab {
 namespace {
 
 template <typename Scalar>
 ReplayResult replayAs(const WindowSnapshot& window, const Variant& variant,
                       const std::optional<EstimatorSettings>& config) {
-  auto estimator = SlidingWindowEstimator<Scalar>::fromSnapshot(window, variant, config);
+  const EstimatorSettings& cfg = config ? *config : window.config;
+  Window<Scalar> w = restoredWindow<Scalar>(window, variant, cfg);
+  LevenbergMarquardt<Scalar> lm(cfg, variant);
+  lm.setFailedSolves(window.failed_solves);
   ReplayResult out;
-  using Probe = EstimatorProbe<Scalar>;
-  out.result.status = Probe::optimize(estimator, &out.result);
-  WindowSnapshot after;
-  Probe::recordStep(estimator, out.result, &after);
-  out.step = std::move(after.after);
+  out.result = lm.optimize(&w);
+  out.step = stepOf(w, out.result.lm_iterations, out.result.cost_initial, out.result.cost_final);
   return out;
 }
 

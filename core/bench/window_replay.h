@@ -1,19 +1,20 @@
 #pragma once
-// Replaying a captured window (WindowSnapshot): the estimator is rebuilt from the snapshot and runs
-// the optimize() that processFrame() ran on that window. With the same build, variant and
-// precision, the replayed step is bit-identical to the captured one (compareSteps checks every
-// bit of the states after the step).
+// Replaying a captured window (WindowSnapshot): the window is rebuilt from the snapshot and the
+// estimator's optimizer (core/estimator/levenberg_marquardt.h) runs on it as processFrame() ran
+// it. With the same build, variant and precision, the replayed step is bit-identical to the
+// captured one (compareSteps checks every bit of the states after the step).
 
 #include <optional>
 #include <string>
 
-#include "core/estimator/estimator.h"
+#include "core/estimator/levenberg_marquardt.h"
+#include "core/estimator/window_snapshot.h"
 
 namespace marglab {
 
 struct ReplayResult {
-  FrameResult result;
-  WindowSnapshot::Step step;  // the states after the replayed optimize()
+  LmSummary result;
+  WindowSnapshot::Step step;  // the step replayed: its outcome and the states after it
 };
 
 // Variant: the window's own (with precision) unless given. Throws InputError on a bad window.

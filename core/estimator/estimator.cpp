@@ -1,12 +1,9 @@
 #include "core/estimator/estimator.h"
 
-#include <fmt/core.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 
-#include "core/common/error.h"
 #include "core/common/scalar.h"
 #include "core/geometry/stereographic.h"
 #include "core/imu/preintegration.h"
@@ -43,7 +40,7 @@ SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorSettings& 
       marginalizer_(makeMarginalizer<Scalar>(
           variant.marg, withPsdHessianPrior(variant.storage, config.psd_hessian_prior), config)),
       last_pose_(window_.isVio() ? window_.imu()->initial.T_w_i : T_w_i_initial),
-      lambda_(static_cast<Scalar>(config.lambda_init)) {
+      lm_(config, variant) {
   window_.prior.storage = withPsdHessianPrior(variant.storage, config.psd_hessian_prior);
   shadow_prior_.storage = window_.prior.storage;
 }
@@ -71,10 +68,14 @@ FrameResult SlidingWindowEstimator<Scalar>::processFrame(const TrackFrame& track
 
   if (capture_next_) captured_ = snapshot();
   const auto t0 = Clock::now();
-  result.status = optimize(&result);
+  const LmSummary lm = lm_.optimize(&window_);
   result.t_opt_s = secondsSince(t0);
+  result.status = lm.status;
+  result.lm_iterations = lm.lm_iterations;
+  result.cost_initial = lm.cost_initial;
+  result.cost_final = lm.cost_final;
   if (capture_next_) {
-    recordStep(result, &*captured_);
+    captured_->after = stepOf(window_, lm.lm_iterations, lm.cost_initial, lm.cost_final);
     capture_next_ = false;
   }
   const Frame& optimized = window_.frames.at(id);
@@ -269,177 +270,6 @@ void SlidingWindowEstimator<Scalar>::addImuLink(int64_t from, int64_t to) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Levenberg–Marquardt
-
-template <typename Scalar>
-std::unique_ptr<Linearization<Scalar>> SlidingWindowEstimator<Scalar>::makeVariantLinearization()
-    const {
-  typename Linearization<Scalar>::Options options;
-  options.damp_landmarks = config_.lm_landmark_damping;
-  options.lambda_min = static_cast<Scalar>(config_.lambda_min);
-  options.preconditioning = preconditioningOf(variant_.storage);
-  return makeLinearization<Scalar>(variant_, options);
-}
-
-template <typename Scalar>
-Status SlidingWindowEstimator<Scalar>::optimize(FrameResult* result) {
-  // λ restarts at its initial value for every frame (as Basalt's optimize does).
-  lambda_ = static_cast<Scalar>(config_.lambda_init);
-  nu_ = Scalar(2);
-  Scalar cost = window_.totalCost();
-  result->cost_initial = static_cast<double>(cost);
-  if (!std::isfinite(cost)) {
-    return Status::Error(Status::Code::kNotFinite, "the cost of the window is not finite");
-  }
-  // Basalt counts every cost evaluation (`it <= vio_max_iterations`), rejected λ trials too.
-  const bool basalt = config_.lm_stop_rule == LmStopRule::kBasalt;
-  evaluations_left_ = basalt ? config_.lm_max_iterations + 1 : std::numeric_limits<int>::max();
-  const int max_linearizations = basalt ? evaluations_left_ : config_.lm_max_iterations;
-  const std::unique_ptr<Linearization<Scalar>> lin = makeVariantLinearization();
-  for (int it = 0; it < max_linearizations; ++it) {
-    lin->linearize(window_);
-    if (Status s = lin->eliminate(); !s.ok()) return s;
-    bool stop = false;
-    if (Status s = lmIteration(*lin, &cost, &stop); !s.ok()) return s;
-    ++result->lm_iterations;
-    if (stop) break;
-  }
-  result->cost_final = static_cast<double>(cost);
-  return checkFinite();
-}
-
-template <typename Scalar>
-Status SlidingWindowEstimator<Scalar>::lmIteration(Linearization<Scalar>& lin, Scalar* cost,
-                                                   bool* stop) {
-  const Scalar lambda_min = static_cast<Scalar>(config_.lambda_min);
-  const Scalar lambda_max = static_cast<Scalar>(config_.lambda_max);
-  while (true) {
-    LinearStep<Scalar> step;
-    if (Status status = lin.solve(lambda_, &step); !status.ok()) {
-      if (++failed_solves_ >= config_.max_failed_solves) {
-        return Status::Error(status.code(), fmt::format("linear solve failed {} times in a row: {}",
-                                                        failed_solves_, status.message()));
-      }
-      increaseDamping();
-      continue;
-    }
-    failed_solves_ = 0;
-    StepBackup backup;
-    const Scalar max_step = applyStep(lin, step, &backup);
-    const Scalar new_cost = window_.totalCost();
-    --evaluations_left_;
-    if (std::isfinite(new_cost) && new_cost < *cost) {
-      const Scalar model_change = step.model_change;
-      const Scalar rho = model_change < 0 ? (*cost - new_cost) / -model_change : Scalar(1);
-      const Scalar f = Scalar(2) * rho - Scalar(1);
-      lambda_ *= std::max(Scalar(1) / Scalar(3), Scalar(1) - f * f * f);
-      lambda_ = std::clamp(lambda_, lambda_min, lambda_max);
-      nu_ = Scalar(2);
-      *stop = converged(*cost, new_cost, max_step);
-      *cost = new_cost;
-      return Status::Ok();
-    }
-    undoStep(lin, std::move(backup));
-    // No decrease even with maximal damping (converged as far as LM can tell), or the evaluation
-    // budget of the basalt rule spent.
-    if (lambda_ >= lambda_max || evaluations_left_ <= 0) {
-      *stop = true;
-      return Status::Ok();
-    }
-    increaseDamping();
-  }
-}
-
-template <typename Scalar>
-bool SlidingWindowEstimator<Scalar>::converged(Scalar cost, Scalar new_cost,
-                                               Scalar max_step) const {
-  const bool small_step = max_step < static_cast<Scalar>(config_.stop_max_step);
-  if (config_.lm_stop_rule == LmStopRule::kBasalt) {
-    return cost - new_cost < static_cast<Scalar>(kBasaltStopCost) || small_step ||
-           evaluations_left_ <= 0;
-  }
-  const Scalar relative_decrease = (cost - new_cost) / cost;
-  return relative_decrease < static_cast<Scalar>(config_.stop_relative_cost) || small_step;
-}
-
-template <typename Scalar>
-void SlidingWindowEstimator<Scalar>::increaseDamping() {
-  lambda_ = std::min(lambda_ * nu_, static_cast<Scalar>(config_.lambda_max));
-  nu_ *= Scalar(2);
-}
-
-template <typename Scalar>
-Scalar SlidingWindowEstimator<Scalar>::applyStep(const Linearization<Scalar>& lin,
-                                                 const LinearStep<Scalar>& step,
-                                                 StepBackup* backup) {
-  const ColumnMap& column_of = lin.columns();
-  const VecX<Scalar>& delta = step.delta;
-  backup->frames = window_.frames;
-  for (auto& [id, frame] : window_.frames) {
-    frame.T_w_i = boxPlus<Scalar>(
-        frame.T_w_i, delta.template segment<kPoseDim>(column_of.at({id, StateBlock::kPose})));
-    if (frame.has_speed_bias) {
-      frame.speed_bias +=
-          delta.template segment<kSpeedBiasDim>(column_of.at({id, StateBlock::kSpeedBias}));
-    }
-  }
-  const std::vector<LandmarkJacobians<Scalar>>& lins = lin.landmarks();
-  backup->params.resize(lins.size());
-  Scalar max_step = delta.size() ? delta.cwiseAbs().maxCoeff() : Scalar(0);
-  for (size_t l = 0; l < lins.size(); ++l) {
-    Landmark& lm = window_.landmarks.at(lins[l].track_id);
-    backup->params[l] = lm.param;
-    lm.param += step.delta_l[l];
-    if (!lm.world()) lm.param.z() = std::max(lm.param.z(), Scalar(0));
-    max_step = std::max(max_step, step.delta_l[l].cwiseAbs().maxCoeff());
-  }
-  for (int64_t track : window_.priorLandmarks()) {
-    Vec3S& p_w = window_.landmarks.at(track).param;
-    backup->reduced[track] = p_w;
-    p_w += delta.template segment<kPointDim>(column_of.at({track, StateBlock::kLandmark}));
-  }
-  return max_step;
-}
-
-template <typename Scalar>
-void SlidingWindowEstimator<Scalar>::undoStep(const Linearization<Scalar>& lin,
-                                              StepBackup&& backup) {
-  window_.frames = std::move(backup.frames);
-  const std::vector<LandmarkJacobians<Scalar>>& lins = lin.landmarks();
-  for (size_t l = 0; l < lins.size(); ++l) {
-    window_.landmarks.at(lins[l].track_id).param = backup.params[l];
-  }
-  for (const auto& [track, p_w] : backup.reduced) window_.landmarks.at(track).param = p_w;
-}
-
-template <typename Scalar>
-Status SlidingWindowEstimator<Scalar>::checkFinite() const {
-  for (const auto& [id, frame] : window_.frames) {
-    if (!frame.T_w_i.translation().allFinite() ||
-        !frame.T_w_i.unitQuaternion().coeffs().allFinite() || !frame.speed_bias.allFinite()) {
-      return Status::Error(Status::Code::kNotFinite, "a state turned non-finite");
-    }
-  }
-  return Status::Ok();
-}
-
-template <typename Scalar>
-Status SlidingWindowEstimator<Scalar>::computeStep(OptElimination elimination, Scalar lambda,
-                                                   VecX<Scalar>* delta) const {
-  typename Linearization<Scalar>::Options options;
-  options.damp_landmarks = true;
-  options.lambda_min = static_cast<Scalar>(config_.lambda_min);
-  const std::unique_ptr<Linearization<Scalar>> lin =
-      makeLinearization<Scalar>(elimination, options);
-  lin->linearize(window_);
-  if (Status s = lin->eliminate(); !s.ok()) return s;
-  LinearStep<Scalar> step;
-  const Status s = lin->solve(lambda, &step);
-  *delta = std::move(step.delta);
-  return s;
-}
-
-// ---------------------------------------------------------------------------------------------
 // Window capture
 
 template <typename Scalar>
@@ -450,57 +280,34 @@ std::optional<WindowSnapshot> SlidingWindowEstimator<Scalar>::takeCapturedWindow
 }
 
 template <typename Scalar>
-void SlidingWindowEstimator<Scalar>::recordStep(const FrameResult& result,
-                                                WindowSnapshot* window) const {
-  const WindowSnapshot now = snapshot();
-  WindowSnapshot::Step& step = window->after;
-  step.present = true;
-  step.lm_iterations = result.lm_iterations;
-  step.cost_initial = result.cost_initial;
-  step.cost_final = result.cost_final;
-  step.frames = now.frames;
-  step.landmarks = now.landmarks;
-  for (auto& lm : step.landmarks) lm.obs.clear();
-}
-
-template <typename Scalar>
 WindowSnapshot SlidingWindowEstimator<Scalar>::snapshot() const {
   WindowSnapshot w = snapshotOf(window_);
   w.variant = variant_.name();
   w.config = config_;
-  w.failed_solves = failed_solves_;
+  w.failed_solves = lm_.failedSolves();
   return w;
 }
 
 template <typename Scalar>
 SlidingWindowEstimator<Scalar> SlidingWindowEstimator<Scalar>::fromSnapshot(
     const WindowSnapshot& w, const Variant& variant, const std::optional<EstimatorSettings>& config) {
-  if (w.frames.empty()) throw InputError("", 0, "window: no frames");
+  const EstimatorSettings& settings = config ? *config : w.config;
+  Window<Scalar> window = restoredWindow<Scalar>(w, variant, settings);
   EstimatorReporting reporting;
   reporting.shadow_prior = false;  // a restored window has no shadow prior
-  SlidingWindowEstimator est(config ? *config : w.config, variant, w.rig, w.frames.front().T_w_i,
+  SlidingWindowEstimator est(settings, variant, w.rig, w.frames.front().T_w_i,
                              imuSetupOf<Scalar>(w), reporting);
-  restoreWindow(w, variant.storage, &est.window_);
+  est.window_ = std::move(window);
   for (const auto& fs : w.frames) {
     if (fs.is_keyframe) est.last_keyframe_ = std::max(est.last_keyframe_, fs.id);
     est.next_frame_index_ = std::max(est.next_frame_index_, fs.id + 1);
   }
-  est.failed_solves_ = w.failed_solves;
+  est.lm_.setFailedSolves(w.failed_solves);
   return est;
 }
 
 // ---------------------------------------------------------------------------------------------
 // Marginalization
-
-template <typename Scalar>
-std::optional<MargPlan> SlidingWindowEstimator<Scalar>::planStateMarginalization(bool force) const {
-  return policy_.stateMarginalization(window_, force);
-}
-
-template <typename Scalar>
-MargPlan SlidingWindowEstimator<Scalar>::planKeyframeMarginalization(int64_t frame_id) const {
-  return policy_.keyframeMarginalization(window_, frame_id);
-}
 
 template <typename Scalar>
 Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult* result) {
@@ -586,34 +393,6 @@ MargEvent SlidingWindowEstimator<Scalar>::shadowEvent() const {
   }
   event.prior_rows = shadow_prior_.rows();
   return event;
-}
-
-template <typename Scalar>
-Status SlidingWindowEstimator<Scalar>::trialMarginalization(const MargPlan& plan, MargMethod method,
-                                                            MatXd* H_m) const {
-  MargPrior<Scalar> prior = shadow_prior_;
-  // qr: the plain square root it produces; sc: the plain Hessian (with the config's psd alias).
-  const PriorStorage storage =
-      method == MargMethod::kQr
-          ? PriorStorage{}
-          : withPsdHessianPrior({Representation::kHessian}, config_.psd_hessian_prior);
-  if (method == MargMethod::kQr && hessianStorage(prior.storage) && !prior.empty()) {
-    return Status::Error(Status::Code::kInvalidArgument,
-                         "qr marginalization needs a square-root shadow prior");
-  }
-  Status s = makeMarginalizer<Scalar>(method, storage, config_)
-                 ->marginalize(window_, plan, &prior, nullptr);
-  if (!s.ok()) return s;
-  if (sqrtStorage(storage)) {
-    MatX<Scalar> J;
-    VecX<Scalar> r;
-    prior.sqrtRows(VecX<Scalar>::Zero(prior.cols()), &J, &r);
-    const MatXd J_d = J.template cast<double>();
-    *H_m = J_d.transpose() * J_d;
-  } else {
-    *H_m = prior.hessianAtAnchor().template cast<double>();
-  }
-  return Status::Ok();
 }
 
 #define MARGLAB_INST(S) template class SlidingWindowEstimator<S>;

@@ -5,21 +5,18 @@
 // (qr|sc) and prior storage (variant.h); Scalar is the precision of the state (mixed: double, with
 // the landmarks eliminated in float).
 //
-// The estimator keeps the window (window.h: variables, factors, their cost and linearization),
-// the LM control and the policies; its collaborators do the numerics (module map:
-// docs/design.md §1).
+// The estimator keeps the window (window.h: variables, factors, their cost and linearization) and
+// decides what happens to it frame by frame; its collaborators do the numerics (module map:
+// docs/design.md §1): the optimizer (levenberg_marquardt.h), the marginalization policy and the
+// marginalizer.
 //
 // State. VIO states — the latest max_states frames — carry a speed-bias block (v_w, b_g, b_a);
 // older keyframes keep their pose only, up to max_kfs keyframes. Increments: pose
 // δ = [δt; δφ], t ← t + δt, R ← exp(δφ) R; speed-bias additive (core/imu/imu_state.h); hosted
 // landmarks additive with ρ clamped ≥ 0.
 //
-// Optimization (per frame). Levenberg–Marquardt, at most lm_max_iterations linearizations, each
-// through the variant's Linearization (linearization.h: landmarks eliminated per landmark, the
-// reduced system with the IMU terms and the prior damped H_ii += max(λH_ii, λ_min) and solved by
-// LDLT); the gain ratio ρ = actual / model decrease updates λ ← λ·max(1/3, 1 − (2ρ − 1)³) on
-// success, λ ← λν, ν ← 2ν on failure. Stop (lm.stop_rule = marglab) on relative decrease <
-// stop_relative_cost or max|δ| < stop_max_step; basalt: Basalt's rule (estimator_settings.h, LmStopRule).
+// Optimization (per frame): Levenberg–Marquardt on the window through the variant's Linearization
+// (levenberg_marquardt.h: the model, the damping rule, the stop rules).
 //
 // First-estimate Jacobians. A variable in the prior keeps its linearization point: reprojection
 // and IMU Jacobians are evaluated there (residuals at the current estimate), which keeps the
@@ -42,15 +39,13 @@
 #include <limits>
 #include <memory>
 #include <optional>
-#include <set>
-#include <string>
 #include <vector>
 
 #include "core/common/eigen_types.h"
 #include "core/common/status.h"
 #include "core/diagnostics/gauge.h"
 #include "core/estimator/estimator_settings.h"
-#include "core/estimator/linearization.h"
+#include "core/estimator/levenberg_marquardt.h"
 #include "core/estimator/marg_policy.h"
 #include "core/estimator/marg_prior.h"
 #include "core/estimator/marginalizer.h"
@@ -90,9 +85,6 @@ struct FrameResult : FrameRecord {
   std::optional<SparsifyEvent> sparsify_event;
   Status status;  // not ok: the run failed at this frame
 };
-
-template <typename Scalar>
-class EstimatorProbe;
 
 template <typename Scalar>
 class SlidingWindowEstimator {
@@ -136,7 +128,7 @@ class SlidingWindowEstimator {
   bool isKeyframe(int64_t frame_id) const { return window_.frames.at(frame_id).is_keyframe; }
 
   // Window capture: the next processFrame() stores its window right before optimizing, with the
-  // step optimize() took (takeCapturedWindow() hands it over once).
+  // step the optimizer took (takeCapturedWindow() hands it over once).
   void captureNextWindow() { capture_next_ = true; }
   std::optional<WindowSnapshot> takeCapturedWindow();
   WindowSnapshot snapshot() const;
@@ -144,36 +136,8 @@ class SlidingWindowEstimator {
   // `config` replaces the captured one when given. Throws InputError on an inconsistent window.
   static SlidingWindowEstimator fromSnapshot(const WindowSnapshot& window, const Variant& variant,
                                              const std::optional<EstimatorSettings>& config = {});
+
  private:
-  // The window replay of `marglab bench` and the equivalence tests reach the members below
-  // through EstimatorProbe (estimator_probe.h) only.
-  friend class EstimatorProbe<Scalar>;
-
-  // Fills window->after from the current state (after optimize()).
-  void recordStep(const FrameResult& result, WindowSnapshot* window) const;
-  // The linearization optimize() runs (the variant's elimination and precision).
-  std::unique_ptr<Linearization<Scalar>> makeVariantLinearization() const;
-
-  // Linearizes the current window and returns the LM step of all variables (layout: frames in id
-  // order, pose then speed-bias) for damping λ on poses and landmarks with the given elimination
-  // (equivalence tests).
-  Status computeStep(OptElimination elimination, Scalar lambda, VecX<Scalar>* delta) const;
-  // The marginalization of the oldest VIO state (keyframe: its speed-bias; otherwise the whole
-  // state), as the estimator would plan it now; nullopt for VO or with no state to spare.
-  std::optional<MargPlan> planStateMarginalization(bool force = false) const;
-  // The marginalization of keyframe `frame_id` with the landmarks it hosts.
-  MargPlan planKeyframeMarginalization(int64_t frame_id) const;
-  // The prior Hessian a plan would produce with `method` on a copy of the shadow prior (sqrt
-  // storage for qr, Hessian for sc), in double (equivalence tests: qr vs sc).
-  Status trialMarginalization(const MargPlan& plan, MargMethod method, MatXd* H_m) const;
-
-  // The states changed by one LM step, to undo it.
-  struct StepBackup {
-    std::map<int64_t, Frame> frames;
-    std::vector<Vec3S> params;         // eliminated landmarks, in the linearization's order
-    std::map<int64_t, Vec3S> reduced;  // landmarks of a dense prior
-  };
-
   // Frame intake: the new frame's state (VIO: predicted through its IMU factor; VO: constant
   // velocity) and its observations of known landmarks; returns how many it observed.
   int addFrame(int64_t id, const TrackFrame& frame);
@@ -183,19 +147,6 @@ class SlidingWindowEstimator {
   void updateKeyframe(int64_t id, const TrackFrame& frame, int connected);
   // result->n_checked / n_inconsistent of the optimized frame id (reporting_.inconsistent_px).
   void countInconsistent(int64_t id, FrameResult* result) const;
-
-  // Levenberg–Marquardt.
-  Status optimize(FrameResult* result);
-  // λ trials on one linearization until the cost decreases (*cost updated) or λ reaches λ_max.
-  Status lmIteration(Linearization<Scalar>& lin, Scalar* cost, bool* stop);
-  // Applies a step (returns max |step|) and undoes it.
-  Scalar applyStep(const Linearization<Scalar>& lin, const LinearStep<Scalar>& step,
-                   StepBackup* backup);
-  void undoStep(const Linearization<Scalar>& lin, StepBackup&& backup);
-  // The stop rule (lm.stop_rule) after a successful step from `cost` to `new_cost`.
-  bool converged(Scalar cost, Scalar new_cost, Scalar max_step) const;
-  void increaseDamping();
-  Status checkFinite() const;
 
   // Marginalization after frame `current` (the policy's plan), of the shadow prior alike.
   Status marginalize(int64_t current, FrameResult* result);
@@ -215,10 +166,7 @@ class SlidingWindowEstimator {
   SE3<double> last_pose_;
   SE3<double> previous_pose_;
   bool has_previous_pose_ = false;
-  Scalar lambda_;
-  Scalar nu_ = Scalar(2);
-  int evaluations_left_ = 0;  // of the frame's cost evaluations (stop rule basalt)
-  int failed_solves_ = 0;
+  LevenbergMarquardt<Scalar> lm_;
   bool capture_next_ = false;
   std::optional<WindowSnapshot> captured_;
 };

@@ -24,8 +24,8 @@
 // Jacobians are cast to float per landmark, the reduced rows' Gram matrix is formed in float and
 // accumulated in double, the step is cast to float once per solve.
 //
-// The estimator's optimize(), its computeStep() test entry and `marglab bench` (core/bench) all run
-// these objects.
+// The estimator's optimizer (levenberg_marquardt.h), the equivalence tests and `marglab bench`
+// (core/bench) all run these objects.
 
 #include <memory>
 #include <set>

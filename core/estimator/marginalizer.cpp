@@ -312,10 +312,38 @@ std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
   return std::make_unique<SchurMarginalizer<Scalar>>(storage);
 }
 
+template <typename Scalar>
+Status trialMarginalization(const Window<Scalar>& window, MargPrior<Scalar> prior,
+                            const MargPlan& plan, MargMethod method, MatXd* H_m) {
+  const PriorStorage storage =
+      method == MargMethod::kQr
+          ? PriorStorage{}
+          : withPsdHessianPrior({Representation::kHessian}, window.config().psd_hessian_prior);
+  if (method == MargMethod::kQr && hessianStorage(prior.storage) && !prior.empty()) {
+    return Status::Error(Status::Code::kInvalidArgument,
+                         "qr marginalization needs a square-root prior");
+  }
+  Status s = makeMarginalizer<Scalar>(method, storage, window.config())
+                 ->marginalize(window, plan, &prior, nullptr);
+  if (!s.ok()) return s;
+  if (sqrtStorage(storage)) {
+    MatX<Scalar> J;
+    VecX<Scalar> r;
+    prior.sqrtRows(VecX<Scalar>::Zero(prior.cols()), &J, &r);
+    const MatXd J_d = J.template cast<double>();
+    *H_m = J_d.transpose() * J_d;
+  } else {
+    *H_m = prior.hessianAtAnchor().template cast<double>();
+  }
+  return Status::Ok();
+}
+
 #define MARGLAB_INST(S)                                                                          \
   template S ldltPivotFloor<S>(PsdProjection, Eigen::Index);                                     \
   template std::unique_ptr<Marginalizer<S>> makeMarginalizer<S>(MargMethod, const PriorStorage&, \
-                                                                const EstimatorSettings&);
+                                                                const EstimatorSettings&);         \
+  template Status trialMarginalization<S>(const Window<S>&, MargPrior<S>, const MargPlan&,       \
+                                          MargMethod, MatXd*);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

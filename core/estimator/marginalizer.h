@@ -45,6 +45,14 @@ std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
                                                        const PriorStorage& storage,
                                                        const EstimatorSettings& config);
 
+// The prior Hessian H_m, in double, that marginalizing `plan` with `method` makes of `prior`
+// (a copy; the window stays as it is): qr produces a plain square root (and needs one, or an empty
+// prior, to start from), sc a plain Hessian (with the window config's psd_hessian_prior). For
+// comparing the methods on one window (the equivalence tests: the same H_m up to rounding).
+template <typename Scalar>
+Status trialMarginalization(const Window<Scalar>& window, MargPrior<Scalar> prior,
+                            const MargPlan& plan, MargMethod method, MatXd* H_m);
+
 // The relative floor below which the new prior's LDLT pivots are set to 0 (hessianToSqrtLdlt):
 // NumericTraits' n·ε for the gauge-exact projection g, else 0 (only negative pivots, which no
 // square root can keep).

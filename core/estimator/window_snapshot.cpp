@@ -205,10 +205,39 @@ void restoreWindow(const WindowSnapshot& w, const PriorStorage& storage, Window<
   prior.precondition();
 }
 
-#define MARGLAB_INST(S)                                                               \
-  template WindowSnapshot snapshotOf<S>(const Window<S>&);                            \
-  template std::optional<ImuSetup> imuSetupOf<S>(const WindowSnapshot&);               \
-  template void restoreWindow<S>(const WindowSnapshot&, const PriorStorage&, Window<S>*);
+template <typename Scalar>
+Window<Scalar> restoredWindow(const WindowSnapshot& w, const Variant& variant,
+                              const EstimatorSettings& config) {
+  if (w.frames.empty()) throw InputError("", 0, "window: no frames");
+  Window<Scalar> window(config, w.rig, imuSetupOf<Scalar>(w));
+  // restoreWindow preconditions the prior as its storage says.
+  window.prior.storage = withPsdHessianPrior(variant.storage, config.psd_hessian_prior);
+  restoreWindow(w, variant.storage, &window);
+  return window;
+}
+
+template <typename Scalar>
+WindowSnapshot::Step stepOf(const Window<Scalar>& window, int lm_iterations, double cost_initial,
+                            double cost_final) {
+  WindowSnapshot now = snapshotOf(window);
+  WindowSnapshot::Step step;
+  step.present = true;
+  step.lm_iterations = lm_iterations;
+  step.cost_initial = cost_initial;
+  step.cost_final = cost_final;
+  step.frames = std::move(now.frames);
+  step.landmarks = std::move(now.landmarks);
+  for (auto& lm : step.landmarks) lm.obs.clear();
+  return step;
+}
+
+#define MARGLAB_INST(S)                                                                   \
+  template WindowSnapshot snapshotOf<S>(const Window<S>&);                                \
+  template std::optional<ImuSetup> imuSetupOf<S>(const WindowSnapshot&);                  \
+  template void restoreWindow<S>(const WindowSnapshot&, const PriorStorage&, Window<S>*); \
+  template Window<S> restoredWindow<S>(const WindowSnapshot&, const Variant&,             \
+                                       const EstimatorSettings&);                           \
+  template WindowSnapshot::Step stepOf<S>(const Window<S>&, int, double, double);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

@@ -18,11 +18,12 @@
 
 namespace marglab {
 
-// One window of the estimator as optimize() reads it, in double (exact for f32 and f64 states),
-// for replaying and benchmarking one optimization step outside a run (core/estimator/window_io.h
-// serializes it). IMU factors are kept as their inputs — the IMU samples around the window and each
-// factor's time span and linearization biases — and preintegrated again on restore (deterministic,
-// so the factor is the same). `after` holds the step the estimator took from this state.
+// One window of the estimator as its optimizer reads it, in double (exact for f32 and f64
+// states), for replaying and benchmarking one optimization step outside a run
+// (core/estimator/window_io.h serializes it). IMU factors are kept as their inputs — the IMU
+// samples around the window and each factor's time span and linearization biases — and
+// preintegrated again on restore (deterministic, so the factor is the same). `after` holds the
+// step the estimator took from this state.
 struct WindowSnapshot {
   struct FrameState {
     int64_t id = 0, t_ns = 0;
@@ -52,7 +53,7 @@ struct WindowSnapshot {
     SE3<double> T0;
     Vec<double, 9> sb0 = Vec<double, 9>::Zero();
   };
-  // The step from this state: optimize()'s outcome and the states after it.
+  // The step from this state: the optimizer's outcome and the states after it.
   struct Step {
     bool present = false;
     int lm_iterations = 0;
@@ -96,5 +97,16 @@ std::optional<ImuSetup> imuSetupOf(const WindowSnapshot& w);
 // one, not the reverse). Throws InputError on an inconsistent window.
 template <typename Scalar>
 void restoreWindow(const WindowSnapshot& w, const PriorStorage& storage, Window<Scalar>* window);
+// The window of a snapshot as the estimator of `variant` under `config` holds it: built from the
+// config and the snapshot's rig and IMU, its prior in the variant's storage (with the config's
+// psd_hessian_prior), then restored. Throws InputError on an inconsistent window.
+template <typename Scalar>
+Window<Scalar> restoredWindow(const WindowSnapshot& w, const Variant& variant,
+                              const EstimatorSettings& config);
+// The step an optimization took, as WindowSnapshot::after: its outcome and the states of `window`
+// after it (landmarks without their observations, which a step does not change).
+template <typename Scalar>
+WindowSnapshot::Step stepOf(const Window<Scalar>& window, int lm_iterations, double cost_initial,
+                            double cost_final);
 
 }  // namespace marglab

@@ -1,7 +1,7 @@
 // Window capture and replay: a window captured by `marglab run --dump-windows` (through
-// runSequence) and read back from its file rebuilds an estimator whose optimize() reproduces the
-// captured step bit for bit (same build), for VO and VIO, square-root and Hessian priors, f32 and
-// f64; the file format round-trips exactly and rejects damaged files.
+// runSequence) and read back from its file rebuilds a window on which the estimator's optimizer
+// reproduces the captured step bit for bit (same build), for VO and VIO, square-root and Hessian
+// priors, f32 and f64; the file format round-trips exactly and rejects damaged files.
 
 #include <gtest/gtest.h>
 

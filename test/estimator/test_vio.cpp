@@ -10,7 +10,7 @@
 #include <cmath>
 
 #include "core/diagnostics/diagnostics.h"
-#include "core/estimator/estimator_probe.h"
+#include "core/estimator/estimator.h"
 #include "estimator/variant_params.h"
 #include "estimator/vio_scenario.h"
 
@@ -79,12 +79,13 @@ TEST(VioEquivalence, QrAndSchurMarginalizationAgreeForEveryPolicy) {
   const VioScenario scenario(10.0, 12.0);
   SlidingWindowEstimator<double> estimator =
       scenario.estimator<double>(Variant::parse("ns-qr-sqrt-f64"));
-  using Probe = EstimatorProbe<double>;
+  const Window<double>& window = estimator.window();
+  const MarginalizationPolicy<double> policy(window.config());
   auto compare = [&](const MargPlan& plan, const char* what) {
     MatXd H_qr, H_sc;
-    ASSERT_TRUE(Probe::trialMarginalization(estimator, plan, MargMethod::kQr, &H_qr).ok()) << what;
-    ASSERT_TRUE(Probe::trialMarginalization(estimator, plan, MargMethod::kSchur, &H_sc).ok())
-        << what;
+    const MargPrior<double>& shadow = estimator.shadowPrior();
+    ASSERT_TRUE(trialMarginalization(window, shadow, plan, MargMethod::kQr, &H_qr).ok()) << what;
+    ASSERT_TRUE(trialMarginalization(window, shadow, plan, MargMethod::kSchur, &H_sc).ok()) << what;
     ASSERT_GT(H_qr.norm(), 0) << what;
     EXPECT_LT((H_qr - H_sc).norm() / H_qr.norm(), 1e-8) << what;
   };
@@ -92,7 +93,7 @@ TEST(VioEquivalence, QrAndSchurMarginalizationAgreeForEveryPolicy) {
   for (const TrackFrame& frame : scenario.stream.frames) {
     ASSERT_TRUE(estimator.processFrame(frame).status.ok());
     if (estimator.shadowPrior().empty()) continue;
-    if (const auto plan = Probe::planStateMarginalization(estimator, true)) {
+    if (const auto plan = policy.stateMarginalization(window, true)) {
       const int64_t oldest = plan->vars.begin()->frame_id;
       bool& tested = estimator.isKeyframe(oldest) ? tested_kf_state : tested_frame_state;
       if (!tested) {
@@ -103,7 +104,7 @@ TEST(VioEquivalence, QrAndSchurMarginalizationAgreeForEveryPolicy) {
     const std::vector<int64_t> kfs = estimator.keyframeIds();
     const std::vector<int64_t> states = estimator.stateIds();
     if (!tested_keyframe && kfs.size() >= 5 && kfs.front() < states.front()) {
-      compare(Probe::planKeyframeMarginalization(estimator, kfs.front()), "keyframe pose");
+      compare(policy.keyframeMarginalization(window, kfs.front()), "keyframe pose");
       tested_keyframe = true;
     }
   }

@@ -9,7 +9,6 @@
 
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
-#include "core/estimator/estimator_probe.h"
 #include "core/pipeline/run.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
@@ -167,11 +166,20 @@ TEST(VoEquivalence, NullspaceAndSchurGiveTheSameStep) {
   SlidingWindowEstimator<double> ns(testConfig(), Variant::parse("ns-qr-sqrt-f64"),
                                     rigFromCalib(scenario.calib), scenario.truth(0));
   for (int i = 0; i < 30; ++i) ASSERT_TRUE(ns.processFrame(scenario.stream.frames[i]).status.ok());
-  // Same window, linearized once, eliminated both ways (the variant only switches elimination).
-  using Probe = EstimatorProbe<double>;
-  VecXd step_ns, step_sc;
-  ASSERT_TRUE(Probe::computeStep(ns, OptElimination::kNullspace, 1e-4, &step_ns).ok());
-  ASSERT_TRUE(Probe::computeStep(ns, OptElimination::kSchur, 1e-4, &step_sc).ok());
+  // Same window, linearized once per elimination, the landmarks damped too: the LM step of all
+  // variables for the same λ.
+  auto step = [&](OptElimination elimination) {
+    Linearization<double>::Options options;
+    options.damp_landmarks = true;
+    options.lambda_min = testConfig().lambda_min;
+    const auto lin = makeLinearization<double>(elimination, options);
+    lin->linearize(ns.window());
+    EXPECT_TRUE(lin->eliminate().ok());
+    LinearStep<double> s;
+    EXPECT_TRUE(lin->solve(1e-4, &s).ok());
+    return s.delta;
+  };
+  const VecXd step_ns = step(OptElimination::kNullspace), step_sc = step(OptElimination::kSchur);
   ASSERT_GT(step_ns.norm(), 0);
   EXPECT_LT((step_ns - step_sc).norm() / step_ns.norm(), 1e-8);
 }
@@ -183,12 +191,14 @@ TEST(VoEquivalence, QrAndSchurMarginalizationGiveTheSamePriorHessian) {
   for (int i = 0; i < 30; ++i) {
     ASSERT_TRUE(estimator.processFrame(scenario.stream.frames[i]).status.ok());
   }
-  using Probe = EstimatorProbe<double>;
-  const MargPlan plan =
-      Probe::planKeyframeMarginalization(estimator, estimator.keyframeIds().front());
+  const Window<double>& window = estimator.window();
+  const MargPlan plan = MarginalizationPolicy<double>(window.config())
+                            .keyframeMarginalization(window, estimator.keyframeIds().front());
   MatXd H_qr, H_sc;
-  ASSERT_TRUE(Probe::trialMarginalization(estimator, plan, MargMethod::kQr, &H_qr).ok());
-  ASSERT_TRUE(Probe::trialMarginalization(estimator, plan, MargMethod::kSchur, &H_sc).ok());
+  ASSERT_TRUE(
+      trialMarginalization(window, estimator.shadowPrior(), plan, MargMethod::kQr, &H_qr).ok());
+  ASSERT_TRUE(
+      trialMarginalization(window, estimator.shadowPrior(), plan, MargMethod::kSchur, &H_sc).ok());
   ASSERT_GT(H_qr.norm(), 0);
   EXPECT_LT((H_qr - H_sc).norm() / H_qr.norm(), 1e-8);
 }
