@@ -168,8 +168,7 @@ CommandRun setupSimulate(CLI::App& app) {
   return [options] {
     checkDatasetArgument(options->dataset);
     cli::checkOutputFile(options->output, "-o");
-    cli::refuseOverwritingInputs({options->output},
-                                 {{}, cli::datasetInputFolders(options->dataset)});
+    cli::refuseOverwritingInputs({options->output}, cli::datasetInputs(options->dataset));
     const auto start = std::chrono::steady_clock::now();
     // The sequence as `run --frontend simulated` loads it: an image folder's ground truth may come
     // from the shipped sequence of its recording (image_folder.h).
@@ -270,10 +269,11 @@ CommandRun setupTrack(CLI::App& app) {
   return [options] {
     checkDatasetArgument(options->dataset);
     cli::checkOutputFile(options->output, "-o");
+    cli::CommandInputs inputs{{options->config}, {}};
+    cli::addInputs(&inputs, cli::datasetInputs(options->dataset));
+    cli::refuseOverwritingInputs({options->output}, inputs);
     EstimatorConfig config;
     if (!options->config.empty()) config.loadToml(options->config);
-    cli::refuseOverwritingInputs({options->output},
-                                 {{}, cli::datasetInputFolders(options->dataset)});
     installInterruptCleanup();  // SIGINT / SIGTERM while tracking: says so, exits 128 + signal
     const ImageSequence images = loadImageSequence(options->dataset);
     ImageTracking tracking;

@@ -35,9 +35,9 @@ void checkOutputs(const RunSpec& spec, const cli::RunArgs& args) {
                        windowFileName(spec.dataset, spec.variant.name(), frame))
                           .string());
   }
-  cli::refuseOverwritingInputs(
-      outputs, {{args.config_file, args.spec_file, spec.tracks_file},
-                cli::datasetInputFolders(spec.dataset)});
+  cli::CommandInputs inputs{{args.config_file, args.spec_file, spec.tracks_file}, {}};
+  cli::addInputs(&inputs, cli::datasetInputs(spec.dataset));
+  cli::refuseOverwritingInputs(outputs, inputs);
 }
 
 void printOutcome(const RunSpec& spec, const RunOutcome& outcome);

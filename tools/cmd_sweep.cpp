@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <set>
 #include <sstream>
 
 #include "core/common/error.h"
@@ -151,8 +152,13 @@ void refuseOverwritingInputs(const experiment::SweepPlan& plan, const std::strin
       }
     }
   }
-  cli::refuseOverwritingInputs({(out / "index.csv").string(), (out / ".lock").string()},
-                               {{file}, {}});
+  // Every file the sweep writes lies in out: out must not be a dataset's folder or lie in one.
+  cli::CommandInputs read{{file}, {}};
+  std::set<std::string> datasets;
+  for (const auto& run : plan.runs) {
+    if (datasets.insert(run.dataset).second) cli::addInputs(&read, cli::datasetInputs(run.dataset));
+  }
+  cli::refuseOverwritingInputs({(out / "index.csv").string(), (out / ".lock").string()}, read);
 }
 
 // --seeds: one part of a sweep too long for one sitting (README, "A sweep folder"): only the runs
