@@ -17,6 +17,7 @@
 #include <stdexcept>
 
 #include "core/common/error.h"
+#include "core/io/text_input.h"
 
 namespace marglab {
 namespace {
@@ -364,11 +365,7 @@ void EstimatorConfig::set(const std::string& assignment, const std::string& opti
 }
 
 void EstimatorConfig::loadToml(const std::string& path) {
-  std::ifstream file(path);
-  if (!file) throw InputError(path, 0, "cannot open the config file");
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  loadTomlString(buffer.str(), path);
+  loadTomlString(readTextInput(path, "the config file", kSettingsTextLimits), path);
 }
 
 std::string EstimatorConfig::toToml() const {

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "core/common/error.h"
+#include "core/io/text_input.h"
 #include "core/data/sequence.h"
 #include "core/estimator/config.h"
 #include "core/estimator/variant.h"
@@ -557,12 +558,9 @@ SweepPlan parseSweep(const std::string& text, const std::string& name, const std
 }
 
 SweepPlan loadSweepFile(const std::string& path, const ParseOptions& options) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path, 0, "cannot read the sweep file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
+  const std::string text = readTextInput(path, "the sweep file", kSettingsTextLimits);
   const std::string base = fs::absolute(fs::path(path)).parent_path().string();
-  return parseSweep(buffer.str(), path, base, options);
+  return parseSweep(text, path, base, options);
 }
 
 std::string sweepTrackFile(const PlannedRun& run) { return "tracks/" + slug(run.dataset) + ".h5"; }

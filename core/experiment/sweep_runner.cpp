@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "core/common/error.h"
+#include "core/io/text_input.h"
 #include "core/common/subprocess.h"
 #include "core/common/utc_time.h"
 #include "core/data/sequence.h"
@@ -397,13 +398,11 @@ int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& swee
         "{} already holds a sweep: continue it with --resume, or start over with --force",
         options.out_dir));
   }
-  std::ifstream in(sweep_file);
-  std::stringstream text;
-  text << in.rdbuf();
+  const std::string text = readTextInput(sweep_file, "the sweep file", kSettingsTextLimits);
   fmt::print(options.out, "sweep {}: {} runs -> {}\n", plan.name, plan.runs.size(),
              options.out_dir);
   std::fflush(options.out);
-  const experiment::SweepSummary s = experiment::runSweep(plan, text.str(), options);
+  const experiment::SweepSummary s = experiment::runSweep(plan, text, options);
   fmt::print(options.out,
              "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{} in {:.1f} s\n",
              plan.name, s.ok, s.failed_numerical, s.failed_process,

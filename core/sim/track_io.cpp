@@ -16,6 +16,7 @@
 
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
+#include "core/io/text_input.h"
 #include "core/io/hdf5.h"
 #include "core/io/hdf5_trust.h"
 
@@ -289,8 +290,7 @@ double parseDouble(const std::string& token, const std::string& path, int line, 
 }  // namespace
 
 TrackStream readTracksText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, "cannot open");
+  std::istringstream in(readTextInput(path, "the track file", kTrackTextLimits));
   TrackStream stream;
   std::vector<std::vector<int>> obs_lines;
   std::string line;
