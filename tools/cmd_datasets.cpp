@@ -328,6 +328,8 @@ CommandRun setupRender(CLI::App& app) {
                  "folder to create (must not exist or be empty), in the dataset's layout")
       ->required();
   return [options] {
+    if (options->output.empty()) throw UsageError("-o is empty: expected the folder to render into");
+    cli::refuseOverwritingInputs({options->output}, cli::datasetInputs(options->dataset));
     const auto start = std::chrono::steady_clock::now();
     const RenderPlan plan =
         planRendering(options->dataset, options->frames, options->start_s, options->seed);

@@ -161,6 +161,20 @@ void AtomicFile::commit() {
   syncFolder(path_);
 }
 
+void prepareOutputFolder(const std::string& path, const std::string& option) {
+  namespace fs = std::filesystem;
+  if (path.empty()) throw UsageError(option + " is empty: expected the path of a folder to write");
+  std::error_code ec;
+  fs::create_directories(path, ec);
+  if (ec) throw InputError(path, 0, "cannot create the folder of " + option + ": " + ec.message());
+  if (!fs::is_directory(path, ec)) {
+    throw InputError(path, 0, "is not a folder: expected a folder to write (" + option + ")");
+  }
+  if (::access(path.c_str(), W_OK) != 0) {
+    throw InputError(path, 0, "not writable: cannot write " + option + " there");
+  }
+}
+
 void writeFileAtomically(const std::string& path, std::string_view bytes) {
   const std::filesystem::path target(path);
   if (target.has_parent_path()) std::filesystem::create_directories(target.parent_path());

@@ -56,6 +56,11 @@ class AtomicFile {
 // caller (a rename onto one fails, and a folder output is a folder).
 void refuseSpecialFileOutput(const std::string& path);
 
+// An output folder made ready before any work (`plot`, `report`, `notebooks`, `tables` fill one):
+// created with its parents when missing; throws UsageError for "" and InputError naming the path
+// and the reason when it cannot be created, is not a folder or is not writable.
+void prepareOutputFolder(const std::string& path, const std::string& option);
+
 // The whole text through an AtomicFile; creates missing parent folders first.
 void writeFileAtomically(const std::string& path, std::string_view bytes);
 
