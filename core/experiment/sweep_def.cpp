@@ -5,6 +5,7 @@
 
 #include <toml++/toml.h>
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -359,7 +360,10 @@ class Parser {
     const toml::node* node = group.get("timeout_s");
     if (node == nullptr) return 0;
     const auto v = node->value<double>();
-    if (!v || *v < 0) throw error(*node, "timeout_s must be a number >= 0 (0: no limit)");
+    // nan, inf and 1e-300 are numbers too: a limit is whole milliseconds of a finite time.
+    if (!v || !std::isfinite(*v) || *v < 0 || (*v > 0 && *v < 1e-3)) {
+      throw error(*node, "timeout_s must be 0 (no limit) or a finite number of seconds >= 0.001");
+    }
     return *v;
   }
 
@@ -386,7 +390,9 @@ class Parser {
     fs::path path(**node->as_string());
     if (path.is_relative()) path = fs::path(base_dir_) / path;
     if (!fs::is_regular_file(path)) {
-      throw error(*node, "config_file " + path.string() + " does not exist");
+      throw error(*node, "config_file " + path.string() +
+                             (fs::exists(path) ? " is not a file: expected a TOML config file"
+                                               : " does not exist"));
     }
     EstimatorConfig probe;
     probe.loadToml(path.string());  // its own errors name its own lines
