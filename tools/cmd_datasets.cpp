@@ -274,6 +274,7 @@ CommandRun setupTrack(CLI::App& app) {
     cli::refuseOverwritingInputs({options->output}, inputs);
     EstimatorConfig config;
     if (!options->config.empty()) config.loadToml(options->config);
+    config.validate();  // the relations `run` refuses (lm.lambda_min > lm.lambda_init), too
     installInterruptCleanup();  // SIGINT / SIGTERM while tracking: says so, exits 128 + signal
     const ImageSequence images = loadImageSequence(options->dataset);
     ImageTracking tracking;

@@ -2,6 +2,7 @@
 
 #include <fmt/core.h>
 #include <fmt/format.h>
+#include <toml++/toml.h>
 
 #include <signal.h>
 #include <sys/wait.h>
@@ -383,6 +384,30 @@ std::string runFingerprint(const PlannedRun& run) {
          run.config_toml;
 }
 
+namespace {
+
+// --resume into the folder of another sweep would replace its index and orphan its runs.
+void refuseResumingAnotherSweep(const fs::path& out, const std::string& name) {
+  const fs::path recorded = out / "sweep.toml";
+  if (!fs::is_regular_file(recorded)) return;
+  std::string old_name;
+  try {
+    const toml::table root =
+        toml::parse(readTextInput(recorded.string(), "the sweep file", kSettingsTextLimits));
+    old_name = root["name"].value_or(std::string());
+  } catch (const toml::parse_error&) {
+    return;  // not ours to judge: the index check above vouched for the folder
+  }
+  if (!old_name.empty() && old_name != name) {
+    throw UsageError(fmt::format("{} holds the sweep '{}', not '{}': --resume continues the same "
+                                 "sweep; write this one elsewhere (--out), or start over with "
+                                 "--force",
+                                 out.string(), old_name, name));
+  }
+}
+
+}  // namespace
+
 // Runs a validated plan and prints the summary; the exit code of `sweep` and `reproduce`.
 int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& sweep_file,
                       const experiment::SweepOptions& options) {
@@ -398,6 +423,7 @@ int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& swee
         "{} already holds a sweep: continue it with --resume, or start over with --force",
         options.out_dir));
   }
+  if (options.resume) refuseResumingAnotherSweep(out, plan.name);
   const std::string text = readTextInput(sweep_file, "the sweep file", kSettingsTextLimits);
   fmt::print(options.out, "sweep {}: {} runs -> {}\n", plan.name, plan.runs.size(),
              options.out_dir);

@@ -216,6 +216,19 @@ TEST_F(ExitCodes, MisuseOfIssue38IsRefused) {
   expectExit("sweep " + file("h.toml", sweep + "args = [\"--help\"]\n") + " --dry-run", 1,
              "--help prints the options and runs nothing");
   expectExit("tables " + folder("none") + " --format ''", 2, "--format is empty");
+  expectExit("run --dataset kitti/10 --variant ns-qr-sqrt-f64 --frames 3 -o " + quoted("e.h5"), 0);
+  for (const char* csv : {"", " --csv"}) {
+    expectExit("eigdump " + quoted("e.h5") + " --all" + csv, 1, "no marginalization events");
+  }
+  const std::string tiny = sweep + "frames = 3\n";
+  expectExit("sweep " + file("a.toml", tiny) + " --out " + quoted("swept"), 0);
+  const std::string other = "name = \"other\"" + tiny.substr(tiny.find('\n'));
+  expectExit("sweep " + file("b.toml", other) + " --resume --out " + quoted("swept"), 2,
+             "holds the sweep 's', not 'other'");
+  const std::string lm = file("lm.toml", "[lm]\nlambda_min = 1.0\nlambda_init = 1e-6\n");
+  expectExit("datasets track --dataset kitti/06_images --frames 2 --config " + lm + " -o " +
+                 quoted("t.h5"),
+             1, "expected lambda_min <= lambda_init");
 }
 
 }  // namespace
