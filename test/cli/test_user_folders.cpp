@@ -12,6 +12,7 @@
 
 #include "common/cli_runner.h"
 #include "common/temp_dir.h"
+#include "core/common/source_dir.h"
 #include "core/data/sequence.h"
 
 namespace marglab {
@@ -86,6 +87,44 @@ TEST_F(UserFoldersTest, PlotDrawsTheFiguresOfAUserFolderSweep) {
   EXPECT_EQ(plot.exit_code, 0) << plot.output;
   EXPECT_TRUE(fs::is_regular_file(dir_ / "figures" / "fig7_trajectory_kitti-06.png"))
       << plot.output;
+}
+
+// Issue 38 (low): tools/scripts/kitti_clip.py did not read the KITTI download's layout (poses in
+// dataset/poses/NN.txt), accepted a NaN shift and printed a traceback for an output under a file.
+TEST_F(UserFoldersTest, KittiClipReadsTheDownloadLayoutAndRefusesBadArguments) {
+  if (std::system("/usr/bin/python3 -c 'import numpy' > /dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "no /usr/bin/python3 with numpy";
+  }
+  const fs::path shipped = fs::path(datasetsRoot()) / "kitti" / "06_images";
+  const fs::path seq = dir_ / "K" / "dataset" / "sequences" / "06";
+  const fs::path poses = dir_ / "K" / "dataset" / "poses";
+  fs::create_directories(poses);
+  for (const char* cam : {"image_0", "image_1"}) {
+    fs::create_directories(seq / cam);
+    for (const char* image : {"000000.png", "000001.png", "000002.png"}) {
+      fs::copy_file(shipped / cam / image, seq / cam / image);
+    }
+  }
+  fs::copy_file(shipped / "calib.txt", seq / "calib.txt");
+  const auto head = [&](const char* from, const fs::path& to) {
+    EXPECT_EQ(test::runShell("head -3 " + quote(shipped / from) + " > " + quote(to)).exit_code, 0);
+  };
+  head("times.txt", seq / "times.txt");
+  head("poses.txt", poses / "06.txt");
+  std::ofstream(dir_ / "a_file") << "x";
+  const std::string clip = "/usr/bin/python3 " + quote(fs::path(sourceDir()) / "tools" /
+                                                       "scripts" / "kitti_clip.py") +
+                           " --dataset " + quote(seq) + " --frames 0:2 ";
+  const auto ok = test::runShell(clip + "-o " + quote(dir_ / "clip"));
+  EXPECT_EQ(ok.exit_code, 0) << ok.output;
+  EXPECT_TRUE(fs::is_regular_file(dir_ / "clip" / "poses.txt")) << ok.output;
+  const auto nan = test::runShell(clip + "--right-cx-shift nan -o " + quote(dir_ / "nan"));
+  EXPECT_EQ(nan.exit_code, 1) << nan.output;
+  EXPECT_NE(nan.output.find("expected a finite number"), std::string::npos) << nan.output;
+  const auto under = test::runShell(clip + "-o " + quote(dir_ / "a_file" / "out"));
+  EXPECT_EQ(under.exit_code, 1) << under.output;
+  EXPECT_EQ(under.output.find("Traceback"), std::string::npos) << under.output;
+  EXPECT_NE(under.output.find("expected an existing folder"), std::string::npos) << under.output;
 }
 
 }  // namespace
