@@ -72,6 +72,11 @@ int runRun(const cli::RunArgs& args) {
     fmt::print(stderr, "marglab run: note: {}: {}\n", prepared.inputs.dataset.sequence.gt_file,
                note);
   }
+  if (const auto& images = prepared.inputs.dataset.images; images) {
+    if (const std::string note = unpairedFramesNote(*images); !note.empty()) {
+      fmt::print(stderr, "marglab run: note: {}\n", note);
+    }
+  }
   if (!spec.dump_windows.empty()) std::filesystem::create_directories(spec.dump_dir);
   const bool terminal = cli::stderrIsTerminal();
   std::optional<InterruptPolling> polling;

@@ -206,7 +206,9 @@ class Runner {
                                       plan_.runs[slot.row].timeout_s));
       } else if (StopSignals::received() != 0) {
         row.set("failure_kind", "interrupted");
-        row.set("reason", "the sweep was interrupted (" + detail::signalName(sig) + ")");
+        // The signal the sweep received (its runs are stopped with SIGTERM whatever it was).
+        row.set("reason",
+                "the sweep was interrupted (" + detail::signalName(StopSignals::received()) + ")");
       } else {
         row.set("failure_kind", "signal");
         row.set("reason", "killed by " + detail::signalName(sig));
