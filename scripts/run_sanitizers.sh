@@ -24,7 +24,7 @@ export MARGLAB_FUZZ_RUNS="${MARGLAB_FUZZ_RUNS:-2000}"
 # The test modules (test/<module>) built here: the parsers, I/O, data, config, linear algebra and
 # estimator tests. Not cli, frontend, bench, ceres_marg: they run the same library code end to end
 # through the CLI, OpenCV or Ceres, at many times the cost.
-MODULES="common;data;diagnostics;estimator;experiment;geometry;imu;io;linalg;sim"
+MODULES="common;data;diagnostics;estimator;experiment;geometry;imu;io;linalg;pipeline;sim"
 # Long tests left out: the end-to-end sweep and Slurm tests (the CLI, Python or Slurm in a loop)
 # and the whole-run estimator tests (Vo*, Vio*, NfrStrategy, DenseStrategyTest, with or without a
 # parameter prefix such as F64/: a sliding window over hundreds of

@@ -30,7 +30,7 @@
 #include "core/common/error.h"
 #include "core/common/interrupt.h"
 #include "core/data/sequence.h"
-#include "core/estimator/config.h"
+#include "core/pipeline/run_config.h"
 #include "core/frontend/rendered_folder.h"
 #include "core/frontend/image_check.h"
 #include "core/frontend/image_folder.h"
@@ -285,7 +285,7 @@ CommandRun setupTrack(CLI::App& app) {
     cli::CommandInputs inputs{{options->config}, {}};
     cli::addInputs(&inputs, cli::datasetInputs(options->dataset));
     cli::refuseOverwritingInputs({options->output}, inputs);
-    EstimatorConfig config;
+    RunConfig config;
     if (!options->config.empty()) config.loadToml(options->config);
     config.validate();  // the relations `run` refuses (lm.lambda_min > lm.lambda_init), too
     installInterruptCleanup();  // SIGINT / SIGTERM while tracking: says so, exits 128 + signal

@@ -14,7 +14,7 @@
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
-#include "core/estimator/config.h"
+#include "core/pipeline/run_config.h"
 #include "core/pipeline/run.h"
 #include "core/experiment/slurm_backend.h"
 #include "core/experiment/sweep_def.h"
@@ -57,12 +57,12 @@ class PlanValidator {
   // into the sweep folder before the runs start, so the run is checked as an images run.
   static RunSpec plannedSpec(const experiment::PlannedRun& run) {
     experiment::PlannedRun planned = run;
-    if (run.frontend == "images") planned.frontend.clear();
+    if (run.frontend == FrontendKind::kImages) planned.frontend.reset();
     planned.config_toml.clear();  // given as text below, not as the file the runner writes
     std::vector<std::string> arguments = experiment::runArguments(planned, "runs/x.h5", "");
     arguments.erase(arguments.begin());  // "run"
     RunSpec spec = parseRunArguments(arguments, run.config_toml, "the merged config of " + run.id);
-    if (run.frontend == "images") spec.frontend = FrontendKind::kImages;
+    if (run.frontend == FrontendKind::kImages) spec.frontend = FrontendKind::kImages;
     return spec;
   }
 
@@ -70,7 +70,7 @@ class PlanValidator {
   // "images" the track file the runner writes before the runs.
   static RunSpec childSpec(RunSpec spec, const experiment::PlannedRun& run) {
     spec.output = "runs/" + run.id + ".h5";
-    if (run.frontend == "images") {
+    if (run.frontend == FrontendKind::kImages) {
       spec.frontend = FrontendKind::kAuto;
       spec.tracks_file = experiment::sweepTrackFile(run);
     }

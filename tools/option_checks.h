@@ -18,14 +18,14 @@
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
-#include "core/estimator/config.h"
+#include "core/pipeline/run_config.h"
 
 namespace marglab::cli {
 
 // An option that sets an estimator config key: the key's range (docs/design.md §9).
 inline CLI::Validator configKeyRange(const std::string& key) {
   return CLI::Validator(
-      [key](std::string& text) { return EstimatorConfig::checkValueText(key, text); }, "",
+      [key](std::string& text) { return RunConfig::checkValueText(key, text); }, "",
       "config " + key);
 }
 

@@ -162,7 +162,7 @@ void applyConfigOptions(const RunArgs& args, RunSpec* spec) {
 }
 
 // The spec of the options (not --spec), its config file loaded by load_config.
-RunSpec specOfOptions(const RunArgs& args, const std::function<void(EstimatorConfig*)>& load_config) {
+RunSpec specOfOptions(const RunArgs& args, const std::function<void(RunConfig*)>& load_config) {
   if (args.spec.dataset.empty()) throw UsageError("--dataset is required (or --spec FILE)");
   if (args.variant.empty()) throw UsageError("--variant is required (or --spec FILE)");
   if (!args.output_given) throw UsageError("-o is required: the results file to write");
@@ -193,7 +193,7 @@ RunSpec runSpecFrom(const RunArgs& args) {
     if (args.output_given) spec.output = args.spec.output;
     return spec;
   }
-  return specOfOptions(args, [&args](EstimatorConfig* config) {
+  return specOfOptions(args, [&args](RunConfig* config) {
     if (!args.config_file.empty()) config->loadToml(args.config_file);
   });
 }
@@ -235,7 +235,7 @@ RunSpec parseRunArguments(const std::vector<std::string>& arguments, const std::
   RunArgs args;
   parseArguments(arguments, &app, &args);
   if (!args.spec_file.empty()) return runSpecFrom(args);
-  return specOfOptions(args, [&](EstimatorConfig* config) {
+  return specOfOptions(args, [&](RunConfig* config) {
     if (!config_text.empty()) config->loadTomlString(config_text, config_name);
     if (!args.config_file.empty()) config->loadToml(args.config_file);
   });

@@ -288,7 +288,7 @@ void addStates(const WindowSnapshot& w, CeresWindowProblem& p) {
 // One Huber-robustified residual per observation the estimator would use (projectable now);
 // a landmark without any is left out of the problem.
 void addReprojections(const WindowSnapshot& w, CeresWindowProblem& p) {
-  const EstimatorConfig& cfg = w.config;
+  const EstimatorSettings& cfg = w.config;
   const double sigma = cfg.obs_std_px;
   std::array<SE3<double>, 2> T_i_c;
   if (w.vio) {
@@ -364,7 +364,7 @@ void addImuAndPrior(const WindowSnapshot& w, CeresWindowProblem& p) {
 
 // The window's LM settings in Ceres' terms (trust radius = 1/λ).
 ceres::Solver::Options solverOptions(
-    const EstimatorConfig& cfg, const CeresWindowOptions& opt,
+    const EstimatorSettings& cfg, const CeresWindowOptions& opt,
     const std::shared_ptr<ceres::ParameterBlockOrdering>& ordering) {
   ceres::Solver::Options o;
   o.minimizer_type = ceres::TRUST_REGION;

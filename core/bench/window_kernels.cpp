@@ -20,7 +20,7 @@ struct WindowKernels<Scalar>::State {
         est_once(Est::fromSnapshot(w, v, oneIteration(w.config))),
         lin(EstimatorProbe<Scalar>::variantLinearization(est)),
         lambda(static_cast<Scalar>(w.config.lambda_init)) {}
-  static EstimatorConfig oneIteration(EstimatorConfig config) {
+  static EstimatorSettings oneIteration(EstimatorSettings config) {
     config.lm_max_iterations = 1;
     return config;
   }

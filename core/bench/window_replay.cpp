@@ -10,7 +10,7 @@ namespace {
 
 template <typename Scalar>
 ReplayResult replayAs(const WindowSnapshot& window, const Variant& variant,
-                      const std::optional<EstimatorConfig>& config) {
+                      const std::optional<EstimatorSettings>& config) {
   auto estimator = SlidingWindowEstimator<Scalar>::fromSnapshot(window, variant, config);
   ReplayResult out;
   using Probe = EstimatorProbe<Scalar>;
@@ -34,7 +34,7 @@ bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) =
 }  // namespace
 
 ReplayResult replayWindow(const WindowSnapshot& window, const std::optional<Variant>& variant,
-                          const std::optional<EstimatorConfig>& config) {
+                          const std::optional<EstimatorSettings>& config) {
   const Variant v = variant ? *variant : Variant::parse(window.variant);
   return v.precision == Precision::kF32 ? replayAs<float>(window, v, config)
                                         : replayAs<double>(window, v, config);

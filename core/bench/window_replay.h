@@ -19,7 +19,7 @@ struct ReplayResult {
 // Variant: the window's own (with precision) unless given. Throws InputError on a bad window.
 ReplayResult replayWindow(const WindowSnapshot& window,
                           const std::optional<Variant>& variant = std::nullopt,
-                          const std::optional<EstimatorConfig>& config = std::nullopt);
+                          const std::optional<EstimatorSettings>& config = std::nullopt);
 
 // Empty when `actual` equals `expected` bit for bit (iterations, costs, poses, speed-biases,
 // landmark parameters); otherwise the first difference.

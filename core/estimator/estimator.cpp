@@ -29,12 +29,14 @@ int MargEvent::numPoses() const {
 }
 
 template <typename Scalar>
-SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorConfig& config,
+SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorSettings& config,
                                                        const Variant& variant,
                                                        const StereoRig<double>& rig,
                                                        const SE3<double>& T_w_i_initial,
-                                                       std::optional<ImuSetup> imu)
+                                                       std::optional<ImuSetup> imu,
+                                                       EstimatorReporting reporting)
     : config_(config),
+      reporting_(reporting),
       variant_(variant),
       window_(config, rig, std::move(imu)),
       policy_(config_),
@@ -141,7 +143,7 @@ std::vector<std::pair<int64_t, Eigen::Vector3d>> SlidingWindowEstimator<Scalar>:
 template <typename Scalar>
 void SlidingWindowEstimator<Scalar>::countInconsistent(int64_t id, FrameResult* result) const {
   const std::vector<Scalar> errors = window_.frameReprojectionErrors(id);
-  const Scalar bound = static_cast<Scalar>(config_.inconsistent_px);
+  const Scalar bound = static_cast<Scalar>(reporting_.inconsistent_px);
   result->n_checked = static_cast<int>(errors.size());
   result->n_inconsistent = static_cast<int>(
       std::count_if(errors.begin(), errors.end(), [bound](Scalar e) { return !(e <= bound); }));
@@ -472,11 +474,12 @@ WindowSnapshot SlidingWindowEstimator<Scalar>::snapshot() const {
 
 template <typename Scalar>
 SlidingWindowEstimator<Scalar> SlidingWindowEstimator<Scalar>::fromSnapshot(
-    const WindowSnapshot& w, const Variant& variant, const std::optional<EstimatorConfig>& config) {
+    const WindowSnapshot& w, const Variant& variant, const std::optional<EstimatorSettings>& config) {
   if (w.frames.empty()) throw InputError("", 0, "window: no frames");
-  EstimatorConfig cfg = config ? *config : w.config;
-  cfg.diagnostics = false;  // a restored window has no shadow prior
-  SlidingWindowEstimator est(cfg, variant, w.rig, w.frames.front().T_w_i, imuSetupOf<Scalar>(w));
+  EstimatorReporting reporting;
+  reporting.shadow_prior = false;  // a restored window has no shadow prior
+  SlidingWindowEstimator est(config ? *config : w.config, variant, w.rig, w.frames.front().T_w_i,
+                             imuSetupOf<Scalar>(w), reporting);
   restoreWindow(w, variant.storage, &est.window_);
   for (const auto& fs : w.frames) {
     if (fs.is_keyframe) est.last_keyframe_ = std::max(est.last_keyframe_, fs.id);
@@ -534,7 +537,7 @@ Status SlidingWindowEstimator<Scalar>::marginalizePlan(const MargPlan& plan, boo
     result->sparsify_event = std::move(event);
   }
   // The gauge diagnostics analyse a prior over frame states (the shadow prior of discard).
-  if (config_.diagnostics && !policy_.keepsLandmarks(window_)) {
+  if (reporting_.shadow_prior && !policy_.keepsLandmarks(window_)) {
     if (Status s = marginalizeShadow(plan, result); !s.ok()) return s;
   }
   window_.removeMarginalized(plan);

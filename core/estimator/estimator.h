@@ -19,7 +19,7 @@
 // reduced system with the IMU terms and the prior damped H_ii += max(λH_ii, λ_min) and solved by
 // LDLT); the gain ratio ρ = actual / model decrease updates λ ← λ·max(1/3, 1 − (2ρ − 1)³) on
 // success, λ ← λν, ν ← 2ν on failure. Stop (lm.stop_rule = marglab) on relative decrease <
-// stop_relative_cost or max|δ| < stop_max_step; basalt: Basalt's rule (config.h, LmStopRule).
+// stop_relative_cost or max|δ| < stop_max_step; basalt: Basalt's rule (estimator_settings.h, LmStopRule).
 //
 // First-estimate Jacobians. A variable in the prior keeps its linearization point: reprojection
 // and IMU Jacobians are evaluated there (residuals at the current estimate), which keeps the
@@ -49,7 +49,7 @@
 #include "core/common/eigen_types.h"
 #include "core/common/status.h"
 #include "core/diagnostics/gauge.h"
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/estimator/linearization.h"
 #include "core/estimator/marg_policy.h"
 #include "core/estimator/marg_prior.h"
@@ -61,7 +61,7 @@
 #include "core/geometry/camera.h"
 #include "core/geometry/se3.h"
 #include "core/io/results_records.h"
-#include "core/sim/tracks.h"
+#include "core/data/tracks.h"
 
 namespace marglab {
 
@@ -105,10 +105,12 @@ class SlidingWindowEstimator {
   // VO: T_w_i_initial is the first cam0 pose (the rig's T_i_c0 is ignored: body = cam0).
   // VIO (imu given): the first state is imu->initial; the rig's extrinsics map body to cameras.
   // config is used as given: the run validated it (prepareRun); min_frames_after_kf −1 (no
-  // dataset default applied) spaces keyframes as 1 does.
-  SlidingWindowEstimator(const EstimatorConfig& config, const Variant& variant,
+  // dataset default applied) spaces keyframes as 1 does. `reporting`: the shadow prior and the
+  // consistency count (estimator_settings.h).
+  SlidingWindowEstimator(const EstimatorSettings& config, const Variant& variant,
                          const StereoRig<double>& rig, const SE3<double>& T_w_i_initial,
-                         std::optional<ImuSetup> imu = std::nullopt);
+                         std::optional<ImuSetup> imu = std::nullopt,
+                         EstimatorReporting reporting = {});
 
   // Throws InputError when a VIO frame lies outside the IMU stream.
   FrameResult processFrame(const TrackFrame& frame);
@@ -141,7 +143,7 @@ class SlidingWindowEstimator {
   // The estimator of a captured window, in this Scalar and the given variant (precision aside);
   // `config` replaces the captured one when given. Throws InputError on an inconsistent window.
   static SlidingWindowEstimator fromSnapshot(const WindowSnapshot& window, const Variant& variant,
-                                             const std::optional<EstimatorConfig>& config = {});
+                                             const std::optional<EstimatorSettings>& config = {});
  private:
   // The window replay of `marglab bench` and the equivalence tests reach the members below
   // through EstimatorProbe (estimator_probe.h) only.
@@ -179,7 +181,7 @@ class SlidingWindowEstimator {
   void initializeGaugePrior(int64_t frame_id);
   void addImuLink(int64_t from, int64_t to);
   void updateKeyframe(int64_t id, const TrackFrame& frame, int connected);
-  // result->n_checked / n_inconsistent of the optimized frame id (config failure.inconsistent_px).
+  // result->n_checked / n_inconsistent of the optimized frame id (reporting_.inconsistent_px).
   void countInconsistent(int64_t id, FrameResult* result) const;
 
   // Levenberg–Marquardt.
@@ -201,7 +203,8 @@ class SlidingWindowEstimator {
   Status marginalizeShadow(const MargPlan& plan, FrameResult* result);
   MargEvent shadowEvent() const;
 
-  EstimatorConfig config_;
+  EstimatorSettings config_;
+  EstimatorReporting reporting_;
   Variant variant_;
   Window<Scalar> window_;
   MargPrior<Scalar> shadow_prior_;

@@ -20,7 +20,7 @@
 #include <utility>
 #include <vector>
 
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/estimator/marginalizer.h"
 #include "core/estimator/window.h"
 
@@ -49,7 +49,7 @@ void applyEdits(const WindowEdits& edits, Window<Scalar>* w);
 template <typename Scalar>
 class MarginalizationPolicy {
  public:
-  explicit MarginalizationPolicy(const EstimatorConfig& config) : config_(config) {}
+  explicit MarginalizationPolicy(const EstimatorSettings& config) : config_(config) {}
 
   // What leaves the window after frame `current`, judged on the window as it will be once the
   // decision's edits are applied.
@@ -72,7 +72,7 @@ class MarginalizationPolicy {
   void planKeptLandmarks(const Window<Scalar>& w, int64_t kf, std::set<int64_t>* marg_landmarks,
                          MargDecision* decision) const;
 
-  EstimatorConfig config_;
+  EstimatorSettings config_;
 };
 
 }  // namespace marglab

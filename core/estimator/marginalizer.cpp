@@ -128,7 +128,7 @@ MargProblem<Scalar> gatherProblem(const Window<Scalar>& w, const MargPlan& plan,
 template <typename Scalar>
 class QrMarginalizer final : public Marginalizer<Scalar> {
  public:
-  explicit QrMarginalizer(const EstimatorConfig& config) {
+  explicit QrMarginalizer(const EstimatorSettings& config) {
     options_.mode = config.qr_threshold_mode;
     if (config.qr_threshold >= 0) options_.threshold = static_cast<Scalar>(config.qr_threshold);
   }
@@ -307,7 +307,7 @@ Scalar ldltPivotFloor(PsdProjection psd, Eigen::Index n) {
 template <typename Scalar>
 std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
                                                        const PriorStorage& storage,
-                                                       const EstimatorConfig& config) {
+                                                       const EstimatorSettings& config) {
   if (method == MargMethod::kQr) return std::make_unique<QrMarginalizer<Scalar>>(config);
   return std::make_unique<SchurMarginalizer<Scalar>>(storage);
 }
@@ -315,7 +315,7 @@ std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
 #define MARGLAB_INST(S)                                                                          \
   template S ldltPivotFloor<S>(PsdProjection, Eigen::Index);                                     \
   template std::unique_ptr<Marginalizer<S>> makeMarginalizer<S>(MargMethod, const PriorStorage&, \
-                                                                const EstimatorConfig&);
+                                                                const EstimatorSettings&);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

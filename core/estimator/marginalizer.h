@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "core/common/status.h"
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/estimator/window.h"
 
 namespace marglab {
@@ -43,7 +43,7 @@ class Marginalizer {
 template <typename Scalar>
 std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
                                                        const PriorStorage& storage,
-                                                       const EstimatorConfig& config);
+                                                       const EstimatorSettings& config);
 
 // The relative floor below which the new prior's LDLT pivots are set to 0 (hessianToSqrtLdlt):
 // NumericTraits' n·ε for the gauge-exact projection g, else 0 (only negative pivots, which no

@@ -42,7 +42,7 @@
 
 #include "core/common/eigen_types.h"
 #include "core/diagnostics/gauge.h"
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/estimator/window.h"
 #include "core/io/results_records.h"
 

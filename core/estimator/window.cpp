@@ -16,7 +16,7 @@ std::vector<std::pair<VarKey, int>> LinkLinearized<Scalar>::vars() const {
 }
 
 template <typename Scalar>
-Window<Scalar>::Window(const EstimatorConfig& config, const StereoRig<double>& rig,
+Window<Scalar>::Window(const EstimatorSettings& config, const StereoRig<double>& rig,
                        std::optional<ImuSetup> imu)
     : config_(config),
       noise_{static_cast<Scalar>(config.huber_px), static_cast<Scalar>(config.obs_std_px)},

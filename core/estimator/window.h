@@ -28,7 +28,7 @@
 #include "core/common/eigen_types.h"
 #include "core/common/thread_pool.h"
 #include "core/data/types.h"
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/estimator/marg_prior.h"
 #include "core/geometry/camera.h"
 #include "core/geometry/se3.h"
@@ -188,7 +188,7 @@ class Window {
   };
 
   // VO (no imu): the body is cam0 (T_i_c0 = I, cam1 at T_c0_c1). VIO: the rig's extrinsics.
-  Window(const EstimatorConfig& config, const StereoRig<double>& rig, std::optional<ImuSetup> imu);
+  Window(const EstimatorSettings& config, const StereoRig<double>& rig, std::optional<ImuSetup> imu);
 
   // The variables and factors; the estimator and its collaborators edit them.
   std::map<int64_t, Frame> frames;        // by frame index
@@ -203,7 +203,7 @@ class Window {
   const StereoRig<double>& rigInput() const { return rig_input_; }
   const StereoRig<Scalar>& rig() const { return rig_; }
   const SE3S& T_i_c(int cam) const { return T_i_c_[cam]; }
-  const EstimatorConfig& config() const { return config_; }
+  const EstimatorSettings& config() const { return config_; }
   // config_.lm_threads workers; shared by copies of the window, which are never evaluated
   // concurrently.
   ThreadPool& pool() const { return *pool_; }
@@ -273,7 +273,7 @@ class Window {
                        const RelativePoses& rel, std::vector<ReprojectionRows<Scalar>>* rows,
                        Scalar* cost) const;
 
-  EstimatorConfig config_;
+  EstimatorSettings config_;
   ReprojectionNoise<Scalar> noise_;
   StereoRig<double> rig_input_;  // as given (window capture)
   StereoRig<Scalar> rig_;

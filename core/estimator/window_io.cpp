@@ -356,7 +356,7 @@ void readHeader(Reader& in, const std::string& path, WindowSnapshot& w) {
   w.vio = mode == "vio";
   in.expect("config");
   const std::string config = in.bytes(in.count());
-  w.config = EstimatorConfig{};
+  w.config = EstimatorSettings{};
   w.config.loadTomlString(config, path + " [config]");
   in.expect("rig");
   w.rig.cam0 = readCamera(in);

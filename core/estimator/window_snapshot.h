@@ -9,7 +9,7 @@
 
 #include "core/common/eigen_types.h"
 #include "core/data/types.h"
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/estimator/marg_prior.h"
 #include "core/estimator/variant.h"
 #include "core/geometry/camera.h"
@@ -64,7 +64,7 @@ struct WindowSnapshot {
   std::string dataset, variant;
   int64_t frame_index = -1;  // index of the newest frame in the run
   // Setup.
-  EstimatorConfig config;
+  EstimatorSettings config;
   StereoRig<double> rig;
   bool vio = false;
   ImuNoise imu_noise;

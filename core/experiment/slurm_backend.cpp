@@ -99,7 +99,7 @@ class Submitter {
       std::set<std::string> after_ok;
       for (std::size_t i : indices) {
         const auto it = tracking.find(sweepTrackFile(plan_.runs[i]));
-        if (plan_.runs[i].frontend == "images" && it != tracking.end()) after_ok.insert(it->second);
+        if (plan_.runs[i].frontend == FrontendKind::kImages && it != tracking.end()) after_ok.insert(it->second);
       }
       jobs.push_back(submitArray(time, indices, {after_ok.begin(), after_ok.end()}, rows));
     }
@@ -146,7 +146,7 @@ class Submitter {
     for (std::size_t i : queue) {
       const PlannedRun& run = plan_.runs[i];
       const std::string tracks = sweepTrackFile(run);
-      if (run.frontend != "images" || jobs.count(tracks)) continue;
+      if (run.frontend != FrontendKind::kImages || jobs.count(tracks)) continue;
       if (options_.resume && fs::exists(out_ / tracks)) continue;
       fs::create_directories(out_ / "tracks");
       SlurmArraySpec s = spec(timeOf(run));

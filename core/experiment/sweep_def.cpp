@@ -15,8 +15,8 @@
 #include "core/common/error.h"
 #include "core/io/text_input.h"
 #include "core/data/sequence.h"
-#include "core/estimator/config.h"
 #include "core/estimator/variant.h"
+#include "core/pipeline/run_config.h"
 
 namespace marglab::experiment {
 namespace {
@@ -204,7 +204,7 @@ class Parser {
     return args;
   }
 
-  // An inline [config] table: validated key by key against EstimatorConfig, so that an error
+  // An inline [config] table: validated key by key against RunConfig, so that an error
   // names the line of the offending key.
   toml::table configTable(const toml::table& table) const {
     const toml::node* node = table.get("config");
@@ -223,7 +223,7 @@ class Parser {
         value.visit([&, k = key](const auto& v) { inner.insert_or_assign(k, v); });
         single.insert_or_assign(section_key, inner);
         try {
-          EstimatorConfig probe;
+          RunConfig probe;
           probe.loadTomlString(toTomlText(single), "config");
         } catch (const InputError& e) {
           throw error(value, "config: " + stripLocation(e));
@@ -238,7 +238,7 @@ class Parser {
   // (docs/design.md §9), every one reported at the line of the group or override.
   void checkMergedConfig(const std::string& config_toml, int line, const std::string& where) const {
     if (config_toml.empty()) return;
-    EstimatorConfig probe;
+    RunConfig probe;
     probe.loadTomlString(config_toml, "config");
     const std::vector<ConfigProblem> problems = probe.problems();
     if (problems.empty()) return;
@@ -307,7 +307,7 @@ class Parser {
     int frames = 0;
     double timeout_s = 0;
     std::vector<std::string> args;
-    std::string frontend;
+    std::optional<FrontendKind> frontend;
     toml::table config;  // config_file merged with [group.config]
     std::vector<Override> overrides;  // one without name when the group has none
   };
@@ -367,12 +367,14 @@ class Parser {
     return *v;
   }
 
-  std::string parseFrontend(const toml::table& group, const std::vector<std::string>& args) const {
+  std::optional<FrontendKind> parseFrontend(const toml::table& group,
+                                            const std::vector<std::string>& args) const {
     const toml::node* node = group.get("frontend");
-    if (node == nullptr) return "";
+    if (node == nullptr) return std::nullopt;
     const auto v = node->value<std::string>();
-    if (!v || (*v != "images" && *v != "simulated" && *v != "auto")) {
-      throw error(*node, "frontend must be \"images\", \"simulated\" or \"auto\"");
+    FrontendKind kind = FrontendKind::kAuto;
+    if (!v || !parseName(kFrontendKindNames, *v, &kind)) {
+      throw error(*node, "frontend must be " + describeNames(kFrontendKindNames, true));
     }
     for (const std::string& arg : args) {
       const std::string option = arg.substr(0, arg.find('='));
@@ -380,7 +382,7 @@ class Parser {
         throw error(*node, "frontend is set here: args must not hold " + option + " too");
       }
     }
-    return *v;
+    return kind;
   }
 
   toml::table parseConfigFile(const toml::table& group) const {
@@ -394,7 +396,7 @@ class Parser {
                              (fs::exists(path) ? " is not a file: expected a TOML config file"
                                                : " does not exist"));
     }
-    EstimatorConfig probe;
+    RunConfig probe;
     probe.loadToml(path.string());  // its own errors name its own lines
     try {
       return toml::parse_file(path.string());
@@ -596,13 +598,13 @@ std::vector<std::string> runArguments(const PlannedRun& run, const std::string& 
     args.push_back("--config");
     args.push_back(config_path);
   }
-  if (run.frontend == "images") {
+  if (run.frontend == FrontendKind::kImages) {
     // Tracked once per dataset by the runner: ten variants must not track the images ten times.
     args.push_back("--tracks");
     args.push_back(sweepTrackFile(run));
-  } else if (!run.frontend.empty()) {
+  } else if (run.frontend) {
     args.push_back("--frontend");
-    args.push_back(run.frontend);
+    args.push_back(nameOf(kFrontendKindNames, *run.frontend));
   }
   args.insert(args.end(), run.extra_args.begin(), run.extra_args.end());
   args.push_back("-o");

@@ -31,7 +31,7 @@
 //                                               # and every run reads them (--tracks)
 //   config_file = "my.toml"                     # optional estimator config (relative to the file)
 //   [group.config]                              # optional inline config overrides, same layout
-//   lm = { max_iterations = 5 }                 # as `marglab run --config` (EstimatorConfig)
+//   lm = { max_iterations = 5 }                 # as `marglab run --config` (RunConfig)
 //   [[group.override]]                          # optional; without, one unnamed override
 //   name   = "relqr"                            # required in an override
 //   args   = ["--qr-threshold-mode", "relative"]
@@ -39,7 +39,7 @@
 //   config = { marginalization = { qr_threshold = 1e-6 } }
 //
 // Everything is validated when the file is read — unknown keys, wrong types, unknown variants and
-// datasets, `run` options that `marglab run` rejects, config keys EstimatorConfig rejects,
+// datasets, `run` options that `marglab run` rejects, config keys RunConfig rejects,
 // duplicate run ids, and (ParseOptions::check_run; the CLI's is runProblems, as `marglab run`
 // validates) every planned run with its dataset — and each error is an InputError naming the file
 // and line, so that no run starts from a broken sweep and no run is started that would be refused. Config layers merge as: config_file < group config < override config
@@ -47,8 +47,11 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "core/frontend/track_source.h"
 
 namespace marglab::experiment {
 
@@ -61,7 +64,7 @@ struct PlannedRun {
   int frames = 0;                       // 0: whole sequence
   double timeout_s = 0;                 // 0: none
   std::string override_name;            // "" for the unnamed override
-  std::string frontend;                 // "" (not passed), "images", "simulated", "auto"
+  std::optional<FrontendKind> frontend;  // nullopt: not passed (the run's default, auto)
   std::vector<std::string> extra_args;  // group args, then override args
   std::string config_toml;              // merged config overrides (TOML text), "" when none
   // The spec its child runs (`marglab run --spec runs/<id>.spec.toml`, core/pipeline/run_spec.h),

@@ -101,7 +101,7 @@ class Runner {
     for (const std::size_t index : queue_) {
       const PlannedRun& run = plan_.runs[index];
       const std::string tracks = sweepTrackFile(run);
-      if (run.frontend != "images" || !done.insert(tracks).second) continue;
+      if (run.frontend != FrontendKind::kImages || !done.insert(tracks).second) continue;
       if (options_.resume && fs::exists(out / tracks)) continue;
       const std::string reason = trackDataset(out, run.dataset, tracks);
       if (StopSignals::received() != 0) return;  // the runs stay pending for --resume
@@ -111,7 +111,7 @@ class Runner {
     std::vector<std::size_t> startable;
     for (const std::size_t index : queue_) {
       const PlannedRun& run = plan_.runs[index];
-      const auto it = run.frontend == "images" ? failed.find(sweepTrackFile(run)) : failed.end();
+      const auto it = run.frontend == FrontendKind::kImages ? failed.find(sweepTrackFile(run)) : failed.end();
       if (it == failed.end()) {
         startable.push_back(index);
         continue;

@@ -16,7 +16,7 @@
 #include <tuple>
 #include <utility>
 
-#include "core/estimator/config.h"
+#include "core/estimator/estimator_settings.h"
 #include "core/experiment/table_cells.h"
 #include "core/experiment/table_specs.h"
 #include "core/experiment/tables.h"

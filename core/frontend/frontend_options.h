@@ -1,6 +1,6 @@
 #pragma once
 // The settings of the stereo optical-flow front-end (optical_flow.h), config section [frontend]
-// (core/estimator/config.h binds and validates them with the other keys; docs/design.md §9).
+// (core/pipeline/run_config.h binds and validates them with the other keys; docs/design.md §9).
 //
 // Keys whose best value depends on the dataset's resolution and motion have a sentinel (−1, or an
 // empty list) that resolveFrontendOptions() replaces by the dataset's default:

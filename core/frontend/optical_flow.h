@@ -70,7 +70,7 @@
 #include "core/frontend/frontend_options.h"
 #include "core/frontend/motion_prediction.h"
 #include "core/io/results_records.h"
-#include "core/sim/tracks.h"
+#include "core/data/tracks.h"
 
 namespace marglab {
 

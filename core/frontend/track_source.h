@@ -37,7 +37,7 @@
 #include "core/frontend/optical_flow.h"
 #include "core/io/results_file.h"
 #include "core/sim/sim_profile.h"
-#include "core/sim/tracks.h"
+#include "core/data/tracks.h"
 #include "core/sim/trajectory_spline.h"
 
 namespace marglab {

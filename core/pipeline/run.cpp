@@ -79,7 +79,7 @@ ImuSetup vioImuSetup(const RunSpec& spec, const Sequence& sequence,
                      std::map<std::string, std::string>* provenance) {
   ImuSetup setup;
   // One set of densities for the synthetic IMU and the estimator's weights.
-  setup.noise = profileImuNoise(sequence, spec.config.imu_noise_profile);
+  setup.noise = profileImuNoise(sequence, spec.config.estimator.imu_noise_profile);
   setup.g_w = gravityWorld(sequence.kind);
   const TrajectorySample first = trajectory.evaluate(t0_ns);
   setup.initial.t_ns = t0_ns;
@@ -122,7 +122,7 @@ ImuSetup vioImuSetup(const RunSpec& spec, const Sequence& sequence,
   (*provenance)["imu_noise"] = fmt::format(
       "{} profile: gyro {:g} rad/s/sqrt(Hz), gyro bias walk {:g}, accel {:g} m/s^2/sqrt(Hz), "
       "accel bias walk {:g}",
-      toString(spec.config.imu_noise_profile), setup.noise.gyro_noise_density,
+      toString(spec.config.estimator.imu_noise_profile), setup.noise.gyro_noise_density,
       setup.noise.gyro_random_walk, setup.noise.accel_noise_density, setup.noise.accel_random_walk);
   return setup;
 }
@@ -132,7 +132,7 @@ namespace {
 // The root attributes of a run's results file: what ran, on what, with which settings.
 template <typename Scalar>
 RunMetadata runMetadata(const RunSpec& spec, const TrackSource& source,
-                        const EstimatorConfig& config, bool vio,
+                        const RunConfig& config, bool vio,
                         const std::map<std::string, std::string>& imu_provenance,
                         const std::string& spec_toml) {
   const Sequence& sequence = source.sequence;
@@ -145,11 +145,11 @@ RunMetadata runMetadata(const RunSpec& spec, const TrackSource& source,
   metadata.mode = vio ? "vio" : "vo";
   metadata.seed = spec.seed;
   metadata.config_toml = config.toToml();
-  metadata.marg_strategy = toString(config.marg_strategy);
+  metadata.marg_strategy = toString(config.estimator.marg_strategy);
   if (spec.variant.marg == MargMethod::kQr) {
-    metadata.qr_threshold_mode = toString(config.qr_threshold_mode);
-    metadata.qr_threshold = config.qr_threshold >= 0
-                                ? config.qr_threshold
+    metadata.qr_threshold_mode = toString(config.estimator.qr_threshold_mode);
+    metadata.qr_threshold = config.estimator.qr_threshold >= 0
+                                ? config.estimator.qr_threshold
                                 : static_cast<double>(NumericTraits<Scalar>::sqrtEpsilon());
   }
   metadata.frontend = source.frontend;
@@ -165,16 +165,16 @@ RunMetadata runMetadata(const RunSpec& spec, const TrackSource& source,
 // events, the prior itself.
 void writeMargEvent(const MargEvent& event, int frame_index, std::int64_t t_ns,
                     std::int64_t marg_index, const RunSpec& spec,
-                    const EstimatorConfig& config, ResultsWriter& writer) {
+                    const RunConfig& config, ResultsWriter& writer) {
   const PriorLayout& layout = event.layout;
   const GaugeState& state = event.state;
-  const std::uint64_t seed = config.diagnostics_seed + static_cast<std::uint64_t>(marg_index);
+  const std::uint64_t seed = config.diagnostics.seed + static_cast<std::uint64_t>(marg_index);
   const bool sqrt_storage = sqrtStorage(spec.variant.storage);
   const PriorDiagnostics diagnostics =
       sqrt_storage ? diagnoseSqrtPrior(event.J_m, event.r_m, layout, state, seed)
                    : diagnosePrior(event.H_m, event.b_m, layout, state, seed);
   writer.appendMarg(makeMargRecord(frame_index, t_ns, event.prior_rows, diagnostics));
-  if (config.store_prior_every > 0 && marg_index % config.store_prior_every == 0) {
+  if (config.diagnostics.store_prior_every > 0 && marg_index % config.diagnostics.store_prior_every == 0) {
     writer.appendPriorMatrices(marg_index, layout, event.H_m, event.b_m,
                                sqrt_storage ? &event.J_m : nullptr,
                                sqrt_storage ? &event.r_m : nullptr);
@@ -193,12 +193,12 @@ void writeCapturedWindow(WindowSnapshot window, const RunSpec& spec, int frame_i
 // Why the run fails at this frame ("" when it goes on): a numerical failure of the estimator, or
 // a position error beyond the dataset's bound.
 std::string frameFailure(const FrameResult& result, const FrameRecord& record,
-                         const EstimatorConfig& config) {
+                         const RunConfig& config) {
   if (!result.status.ok()) return result.status.toString();
   if (std::isfinite(record.p_gt.x()) &&
-      (record.p_est - record.p_gt).norm() > config.max_position_error_m) {
+      (record.p_est - record.p_gt).norm() > config.failure.max_position_error_m) {
     return fmt::format("position error {:.2f} m exceeds the bound of {:.1f} m",
-                       (record.p_est - record.p_gt).norm(), config.max_position_error_m);
+                       (record.p_est - record.p_gt).norm(), config.failure.max_position_error_m);
   }
   return "";
 }
@@ -233,7 +233,7 @@ struct RunTrace {
 
 // The records of one processed frame: /frames, /marg, /sparsify, the trajectory.
 void recordFrame(int k, const TrackFrame& frame, const FrameResult& result, FrameRecord record,
-                 const RunSpec& spec, const EstimatorConfig& config, ResultsWriter& writer,
+                 const RunSpec& spec, const RunConfig& config, ResultsWriter& writer,
                  RunTrace* trace, RunOutcome* outcome) {
   writer.appendFrame(record);
   trace->t_ns.push_back(frame.t_ns);
@@ -281,14 +281,14 @@ void writeTrajectory(const std::string& results_path, const RunTrace& trace) {
 template <typename Scalar>
 RunOutcome runWith(const RunContext& context, TrackSource& source) {
   const RunSpec& spec = context.spec;
-  const EstimatorConfig& config = spec.config;
+  const RunConfig& config = spec.config;
   const Sequence& sequence = source.sequence;
   const TrajectoryFunction& trajectory = *source.trajectory;
   RunOutcome outcome;
   outcome.frontend = source.frontend;
   const bool vio = spec.mode == RunMode::kVio;
   outcome.vio = vio;
-  outcome.marg_strategy = config.marg_strategy;
+  outcome.marg_strategy = config.estimator.marg_strategy;
   const SE3<double> T_b_c0 = cameraExtrinsic(sequence.calib.cam0);
   // VIO estimates the body (IMU) frame, VO the left camera: the ATE compares like with like.
   const Trajectory gt_est = vio ? sequence.gt : cameraGroundTruth(sequence.gt, T_b_c0);
@@ -302,11 +302,12 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
   ResultsWriter writer = ResultsWriter::create(
       spec.output,
       runMetadata<Scalar>(spec, source, config, vio, imu_provenance, context.spec_toml));
-  SlidingWindowEstimator<Scalar> estimator(config, spec.variant, rigFromCalib(sequence.calib),
-                                           T_w_c0_first, std::move(imu));
+  SlidingWindowEstimator<Scalar> estimator(config.estimator, spec.variant,
+                                           rigFromCalib(sequence.calib), T_w_c0_first,
+                                           std::move(imu), config.reporting());
   const bool predict = source.images && config.frontend.prediction == MotionPredictionSource::kEstimator;
   const SE3<double> T_i_c0 = vio ? T_b_c0 : SE3<double>();
-  TrackingMonitor monitor(config);
+  TrackingMonitor monitor(config.failure);
   // Simulated tracks cannot lose the scene: where they thin out (the simulated world ends a few
   // metres past the trajectory's end) it is the simulation's edge, not a tracking failure.
   const bool watch_tracking = source.frontend != "simulated";
@@ -381,12 +382,12 @@ std::string tumPathFor(const std::string& results_path) {
 
 RunSpec resolveRunSpec(const RunSpec& spec, const Sequence& sequence, bool has_ground_truth) {
   RunSpec resolved = spec;
-  EstimatorConfig& config = resolved.config;
+  RunConfig& config = resolved.config;
   config.frontend = resolveFrontendOptions(config.frontend, sequence.kind);
-  if (config.min_frames_after_kf < 0)
-    config.min_frames_after_kf = sequence.defaults.min_frames_after_kf;
-  if (config.max_position_error_m < 0) {
-    config.max_position_error_m = sequence.defaults.max_position_error_m;
+  if (config.estimator.min_frames_after_kf < 0)
+    config.estimator.min_frames_after_kf = sequence.defaults.min_frames_after_kf;
+  if (config.failure.max_position_error_m < 0) {
+    config.failure.max_position_error_m = sequence.defaults.max_position_error_m;
   }
   if (resolved.mode == RunMode::kAuto) {
     // Without ground truth there is no initial velocity and gravity direction: VO.
@@ -464,7 +465,7 @@ void addCaptureProblems(const RunSpec& spec, const Sequence& sequence, std::vect
     }
   }
   // A captured window holds hosted landmarks and a prior over frame states only.
-  if (spec.config.marg_strategy != MargStrategy::kDiscard) {
+  if (spec.config.estimator.marg_strategy != MargStrategy::kDiscard) {
     usage("window capture (--dump-windows) needs marginalization strategy discard");
   }
   std::error_code ec;
@@ -501,7 +502,7 @@ void addModeProblems(const RunSpec& spec, const RunInputs& inputs, std::vector<P
   } else if (spec.imu == ImuSource::kReal) {
     addInputProblem(out, [&] { checkImuCoverage(sequence); });
   }
-  const MargStrategy strategy = spec.config.marg_strategy;
+  const MargStrategy strategy = spec.config.estimator.marg_strategy;
   if (strategy != MargStrategy::kDiscard && !vio) {
     out->push_back(
         {ProblemKind::kUsage, "", 0,
@@ -517,7 +518,7 @@ std::vector<Problem> runProblems(const RunSpec& spec, const RunInputs& inputs) {
   addModeProblems(spec, inputs, &out);
   // The config's alias of the psd axis `c` (core/estimator/variant.h) would do nothing or clash.
   const std::string psd = psdHessianPriorProblem(spec.variant);
-  if (spec.config.psd_hessian_prior && !psd.empty()) {
+  if (spec.config.estimator.psd_hessian_prior && !psd.empty()) {
     out.push_back(spec.config.located(
         {"marginalization.psd_hessian_prior",
          fmt::format("marginalization.psd_hessian_prior = true with variant {}: {}",

@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "core/data/types.h"
-#include "core/estimator/config.h"
+#include "core/pipeline/run_config.h"
 #include "core/estimator/variant.h"
 #include "core/pipeline/run_spec.h"
 #include "core/estimator/window.h"
@@ -66,7 +66,7 @@ RunInputs loadRunInputs(const RunSpec& spec);
 
 // Every problem of a resolved spec (IsValid-style; empty: valid), in one list — the only place a
 // run's validity is decided (`marglab run`, `marglab sweep` at plan time, runSequence): the
-// config's ranges and relations (EstimatorConfig::locatedProblems) and the relations between the
+// config's ranges and relations (RunConfig::locatedProblems) and the relations between the
 // spec and its inputs — --tracks with --frontend, a track file of this sequence (unless
 // tracks_any_sequence), images for frontend images, a trajectory to simulate from, --dump-windows
 // within the run's frames and only with strategy discard, a dump folder that can be created, VIO
@@ -103,7 +103,7 @@ RunOutcome runSequence(const RunSpec& spec, const RunProgress& progress = {});
 
 // The IMU stream and first state of a VIO run, and what they are (provenance: root attributes
 // imu, initial_biases, initial_state, imu_noise). `spec` is resolved (resolveRunSpec).
-// The densities are those of spec.config.imu_noise_profile, for the synthetic IMU and the
+// The densities are those of spec.config.estimator.imu_noise_profile, for the synthetic IMU and the
 // estimator's weights alike. The first state is the ground truth at t0_ns (pose and velocity from
 // the trajectory) with zero biases, or the recorded ground-truth biases for the real IMU where the
 // sequence has them — the same for every variant. Throws InputError (a profile without calibration,

@@ -3,7 +3,7 @@
 // plan — the one description that the run verb, the sweep planner, its local children and its
 // Slurm tasks share, validated once (runProblems, core/pipeline/run.h) before any work.
 //
-// A spec file is a config file (EstimatorConfig's TOML, every key) with one more table, [run]:
+// A spec file is a config file (RunConfig's TOML, every key) with one more table, [run]:
 //
 //   [run]
 //   dataset = "kitti/10"            # a shipped name or a folder
@@ -34,7 +34,7 @@
 #include <vector>
 
 #include "core/common/enum_names.h"
-#include "core/estimator/config.h"
+#include "core/pipeline/run_config.h"
 #include "core/estimator/variant.h"
 #include "core/frontend/track_source.h"
 
@@ -65,7 +65,7 @@ struct RunSpec {
   std::uint64_t seed = 1;
   std::string isa = "auto";  // the kernels' instruction set (core/linalg/isa.h)
   // defaults < config file < --set < options; each key's origin recorded for messages.
-  EstimatorConfig config;
+  RunConfig config;
   std::vector<std::string> overrides;  // the --set assignments as given, in order
   std::string output;  // results file (.h5); the TUM trajectory goes to <output minus .h5>.tum
   // Window capture: the windows of these frame indices (0-based, before their optimization, with

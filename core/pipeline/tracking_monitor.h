@@ -24,18 +24,18 @@
 
 #include <string>
 
-#include "core/estimator/config.h"
 #include "core/estimator/estimator.h"
+#include "core/pipeline/run_config.h"
 
 namespace marglab {
 
 class TrackingMonitor {
  public:
-  explicit TrackingMonitor(const EstimatorConfig& config)
-      : min_observations_(config.min_tracked_observations),
-        max_frames_(config.max_tracking_loss_frames),
-        inconsistent_px_(config.inconsistent_px),
-        max_inconsistent_share_(config.max_inconsistent_share) {}
+  explicit TrackingMonitor(const FailureSettings& failure)
+      : min_observations_(failure.min_tracked_observations),
+        max_frames_(failure.max_tracking_loss_frames),
+        inconsistent_px_(failure.inconsistent_px),
+        max_inconsistent_share_(failure.max_inconsistent_share) {}
 
   // Called after each frame in order; the reason the run has lost the scene, or "".
   std::string update(int frame_index, const FrameResult& result);

@@ -42,7 +42,7 @@
 #include <vector>
 
 #include "core/data/types.h"
-#include "core/sim/tracks.h"
+#include "core/data/tracks.h"
 #include "core/sim/trajectory_spline.h"
 #include "core/sim/world.h"
 

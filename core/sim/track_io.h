@@ -44,7 +44,7 @@
 #include <vector>
 
 #include "core/data/types.h"
-#include "core/sim/tracks.h"
+#include "core/data/tracks.h"
 
 namespace marglab {
 

@@ -84,7 +84,7 @@ struct Converged {
 };
 
 Converged solveToConvergence(const WindowSnapshot& w) {
-  EstimatorConfig tight = w.config;
+  EstimatorSettings tight = w.config;
   tight.lm_max_iterations = 400;
   tight.stop_relative_cost = 1e-16;
   tight.stop_max_step = 1e-12;

@@ -34,7 +34,7 @@ WindowSnapshot capture(const std::string& dataset, const std::string& variant, i
   options.dataset = dataset;
   options.variant = Variant::parse(variant);
   options.max_frames = frames;
-  options.config.diagnostics = false;
+  options.config.diagnostics.enabled = false;
   options.output = (dir / "run.h5").string();
   options.dump_windows = {capture};
   options.dump_dir = dir.string();
@@ -117,7 +117,6 @@ TEST(WindowFile, RoundTripsExactlyAndRejectsDamage) {
   s.dataset = w.dataset;
   s.frame_index = w.frame_index;
   s.after = w.after;
-  s.config.diagnostics = w.config.diagnostics;
   const fs::path plain3 = dir / "restored.win";
   writeWindow(s, plain3.string());
   std::ifstream c(plain3);

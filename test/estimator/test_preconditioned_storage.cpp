@@ -97,11 +97,10 @@ template <typename Scalar>
 double maxPositionError(const test::VioScenario& scenario, const char* variant,
                         std::vector<Eigen::Vector3d>* positions = nullptr,
                         bool psd_hessian_prior = false, double* min_eigen = nullptr) {
-  EstimatorConfig config;
-  config.diagnostics = false;
+  EstimatorSettings config;
   config.psd_hessian_prior = psd_hessian_prior;
   SlidingWindowEstimator<Scalar> estimator =
-      scenario.estimator<Scalar>(Variant::parse(variant), config);
+      scenario.estimator<Scalar>(Variant::parse(variant), config, test::kWithoutShadowPrior);
   double max_error = 0;
   for (const TrackFrame& frame : scenario.stream.frames) {
     const FrameResult result = estimator.processFrame(frame);

@@ -39,9 +39,8 @@ std::map<int64_t, SE3<double>> finalPoses(const SlidingWindowEstimator<Scalar>& 
 // Same measurements: every frame is a keyframe, so the mid-frame marginalization (which drops a
 // non-keyframe's observations) never happens. Converged far below the comparison bounds (the
 // default stopping rules stop at 1e-4 steps).
-EstimatorConfig everyFrameAKeyframe(MargStrategy strategy) {
-  EstimatorConfig config;
-  config.diagnostics = false;
+EstimatorSettings everyFrameAKeyframe(MargStrategy strategy) {
+  EstimatorSettings config;
   config.marg_strategy = strategy;
   config.kf_connected_ratio = 2.0;  // connected < 2 · observed: every frame
   config.min_frames_after_kf = 1;
@@ -52,8 +51,8 @@ EstimatorConfig everyFrameAKeyframe(MargStrategy strategy) {
 }
 
 std::map<int64_t, SE3<double>> runToTheEnd(const VioScenario& scenario, const Variant& variant,
-                                           const EstimatorConfig& config, int* sparsify_events) {
-  SlidingWindowEstimator<double> estimator = scenario.estimator<double>(variant, config);
+                                           const EstimatorSettings& config, int* sparsify_events) {
+  SlidingWindowEstimator<double> estimator = scenario.estimator<double>(variant, config, test::kWithoutShadowPrior);
   for (const TrackFrame& frame : scenario.stream.frames) {
     const FrameResult result = estimator.processFrame(frame);
     EXPECT_TRUE(result.status.ok()) << result.status.toString();
@@ -92,7 +91,7 @@ TEST_P(DenseStrategyTest, KeepsTheEstimateOfABatchSolve) {
   EXPECT_GT(events, 20);
 
   static const std::map<int64_t, SE3<double>> batch = [&scenario] {
-    EstimatorConfig config = everyFrameAKeyframe(MargStrategy::kDense);
+    EstimatorSettings config = everyFrameAKeyframe(MargStrategy::kDense);
     config.max_kfs = 100000;
     config.max_states = 100000;
     int none = 0;
@@ -127,13 +126,12 @@ void expectRecoveredEvents(const Variant& variant, double max_position_error_m,
                            SparsifyTopology topology = SparsifyTopology::kPaper,
                            double rigid_tol = 0) {
   const VioScenario& scenario = fifteenSeconds();
-  EstimatorConfig config;
-  config.diagnostics = false;
+  EstimatorSettings config;
   config.marg_strategy = MargStrategy::kNfr;
   config.nfr_topology = topology;
   config.nfr_rigid_deflation = rigid_tol > 0;
   int matched_events = 0;
-  SlidingWindowEstimator<Scalar> estimator = scenario.estimator<Scalar>(variant, config);
+  SlidingWindowEstimator<Scalar> estimator = scenario.estimator<Scalar>(variant, config, test::kWithoutShadowPrior);
   int events = 0;
   double max_error = 0;
   for (const TrackFrame& frame : scenario.stream.frames) {
@@ -217,12 +215,12 @@ TEST(NfrStrategy, RigidDeflationQrF32) {
 TEST(NfrStrategy, JointStatesLoseLessInformationThanThePaperTopology) {
   const VioScenario& scenario = fifteenSeconds();
   auto firstKld = [&scenario](SparsifyTopology topology) {
-    EstimatorConfig config;
-    config.diagnostics = false;
-    config.marg_strategy = MargStrategy::kNfr;
+    EstimatorSettings config;
+      config.marg_strategy = MargStrategy::kNfr;
     config.nfr_topology = topology;
     SlidingWindowEstimator<double> estimator =
-        scenario.estimator<double>(Variant::parse("ns-qr-sqrt-f64"), config);
+        scenario.estimator<double>(Variant::parse("ns-qr-sqrt-f64"), config,
+                                   test::kWithoutShadowPrior);
     for (const TrackFrame& frame : scenario.stream.frames) {
       const FrameResult result = estimator.processFrame(frame);
       EXPECT_TRUE(result.status.ok()) << result.status.toString();
@@ -238,19 +236,19 @@ TEST(NfrStrategy, JointStatesLoseLessInformationThanThePaperTopology) {
 }
 
 TEST(MargStrategyConfig, IsAValidatedConfigKey) {
-  EstimatorConfig config;
-  EXPECT_EQ(config.marg_strategy, MargStrategy::kDiscard);
+  RunConfig config;
+  EXPECT_EQ(config.estimator.marg_strategy, MargStrategy::kDiscard);
   config.loadTomlString("[marginalization]\nstrategy = \"nfr\"\n", "test.toml");
-  EXPECT_EQ(config.marg_strategy, MargStrategy::kNfr);
-  EstimatorConfig round_trip;
+  EXPECT_EQ(config.estimator.marg_strategy, MargStrategy::kNfr);
+  RunConfig round_trip;
   round_trip.loadTomlString(config.toToml(), "round_trip.toml");
-  EXPECT_EQ(round_trip.marg_strategy, MargStrategy::kNfr);
+  EXPECT_EQ(round_trip.estimator.marg_strategy, MargStrategy::kNfr);
   config.loadTomlString("[marginalization]\nnfr_topology = \"joint-states\"\n", "test.toml");
-  EXPECT_EQ(config.nfr_topology, SparsifyTopology::kJointStates);
+  EXPECT_EQ(config.estimator.nfr_topology, SparsifyTopology::kJointStates);
   config.loadTomlString("[marginalization]\nnfr_topology = \"relative-pose\"\n", "test.toml");
-  EXPECT_EQ(config.nfr_topology, SparsifyTopology::kRelativePose);
+  EXPECT_EQ(config.estimator.nfr_topology, SparsifyTopology::kRelativePose);
   round_trip.loadTomlString(config.toToml(), "round_trip.toml");
-  EXPECT_EQ(round_trip.nfr_topology, SparsifyTopology::kRelativePose);
+  EXPECT_EQ(round_trip.estimator.nfr_topology, SparsifyTopology::kRelativePose);
   try {
     config.loadTomlString("[marginalization]\nnfr_topology = \"tree\"\n", "bad.toml");
     FAIL() << "an unknown topology was accepted";
@@ -258,14 +256,14 @@ TEST(MargStrategyConfig, IsAValidatedConfigKey) {
     EXPECT_NE(std::string(e.what()).find("bad.toml:2"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("relative-pose"), std::string::npos) << e.what();
   }
-  EXPECT_FALSE(config.nfr_rigid_deflation);
+  EXPECT_FALSE(config.estimator.nfr_rigid_deflation);
   config.loadTomlString("[marginalization]\nnfr_rigid_deflation = true\n", "test.toml");
-  EXPECT_TRUE(config.nfr_rigid_deflation);
+  EXPECT_TRUE(config.estimator.nfr_rigid_deflation);
   EXPECT_THROW(config.validate(), InputError);  // topology relative-pose: see below
   config.loadTomlString("[marginalization]\nnfr_topology = \"paper\"\n", "test.toml");
   EXPECT_NO_THROW(config.validate());
   round_trip.loadTomlString(config.toToml(), "round_trip.toml");
-  EXPECT_TRUE(round_trip.nfr_rigid_deflation);
+  EXPECT_TRUE(round_trip.estimator.nfr_rigid_deflation);
   try {
     config.loadTomlString("[marginalization]\nnfr_rigid_deflation = \"yes\"\n", "bad.toml");
     FAIL() << "a non-boolean nfr_rigid_deflation was accepted";
@@ -276,7 +274,7 @@ TEST(MargStrategyConfig, IsAValidatedConfigKey) {
   // other topologies.
   for (const char* bad : {"strategy = \"discard\"", "strategy = \"dense\"",
                           "nfr_topology = \"joint-states\"", "nfr_topology = \"relative-pose\""}) {
-    EstimatorConfig relation = config;
+    RunConfig relation = config;
     relation.loadTomlString(std::string("[marginalization]\n") + bad + "\n", "bad.toml");
     try {
       relation.validate();

@@ -30,9 +30,8 @@ TEST_P(VioVariantTest, NoiseFreeSimulationTracksTheTruthToACentimetre) {
   const VioScenario& scenario = sixtySeconds();
   const Variant variant = Variant::parse(GetParam());
   ASSERT_EQ(variant.precision, Precision::kF64);
-  EstimatorConfig config;
-  config.diagnostics = false;
-  SlidingWindowEstimator<double> estimator = scenario.estimator<double>(variant, config);
+  EstimatorSettings config;
+  SlidingWindowEstimator<double> estimator = scenario.estimator<double>(variant, config, test::kWithoutShadowPrior);
   double max_error = 0;
   for (const TrackFrame& frame : scenario.stream.frames) {
     const FrameResult result = estimator.processFrame(frame);

@@ -77,8 +77,8 @@ struct Scenario {
   }
 };
 
-EstimatorConfig testConfig() {
-  EstimatorConfig config;
+EstimatorSettings testConfig() {
+  EstimatorSettings config;
   config.min_frames_after_kf = 1;
   return config;
 }
@@ -223,7 +223,7 @@ TEST(VoStorage, HessianAndSquareRootPriorsGiveTheSameCosts) {
 TEST(VoStopRule, BasaltRuleCountsEvaluationsAndRecoversTheTruth) {
   const Scenario noisy(60, true);
   auto run = [&](const Scenario& scenario, LmStopRule rule, int max_iterations, double* error) {
-    EstimatorConfig config = testConfig();
+    EstimatorSettings config = testConfig();
     config.lm_stop_rule = rule;
     config.lm_max_iterations = max_iterations;
     SlidingWindowEstimator<double> estimator(config, Variant::parse("ns-qr-sqrt-f64"),
@@ -264,7 +264,7 @@ TEST(VoThreads, ThreadedLmLoopMatchesOneThreadAndIsReproducible) {
   const Scenario scenario(60);
   for (const char* name : {"ns-qr-sqrt-f64", "sc-sc-sq-f64"}) {
     auto run = [&](int threads) {
-      EstimatorConfig config = testConfig();
+      EstimatorSettings config = testConfig();
       config.lm_threads = threads;
       SlidingWindowEstimator<double> estimator(config, Variant::parse(name),
                                                rigFromCalib(scenario.calib), scenario.truth(0));

@@ -33,7 +33,7 @@ TYPED_TEST(WindowConsistency, ErrorsArePixelOffsetsOfTheSharedObservations) {
   using Scalar = TypeParam;
   using W = Window<Scalar>;
   const StereoRig<double> rig = kittiLikeRig();
-  W window(EstimatorConfig{}, rig, std::nullopt);
+  W window(EstimatorSettings{}, rig, std::nullopt);
   const SE3<double> T_w_c0;  // frame 0 at the origin
   const SE3<double> T_w_c1(expSO3(Eigen::Vector3d(0.01, -0.03, 0.02)), Eigen::Vector3d(0.3, -0.1, 1.2));
   window.frames[0].T_w_i = T_w_c0.cast<Scalar>();

@@ -14,6 +14,10 @@
 
 namespace marglab::test {
 
+// The estimator without the gauge diagnostics' shadow prior (the tests that need only its
+// estimate).
+inline constexpr EstimatorReporting kWithoutShadowPrior{false};
+
 // MH_01 from t_begin_s for duration_s, cameras at 10 Hz (every other EuRoC frame, to keep the
 // test fast), tracks and IMU without noise or outliers.
 
@@ -55,11 +59,12 @@ struct VioScenario {
   Eigen::Vector3d truePosition(int64_t t_ns) const { return spline.evaluate(t_ns).p_w_b; }
   template <typename Scalar>
   SlidingWindowEstimator<Scalar> estimator(const Variant& variant,
-                                           const EstimatorConfig& config = {}) const {
-    EstimatorConfig c = config;
+                                           const EstimatorSettings& config = {},
+                                           EstimatorReporting reporting = {}) const {
+    EstimatorSettings c = config;
     if (c.min_frames_after_kf < 0) c.min_frames_after_kf = 3;  // 5 at 20 Hz
     return SlidingWindowEstimator<Scalar>(c, variant, rigFromCalib(sequence.calib),
-                                          imu.initial.T_w_i, imu);
+                                          imu.initial.T_w_i, imu, reporting);
   }
 };
 

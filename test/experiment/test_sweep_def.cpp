@@ -10,7 +10,7 @@
 
 #include "common/cli_runner.h"
 #include "core/common/error.h"
-#include "core/estimator/config.h"
+#include "core/pipeline/run_config.h"
 #include "core/estimator/variant.h"
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_index.h"
@@ -49,9 +49,9 @@ config = { lm = { max_iterations = 5 } }
   const PlannedRun& second = plan.runs[1];
   EXPECT_EQ(second.id, "vo__kitti-10__ns-qr-sqrt-f64__s1__rel");
   EXPECT_EQ(second.extra_args, (std::vector<std::string>{"--qr-threshold-mode", "relative"}));
-  EstimatorConfig config;
+  RunConfig config;
   config.loadTomlString(second.config_toml, "merged");
-  EXPECT_EQ(config.lm_max_iterations, 5);
+  EXPECT_EQ(config.estimator.lm_max_iterations, 5);
   const std::vector<std::string> args = runArguments(second, "runs/x.h5", "configs/x.toml");
   EXPECT_EQ(args,
             (std::vector<std::string>{"run", "--dataset", "kitti/10", "--variant", "ns-qr-sqrt-f64",
@@ -73,10 +73,10 @@ name = "o"
 config = { lm = { max_iterations = 9 } }
 )");
   ASSERT_EQ(plan.runs.size(), 1u);
-  EstimatorConfig config;
+  RunConfig config;
   config.loadTomlString(plan.runs[0].config_toml, "merged");
-  EXPECT_EQ(config.lm_max_iterations, 9);
-  EXPECT_EQ(config.lambda_init, 1e-3);
+  EXPECT_EQ(config.estimator.lm_max_iterations, 9);
+  EXPECT_EQ(config.estimator.lambda_init, 1e-3);
 }
 
 TEST(SweepDefinition, VariantSetsMatchThePapersColumns) {
@@ -181,7 +181,7 @@ frontend = "simulated"
 )");
   ASSERT_EQ(plan.runs.size(), 3u);
   for (int i = 0; i < 2; ++i) {
-    EXPECT_EQ(plan.runs[i].frontend, "images");
+    EXPECT_EQ(plan.runs[i].frontend, FrontendKind::kImages);
     EXPECT_EQ(sweepTrackFile(plan.runs[i]), "tracks/euroc-V1_01_easy_images.h5");
     const std::vector<std::string> args = runArguments(plan.runs[i], "runs/x.h5", "");
     const auto it = std::find(args.begin(), args.end(), "--tracks");

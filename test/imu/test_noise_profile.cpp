@@ -150,7 +150,7 @@ TEST(NoiseProfile, VioImuSetupSynthesizesAndWeighsWithTheProfile) {
   for (ImuNoiseProfile p : {ImuNoiseProfile::kKalibr, ImuNoiseProfile::kBasalt}) {
     RunSpec options;
     options.seed = 3;
-    options.config.imu_noise_profile = p;
+    options.config.estimator.imu_noise_profile = p;
     std::map<std::string, std::string> provenance;
     setups[p] = vioImuSetup(options, seq, spline, spline.startTimeNs(), &provenance);
     EXPECT_NE(provenance["imu_noise"].find(toString(p)), std::string::npos);

@@ -12,8 +12,8 @@ namespace marglab {
 namespace {
 
 // The rule's settings the tests state explicitly (not the defaults); `frames` lost in a row end a run.
-EstimatorConfig lossConfig(int frames) {
-  EstimatorConfig config;
+FailureSettings lossConfig(int frames) {
+  FailureSettings config;
   config.min_tracked_observations = 10;
   config.max_tracking_loss_frames = frames;
   config.inconsistent_px = 5;
@@ -72,7 +72,7 @@ TEST(TrackingMonitor, FewCheckedObservationsAreNotJudged) {
 }
 
 TEST(TrackingMonitor, FullShareTurnsTheConsistencyRuleOff) {
-  EstimatorConfig config;
+  FailureSettings config;
   config.max_tracking_loss_frames = 1;
   config.max_inconsistent_share = 1;
   TrackingMonitor monitor(config);
@@ -80,7 +80,7 @@ TEST(TrackingMonitor, FullShareTurnsTheConsistencyRuleOff) {
 }
 
 TEST(TrackingMonitor, ZeroMinimumNeverFails) {
-  EstimatorConfig config;
+  FailureSettings config;
   config.min_tracked_observations = 0;
   config.max_tracking_loss_frames = 1;
   TrackingMonitor monitor(config);

@@ -15,7 +15,7 @@
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
-#include "core/estimator/config.h"
+#include "core/pipeline/run_config.h"
 #include "core/frontend/image_folder.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/feature_tracker.h"
@@ -273,7 +273,7 @@ TEST(RealisticProfileFile, ErrorsNameFileLineAndRange) {
 }
 
 TEST(SimProfileConfig, KeyParsesAndRejectsUnknownNames) {
-  EstimatorConfig config;
+  RunConfig config;
   EXPECT_EQ(config.sim_profile, SimProfile::kIdeal);
   config.loadTomlString("[sim]\nprofile = \"realistic\"\n", "c.toml");
   EXPECT_EQ(config.sim_profile, SimProfile::kRealistic);

@@ -1,14 +1,15 @@
-// EstimatorConfig validation (docs/design.md §9, issue #18 items 5, 6, 11): every value outside
+// RunConfig validation (docs/design.md §9, issue #18 items 5, 6, 11): every value outside
 // its key's range, every non-finite number and every violated relation between keys is an input
 // error naming the key, the value, the allowed range and where the value came from — never a
 // wrapped integer, never a run that "succeeds" without optimizing or fails numerically.
 
 #include <gtest/gtest.h>
 
+#include <sstream>
 #include <string>
 
 #include "core/common/error.h"
-#include "core/estimator/config.h"
+#include "core/pipeline/run_config.h"
 
 namespace marglab {
 namespace {
@@ -18,10 +19,10 @@ bool contains(const std::string& text, const std::string& part) {
 }
 
 TEST(ConfigValidation, DefaultsAndTheirRoundTripAreValid) {
-  EstimatorConfig config;
+  RunConfig config;
   EXPECT_TRUE(config.problems().empty());
   EXPECT_NO_THROW(config.validate());
-  EstimatorConfig round_trip;
+  RunConfig round_trip;
   EXPECT_NO_THROW(round_trip.loadTomlString(config.toToml(), "defaults.toml"));
   EXPECT_NO_THROW(round_trip.validate());
 }
@@ -36,7 +37,7 @@ class BadConfigValue : public ::testing::TestWithParam<BadValue> {};
 
 TEST_P(BadConfigValue, IsAnInputErrorNamingFileLineKeyValueAndRange) {
   const BadValue& bad = GetParam();
-  EstimatorConfig config;
+  RunConfig config;
   try {
     config.loadTomlString(bad.toml, "cfg.toml");
     FAIL() << "accepted:\n" << bad.toml;
@@ -160,11 +161,11 @@ INSTANTIATE_TEST_SUITE_P(
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(ConfigValidation, FrontendKeysRoundTripAndResolvePerDataset) {
-  EstimatorConfig config;
+  RunConfig config;
   config.loadTomlString(
       "[frontend]\nwindow_px = 21\ndisparity_guesses_px = [0, 20.5]\nprediction = \"tracker\"\n",
       "cfg.toml");
-  EstimatorConfig round_trip;
+  RunConfig round_trip;
   round_trip.loadTomlString(config.toToml(), "again.toml");
   EXPECT_EQ(round_trip.frontend.window_px, 21);
   EXPECT_EQ(round_trip.frontend.disparity_guesses_px, (std::vector<double>{0, 20.5}));
@@ -185,7 +186,7 @@ TEST(ConfigValidation, FrontendKeysRoundTripAndResolvePerDataset) {
 }
 
 TEST(ConfigValidation, ValuesAtTheEdgesOfTheirRangesAreAccepted) {
-  EstimatorConfig config;
+  RunConfig config;
   config.loadTomlString(
       "[window]\nmax_kfs = 1\nmax_states = 2\n"
       "[keyframes]\nconnected_ratio = 1\nmin_frames_after_kf = -1\nmarg_connected_share = 0\n"
@@ -194,7 +195,7 @@ TEST(ConfigValidation, ValuesAtTheEdgesOfTheirRangesAreAccepted) {
       "[gauge]\nprior_weight = 0\n"
       "[diagnostics]\nstore_prior_every = 0\n",
       "edges.toml");
-  EXPECT_EQ(config.lm_max_iterations, 1000);
+  EXPECT_EQ(config.estimator.lm_max_iterations, 1000);
   EXPECT_TRUE(config.problems().empty());
   EXPECT_NO_THROW(config.validate());
 }
@@ -202,7 +203,7 @@ TEST(ConfigValidation, ValuesAtTheEdgesOfTheirRangesAreAccepted) {
 // Relations between keys are checked on the whole effective config, and the message names every
 // key involved with the place it came from.
 TEST(ConfigValidation, LambdaOrderIsARelationNamingTheFileLine) {
-  EstimatorConfig config;
+  RunConfig config;
   config.loadTomlString("[lm]\nmax_iterations = 5\nlambda_min = 10\nlambda_max = 1\n", "cfg.toml");
   ASSERT_EQ(config.problems().size(), 1u);
   try {
@@ -220,7 +221,7 @@ TEST(ConfigValidation, LambdaOrderIsARelationNamingTheFileLine) {
         << e.what();
     EXPECT_TRUE(contains(e.what(), "expected lambda_min <= lambda_init <= lambda_max")) << e.what();
   }
-  EstimatorConfig above_max;
+  RunConfig above_max;
   above_max.loadTomlString("[lm]\nlambda_init = 1e3\n", "init.toml");
   try {
     above_max.validate();
@@ -233,7 +234,7 @@ TEST(ConfigValidation, LambdaOrderIsARelationNamingTheFileLine) {
 // Every problem is reported, not only the first: two violated relations from one file, and a
 // command-line value on top.
 TEST(ConfigValidation, TwoProblemsAtOnceAreBothReported) {
-  EstimatorConfig config;
+  RunConfig config;
   config.loadTomlString(
       "[lm]\nlambda_min = 10\nlambda_max = 1\n[marginalization]\nnfr_rigid_deflation = true\n",
       "two.toml");
@@ -249,7 +250,7 @@ TEST(ConfigValidation, TwoProblemsAtOnceAreBothReported) {
                          "true with strategy = \"discard\""))
         << e.what();
   }
-  config.lm_threads = 0;
+  config.estimator.lm_threads = 0;
   config.setOrigin("lm.threads", "--threads");
   const std::vector<Problem> problems = config.locatedProblems();
   ASSERT_EQ(problems.size(), 3u);
@@ -258,7 +259,7 @@ TEST(ConfigValidation, TwoProblemsAtOnceAreBothReported) {
 }
 
 TEST(ConfigValidation, RelativeQrThresholdMustBeBelowOne) {
-  EstimatorConfig config;
+  RunConfig config;
   config.loadTomlString("[marginalization]\nqr_threshold_mode = \"relative\"\nqr_threshold = 1\n",
                         "qr.toml");
   try {
@@ -268,14 +269,14 @@ TEST(ConfigValidation, RelativeQrThresholdMustBeBelowOne) {
     EXPECT_EQ(e.line(), 3) << e.what();
     EXPECT_TRUE(contains(e.what(), "expected a relative threshold in [0, 1)")) << e.what();
   }
-  config.qr_threshold_mode = RankThresholdMode::kAbsolute;  // an absolute 1 is a valid threshold
+  config.estimator.qr_threshold_mode = RankThresholdMode::kAbsolute;  // an absolute 1 is a valid threshold
   EXPECT_NO_THROW(config.validate());
 }
 
 // A value set from the command line is a usage error naming the option (exit code 2).
 TEST(ConfigValidation, CommandLineValuesNameTheOption) {
-  EstimatorConfig config;
-  config.lm_threads = 10000;
+  RunConfig config;
+  config.estimator.lm_threads = 10000;
   config.setOrigin("lm.threads", "--threads");
   try {
     config.validate();
@@ -285,41 +286,41 @@ TEST(ConfigValidation, CommandLineValuesNameTheOption) {
               "--threads: lm.threads = 10000: expected an integer in [1, 256]");
   }
   // A value set in code (no origin) is still refused, as input.
-  EstimatorConfig in_code;
-  in_code.obs_std_px = 0;
+  RunConfig in_code;
+  in_code.estimator.obs_std_px = 0;
   EXPECT_THROW(in_code.validate(), InputError);
 }
 
 TEST(ConfigValidation, CheckValueTextForCommandLineOptions) {
-  EXPECT_EQ(EstimatorConfig::checkValueText("lm.threads", "4"), "");
-  EXPECT_EQ(EstimatorConfig::checkValueText("lm.threads", "0"),
+  EXPECT_EQ(RunConfig::checkValueText("lm.threads", "4"), "");
+  EXPECT_EQ(RunConfig::checkValueText("lm.threads", "0"),
             "lm.threads = 0: expected an integer in [1, 256]");
-  EXPECT_EQ(EstimatorConfig::checkValueText("lm.threads", "2.5"),
+  EXPECT_EQ(RunConfig::checkValueText("lm.threads", "2.5"),
             "lm.threads = 2.5: expected an integer in [1, 256]");
-  EXPECT_EQ(EstimatorConfig::checkValueText("marginalization.qr_threshold", "nan"),
+  EXPECT_EQ(RunConfig::checkValueText("marginalization.qr_threshold", "nan"),
             "marginalization.qr_threshold = nan: expected -1 (sqrt(eps) of the precision) or a "
             "finite number >= 0");
-  EXPECT_EQ(EstimatorConfig::checkValueText("marginalization.qr_threshold", "-1"), "");
-  EXPECT_EQ(EstimatorConfig::checkValueText("diagnostics.store_prior_every", "-5"),
+  EXPECT_EQ(RunConfig::checkValueText("marginalization.qr_threshold", "-1"), "");
+  EXPECT_EQ(RunConfig::checkValueText("diagnostics.store_prior_every", "-5"),
             "diagnostics.store_prior_every = -5: expected an integer in [0, 2147483647]");
-  EXPECT_EQ(EstimatorConfig::checkValueText("lm.max_iterations", "1e12"),
+  EXPECT_EQ(RunConfig::checkValueText("lm.max_iterations", "1e12"),
             "lm.max_iterations = 1000000000000: expected an integer in [1, 1000]");
-  EXPECT_NE(EstimatorConfig::checkValueText("lm.threads", "four"), "");
-  EXPECT_THROW(EstimatorConfig::checkValueText("lm.no_such_key", "1"), std::logic_error);
+  EXPECT_NE(RunConfig::checkValueText("lm.threads", "four"), "");
+  EXPECT_THROW(RunConfig::checkValueText("lm.no_such_key", "1"), std::logic_error);
 }
 
 // lm.stop_rule (issue #21): the two rule names parse and print back; anything else is an input
 // error naming the file, line, key and the accepted names.
 TEST(ConfigValidation, StopRuleIsMarglabOrBasalt) {
-  EstimatorConfig config;
-  EXPECT_EQ(config.lm_stop_rule, LmStopRule::kMarglab);
+  RunConfig config;
+  EXPECT_EQ(config.estimator.lm_stop_rule, LmStopRule::kMarglab);
   config.loadTomlString("[lm]\nstop_rule = \"basalt\"\n", "basalt.toml");
-  EXPECT_EQ(config.lm_stop_rule, LmStopRule::kBasalt);
-  EstimatorConfig round_trip;
+  EXPECT_EQ(config.estimator.lm_stop_rule, LmStopRule::kBasalt);
+  RunConfig round_trip;
   round_trip.loadTomlString(config.toToml(), "round_trip.toml");
-  EXPECT_EQ(round_trip.lm_stop_rule, LmStopRule::kBasalt);
+  EXPECT_EQ(round_trip.estimator.lm_stop_rule, LmStopRule::kBasalt);
   try {
-    EstimatorConfig bad;
+    RunConfig bad;
     bad.loadTomlString("[lm]\nstop_rule = \"ceres\"\n", "cfg.toml");
     FAIL() << "accepted stop_rule = \"ceres\"";
   } catch (const InputError& e) {
@@ -328,6 +329,29 @@ TEST(ConfigValidation, StopRuleIsMarglabOrBasalt) {
     EXPECT_TRUE(contains(e.what(), "expected \"marglab\" or \"basalt\" for lm.stop_rule"))
         << e.what();
   }
+}
+
+// A window file records the estimator's settings; one written before they were split from the run's
+// config holds the whole config, whose pipeline sections are passed over. Unknown keys of the
+// estimator's own sections stay errors.
+TEST(ConfigValidation, EstimatorSettingsReadTheirSectionsOfAWholeRunConfig) {
+  RunConfig config;
+  config.estimator.lm_threads = 3;
+  config.estimator.marg_strategy = MargStrategy::kNfr;
+  config.frontend.window_px = 11;
+  config.diagnostics.enabled = false;
+  EstimatorSettings settings;
+  settings.loadTomlString(config.toToml(), "window.win [config]");
+  EXPECT_EQ(settings.lm_threads, 3);
+  EXPECT_EQ(settings.marg_strategy, MargStrategy::kNfr);
+  EXPECT_EQ(settings.toToml().find("[frontend]"), std::string::npos) << settings.toToml();
+  std::istringstream lines(settings.toToml());
+  for (std::string line; std::getline(lines, line);) {
+    EXPECT_NE(config.toToml().find(line), std::string::npos) << line;  // the same keys and values
+  }
+  EXPECT_THROW(settings.loadTomlString("[lm]\nthreadz = 2\n", "window.win [config]"), InputError);
+  EXPECT_EQ(config.reporting().shadow_prior, false);
+  EXPECT_EQ(config.reporting().inconsistent_px, config.failure.inconsistent_px);
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 #pragma once
-// Every number of the estimator (docs/design.md §3), in one struct, readable from and writable to
-// TOML. Precedence: defaults < config file < command line. The full effective config is written
-// into every results file (attribute config_toml), so a run can be repeated from its file.
+// The estimator's settings (docs/design.md §3): every number the sliding-window estimator uses,
+// in one struct. The run's config (core/pipeline/run_config.h) holds them beside the pipeline's
+// sections and reads and writes them all as one TOML table; a window file (window_io.h) records
+// them alone.
 //
 // TOML layout (all keys optional; unknown keys are errors):
 //   [window]        max_kfs, max_states
@@ -22,40 +23,23 @@
 //                   nfr_topology "paper"), psd_hessian_prior (true: a Hessian prior — storages
 //                   sq, sqp, sqj — is stored as the Hessian JᵀJ, Jᵀr of its clamped LDLT square
 //                   root, positive semidefinite like a square-root prior; README item 5)
-//   [frontend]      the image front-end's settings (core/frontend/frontend_options.h): grid_cell_px,
-//                   pyramid_levels (−1: dataset default), max_iterations, window_px, fb_max_px,
-//                   epipolar_max, ncc_min, ransac_px, min_eigen, corner_block_px, border_px,
-//                   detect_margin_px (−1: dataset default), disparity_guesses_px (a list; []: dataset default), prediction
-//                   ("estimator"|"tracker"|"none")
-//   [failure]       max_position_error_m (−1: dataset default), min_tracked_observations,
-//                   max_tracking_loss_frames, inconsistent_px, max_inconsistent_share (the
-//                   tracking-failure rule, core/pipeline/tracking_monitor.h)
 //   [imu]           noise_profile ("kalibr"|"basalt": the IMU densities of VIO runs, for the
 //                   synthetic IMU and the estimator's weights; see core/imu/noise_profile.h)
-//   [sim]           profile ("ideal"|"realistic": simulated tracks' noise model,
-//   core/sim/sim_profile.h) [diagnostics]   enabled, store_prior_every (0: never; k: every k-th
-//   event, default 25), seed
 //
-// Validation (docs/design.md §9): every key has a range; a value outside it, a non-finite number
-// or a violated relation between keys (lambda_min ≤ lambda_init ≤ lambda_max; a relative
-// qr_threshold below 1; nfr_rigid_deflation only with strategy nfr, topology paper) is an
-// input error, never a numerical failure of the estimator. loadToml checks each value it reads
-// against its key's range (integers before they are narrowed, so 1e12 is an error and never
-// wraps); validate() checks the whole effective config after the command line has been applied.
-// Messages name the key, the value, the allowed range and where the value came from (FILE:LINE of
-// a TOML file, or the command-line option).
+// Validation (docs/design.md §9): every key has a range (estimatorBindings); the relations between
+// keys (lambda_min ≤ lambda_init ≤ lambda_max; a relative qr_threshold below 1;
+// nfr_rigid_deflation only with strategy nfr, topology paper) are estimatorRelationProblems. A
+// violation is an input error, never a numerical failure of the estimator.
 
 #include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "core/common/config_bindings.h"
 #include "core/common/enum_names.h"
-#include "core/common/error.h"
-#include "core/frontend/frontend_options.h"
 #include "core/imu/noise_profile.h"
 #include "core/linalg/flat_qr.h"
-#include "core/sim/sim_profile.h"
 
 namespace marglab {
 
@@ -111,24 +95,7 @@ inline constexpr double kBasaltStopCost = 1e-6;
 // Upper bound of lm.threads (and --threads): more threads than landmark chunks only thrash.
 inline constexpr int kMaxLmThreads = 256;
 
-// Where a config value came from: a TOML file and line, or a command-line option ("--threads").
-struct ConfigOrigin {
-  std::string file;
-  int line = 0;
-  std::string option;
-  std::string describe() const;  // "cfg.toml:3", "--threads", "" (default)
-};
-
-// One invalid value or relation of a config; `message` names the key(s), value(s) and the allowed
-// range, without the location (see EstimatorConfig::origins).
-struct ConfigProblem {
-  std::string key;  // "lm.max_iterations"; for a relation, the key the message is about
-  std::string message;
-  // A relation's keys, whose origins validate() names.
-  std::vector<std::string> related = {};
-};
-
-struct EstimatorConfig {
+struct EstimatorSettings {
   // window
   int max_kfs = 7;
   int max_states = 3;
@@ -168,65 +135,30 @@ struct EstimatorConfig {
   SparsifyTopology nfr_topology = SparsifyTopology::kPaper;
   bool nfr_rigid_deflation = false;
   bool psd_hessian_prior = false;
-  // frontend
-  FrontendOptions frontend;
-  // failure
-  double max_position_error_m = -1;
-  // A run has lost the scene after max_tracking_loss_frames frames in a row in which fewer than
-  // min_tracked_observations of the frame's observations continue landmarks of the window, or in
-  // which more than max_inconsistent_share of the observations checked after the optimization
-  // (FrameResult::n_checked) lie farther than inconsistent_px from their landmark's projection
-  // (core/pipeline/tracking_monitor.h). max_inconsistent_share = 1 turns the second cause off.
-  int min_tracked_observations = 10;
-  int max_tracking_loss_frames = 3;
-  double inconsistent_px = 5;
-  double max_inconsistent_share = 0.3;
   // imu
   ImuNoiseProfile imu_noise_profile = ImuNoiseProfile::kKalibr;
-  // sim
-  SimProfile sim_profile = SimProfile::kIdeal;
-  // diagnostics
-  bool diagnostics = true;
-  int store_prior_every = 25;
-  std::uint64_t diagnostics_seed = 7;
 
-  // Where each key ("section.key") was last set by loadToml or setOrigin; absent: the default.
-  // Not part of the TOML; used for messages only.
-  std::map<std::string, ConfigOrigin> origins;
-
-  // Overrides the fields present in a TOML file; throws InputError(file, line, what) on syntax
-  // errors, unknown keys, wrong types and values outside their key's range.
-  void loadToml(const std::string& path);
-  // The same from a string (name used in messages); a table named foreign_section is skipped
-  // (the [run] table of a spec file, core/pipeline/run_spec.h).
-  void loadTomlString(const std::string& text, const std::string& name,
-                      const std::string& foreign_section = "");
-  // One key from the command line, "section.key=value" (`--set`, a sweep group's `set`): parsed
-  // and range-checked as its TOML line would be (a name may omit the quotes); its origin becomes
-  // `option`. Throws UsageError naming the option, the key and what was expected.
-  void set(const std::string& assignment, const std::string& option = "--set");
+  // Every key with its range, bound to this struct's fields (the TOML layout above).
+  Bindings bindings();
+  // Written and read alone (window files, window_io.h): the sections of a run's whole config that
+  // are not the estimator's are passed over when read. Throws InputError as applyToml does.
   std::string toToml() const;
+  void loadTomlString(const std::string& text, const std::string& name);
+};
 
-  // Records that `key` ("lm.threads") was set by a command-line option.
-  void setOrigin(const std::string& key, const std::string& option);
-  // Every invalid value (range, finiteness) and violated relation of the whole config; empty when
-  // it is valid.
-  std::vector<ConfigProblem> problems() const;
-  // The same, each with where its value came from: the command-line option (a usage error naming
-  // it), else the TOML file and line (file "config", line 0, for a default or a value set in code);
-  // a relation's message names every key involved with its origin.
-  std::vector<Problem> locatedProblems() const;
-  // One problem so located; also for relations checked outside the config (runProblems).
-  Problem located(const ConfigProblem& problem) const;
-  // throwProblems(locatedProblems()) unless it is empty: every problem in one error.
-  void validate() const;
+// The violated relations between the estimator's keys (each key valid on its own); `origins`
+// picks the key a message is about.
+std::vector<ConfigProblem> estimatorRelationProblems(const EstimatorSettings& settings,
+                                                     const std::vector<ConfigProblem>& range,
+                                                     const ConfigOrigins& origins);
 
-  // A command-line value for `key` (a number or a name) checked against the key's range or names;
-  // "" when it is accepted, else
-  // the reason ("lm.threads = 0: expected an integer in [1, 256]"). Throws std::logic_error for
-  // an unknown key. For CLI11 validators, so that `marglab run` and sweep validation reject a bad
-  // option value while parsing.
-  static std::string checkValueText(const std::string& key, const std::string& text);
+// What the estimator reports beside its estimate, decided by the run (core/pipeline/run_config.h):
+// whether it keeps the shadow prior of the gauge diagnostics ([diagnostics] enabled), and the
+// reprojection bound of its consistency count FrameResult::n_inconsistent ([failure]
+// inconsistent_px, the tracking-failure rule).
+struct EstimatorReporting {
+  bool shadow_prior = true;
+  double inconsistent_px = 5;
 };
 
 }  // namespace marglab
