@@ -343,10 +343,10 @@ CommandRun setupRender(CLI::App& app) {
       ->required();
   return [options] {
     if (options->output.empty()) throw UsageError("-o is empty: expected the folder to render into");
-    cli::refuseOverwritingInputs({options->output}, cli::datasetInputs(options->dataset));
     const auto start = std::chrono::steady_clock::now();
     const RenderPlan plan =
         planRendering(options->dataset, options->frames, options->start_s, options->seed);
+    cli::refuseOverwritingInputs({options->output}, cli::datasetInputs(options->dataset));
     RenderSummary s;
     try {
       s = writeRenderedFolder(plan, options->output, renderCommandLine(*options));
