@@ -75,7 +75,11 @@ const bool kRegistered = cli::registerCommand(
      85, [](CLI::App& sub) -> cli::CommandRun {
        auto a = std::make_shared<BenchArgs>();
        sub.add_flag("--json", a->json, "Print one JSON object instead of the table");
-       sub.add_option("--out", a->out, "Folder of bench.md / bench.json")->capture_default_str();
+       CLI::Option* out =
+           sub.add_option("--out", a->out,
+                          "Folder of bench.md / bench.json (--quick: results/perf/quick, so that "
+                          "the noisy numbers never replace the committed ones)")
+               ->capture_default_str();
        sub.add_option("--rounds", a->rounds, "Rounds per side-by-side measurement (best kept)")
            ->capture_default_str()
            ->check(cli::intRange("the number of rounds", 1, 1000));
@@ -97,7 +101,10 @@ const bool kRegistered = cli::registerCommand(
                       "beside ns-qr-sqrt-f32 (repeatable), e.g. --variant sc-sc-sqp-f32");
        sub.add_flag("--no-runs", a->no_runs, "Skip the whole runs");
        sub.add_flag("--quick", a->quick, "One round, short batches (for tests; noisy)");
-       return [a] { return runBenchCommand(*a); };
+       return [a, out] {
+         if (a->quick && out->count() == 0) a->out = "results/perf/quick";
+         return runBenchCommand(*a);
+       };
      }});
 
 }  // namespace

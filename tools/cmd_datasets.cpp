@@ -33,6 +33,7 @@
 #include "core/pipeline/run_config.h"
 #include "core/frontend/rendered_folder.h"
 #include "core/frontend/image_check.h"
+#include "core/frontend/image_folder.h"
 #include "core/frontend/track_source.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/sim_profile.h"
@@ -57,6 +58,14 @@ std::string joined(const std::vector<std::string>& parts, const char* separator)
   return text;
 }
 
+// A shipped sequence as its runs see it: an image folder with its images' size (KITTI's calib.txt
+// has none) and the trajectory and IMU it takes from its recording (image_folder.h).
+Sequence listedSequence(const std::string& name) {
+  Sequence seq = loadSequence(name, LoadOptions{false});
+  if (findStereoImages(seq)) return loadImageSequence(name).sequence;
+  return seq;
+}
+
 CommandRun setupList(CLI::App& app) {
   (void)app;
   return [] {
@@ -66,7 +75,7 @@ CommandRun setupList(CLI::App& app) {
     int errors = 0;
     for (const std::string& name : names) {
       try {
-        const Sequence seq = loadSequence(name, LoadOptions{false});
+        const Sequence seq = listedSequence(name);
         const SequenceCheck check = checkSequence(seq);
         std::string gt = seq.hasTrajectory() ? std::to_string(seq.gt.size()) : "-";
         if (seq.gt_is_estimate) gt += "*";
@@ -110,7 +119,7 @@ CommandRun setupCheck(CLI::App& app) {
     for (const std::string& target : targets) {
       try {
         const Sequence seq = loadSequence(target);
-        const SequenceCheck check = checkSequence(seq);
+        SequenceCheck check = checkSequence(seq);
         std::string summary;
         if (check.timestamps_only) {
           summary =
@@ -123,8 +132,12 @@ CommandRun setupCheck(CLI::App& app) {
         if (seq.imu)
           summary += fmt::format(", IMU {} @ {:.1f} Hz", seq.imu->size(), check.imu_rate_hz);
         // What `run` loads beyond the sequence: the camera models and every image.
-        if (const std::size_t pairs = checkImages(loadImageSequence(target)); pairs > 0)
+        const ImageSequence images = loadImageSequence(target);
+        if (const std::size_t pairs = checkImages(images); pairs > 0)
           summary += fmt::format(", {} stereo image pairs decoded", pairs);
+        if (images.images && images.images->unpaired_left > 0) {
+          check.notes.push_back(unpairedFramesNote(*images.images));
+        }
         if (!check.notes.empty()) summary += " [" + joined(check.notes, "; ") + "]";
         fmt::print("ok    {:<24} {}\n", seq.name, summary);
       } catch (const InputError& e) {
@@ -168,8 +181,7 @@ CommandRun setupSimulate(CLI::App& app) {
   return [options] {
     checkDatasetArgument(options->dataset);
     cli::checkOutputFile(options->output, "-o");
-    cli::refuseOverwritingInputs({options->output},
-                                 {{}, cli::datasetInputFolders(options->dataset)});
+    cli::refuseOverwritingInputs({options->output}, cli::datasetInputs(options->dataset));
     const auto start = std::chrono::steady_clock::now();
     // The sequence as `run --frontend simulated` loads it: an image folder's ground truth may come
     // from the shipped sequence of its recording (image_folder.h).
@@ -270,10 +282,12 @@ CommandRun setupTrack(CLI::App& app) {
   return [options] {
     checkDatasetArgument(options->dataset);
     cli::checkOutputFile(options->output, "-o");
+    cli::CommandInputs inputs{{options->config}, {}};
+    cli::addInputs(&inputs, cli::datasetInputs(options->dataset));
+    cli::refuseOverwritingInputs({options->output}, inputs);
     RunConfig config;
     if (!options->config.empty()) config.loadToml(options->config);
-    cli::refuseOverwritingInputs({options->output},
-                                 {{}, cli::datasetInputFolders(options->dataset)});
+    config.validate();  // the relations `run` refuses (lm.lambda_min > lm.lambda_init), too
     installInterruptCleanup();  // SIGINT / SIGTERM while tracking: says so, exits 128 + signal
     const ImageSequence images = loadImageSequence(options->dataset);
     ImageTracking tracking;
@@ -328,9 +342,11 @@ CommandRun setupRender(CLI::App& app) {
                  "folder to create (must not exist or be empty), in the dataset's layout")
       ->required();
   return [options] {
+    if (options->output.empty()) throw UsageError("-o is empty: expected the folder to render into");
     const auto start = std::chrono::steady_clock::now();
     const RenderPlan plan =
         planRendering(options->dataset, options->frames, options->start_s, options->seed);
+    cli::refuseOverwritingInputs({options->output}, cli::datasetInputs(options->dataset));
     RenderSummary s;
     try {
       s = writeRenderedFolder(plan, options->output, renderCommandLine(*options));

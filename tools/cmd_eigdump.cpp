@@ -107,11 +107,12 @@ int run(const EigdumpOptions& o) {
   if (o.all && o.marg_given) throw UsageError("--marg and --all exclude each other");
   const ResultsReader reader(o.file);
   const std::size_t count = reader.margCount();
+  // With --all too: an empty CSV with exit 0 read as "every event, fine" (issue 38).
+  if (count == 0) throw InputError(o.file, 0, "the run has no marginalization events");
   std::vector<std::size_t> events;
   if (o.all) {
     for (std::size_t k = 0; k < count; ++k) events.push_back(k);
   } else {
-    if (count == 0) throw InputError(o.file, 0, "the run has no marginalization events");
     const std::int64_t n = static_cast<std::int64_t>(count);
     const std::int64_t k = o.marg < 0 ? n + o.marg : o.marg;
     if (k < 0 || k >= n) {
@@ -138,7 +139,6 @@ int run(const EigdumpOptions& o) {
     fmt::print("marg_index,eig_index,value\n");
   } else {
     printFileHeader(reader);
-    if (events.empty()) fmt::print("no marginalization events\n");
   }
   for (const std::size_t k : events) {
     const MargRecord m = reader.marg(k);

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
 #include "core/massspring/experiment.h"
@@ -20,6 +21,7 @@
 #include "core/common/subprocess.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
+#include "tools/output_checks.h"
 
 namespace marglab {
 namespace {
@@ -45,6 +47,9 @@ std::string findPythonWithMatplotlib() {
   return {};
 }
 
+// The start of writeFigure's line when the script failed: the command then exits 1.
+const std::string kFigureFailed = "figure failed: ";
+
 // Returns a line to print (what was written, or why not).
 std::string writeFigure(const Options& opt, const MassSpringSystem& system,
                         const std::vector<double>& final_x) {
@@ -68,7 +73,7 @@ std::string writeFigure(const Options& opt, const MassSpringSystem& system,
     const std::vector<std::string> command = {python, script, tmp, opt.plot_dir + "/massspring"};
     message = runHelper(command) == 0
                   ? fmt::format("figure: {0}/massspring.png, {0}/massspring.pdf", opt.plot_dir)
-                  : "figure failed: " + fmt::format("{}", fmt::join(command, " "));
+                  : kFigureFailed + fmt::format("{}", fmt::join(command, " "));
   }
   std::remove(tmp);
   return message;
@@ -91,6 +96,9 @@ massspring::ExperimentSettings settingsOf(const Options& opt, bool sizes_given, 
 
 int runMassSpring(const Options& opt, bool sizes_given, bool grid_given) {
   const massspring::ExperimentSettings settings = settingsOf(opt, sizes_given, grid_given);
+  // The outputs before the measurements (issue 38: a read-only folder was found at the end).
+  if (!opt.output.empty()) cli::checkOutputFile(opt.output, "-o");
+  if (!opt.no_plot) prepareOutputFolder(opt.plot_dir, "--plot-dir");
   const bool progress = !opt.json && cli::stderrIsTerminal();
   const massspring::Measurements m = massspring::measure(settings, [&](int n) {
     if (progress) fmt::print(stderr, "\rscaling: {}x{} ...   ", n, n);
@@ -98,6 +106,7 @@ int runMassSpring(const Options& opt, bool sizes_given, bool grid_given) {
   if (progress && !settings.sizes.empty()) fmt::print(stderr, "\r{:40}\r", "");
   std::string figure;
   if (!opt.no_plot) figure = writeFigure(opt, m.system, m.main().last.x);
+  const bool figure_failed = figure.rfind(kFigureFailed, 0) == 0;
   const massspring::PrimerTable primer = massspring::loadPrimerTable();
   if (opt.json) {
     fmt::print("{}", massspring::jsonReport(m, primer));
@@ -107,7 +116,7 @@ int runMassSpring(const Options& opt, bool sizes_given, bool grid_given) {
     if (!figure.empty()) fmt::print("\n{}\n", figure);
   }
   if (!opt.output.empty()) massspring::writeResults(opt.output, m);
-  return 0;
+  return figure_failed ? 1 : 0;
 }
 
 const bool kRegistered = cli::registerCommand(

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
 #include "core/common/subprocess.h"
@@ -64,6 +65,8 @@ void requireSweepFolder(const std::string& dir) {
 
 int runNotebooks(const NotebooksRequest& request) {
   requireSweepFolder(request.dir);
+  const std::string out = request.out.empty() ? defaultAnalysisOut(request.dir) : request.out;
+  prepareOutputFolder(out, "--out");  // before the minutes of notebooks, not after
   const std::string source = sourceDir();
   const std::string script = source + "/tools/scripts/run_notebooks.py";
   if (access(script.c_str(), R_OK) != 0) throw InputError(script, 0, "no such file");
@@ -89,7 +92,6 @@ int runNotebooks(const NotebooksRequest& request) {
     tables.dirs = {request.dir};
     experiment::writeTables(tables, nullptr);
   }
-  const std::string out = request.out.empty() ? defaultAnalysisOut(request.dir) : request.out;
   // The runner and its Jupyter kernels end with this process (subprocess.h).
   const int code = runHelper({python, script, "--sweep", request.dir, "--out", out, "--notebooks",
                                source + "/notebooks", "--runs", request.runs, "--jobs",

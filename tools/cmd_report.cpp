@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
 #include "core/common/subprocess.h"
@@ -67,6 +68,9 @@ int runReport(const ReportRequest& request) {
   const std::string out = request.out.empty() ? defaultAnalysisOut(request.dir) : request.out;
   const std::string tables =
       request.tables.empty() ? (fs::path(request.dir) / "tables").string() : request.tables;
+  prepareOutputFolder(out, "--out");
+  prepareOutputFolder(tables, "--tables");
+  if (!request.figures.empty()) prepareOutputFolder(request.figures, "--figures");
   if (!fs::is_regular_file(fs::path(tables) / "tables.md")) {
     experiment::TablesRequest write;
     write.dirs = {request.dir};

@@ -35,9 +35,9 @@ void checkOutputs(const RunSpec& spec, const cli::RunArgs& args) {
                        windowFileName(spec.dataset, spec.variant.name(), frame))
                           .string());
   }
-  cli::refuseOverwritingInputs(
-      outputs, {{args.config_file, args.spec_file, spec.tracks_file},
-                cli::datasetInputFolders(spec.dataset)});
+  cli::CommandInputs inputs{{args.config_file, args.spec_file, spec.tracks_file}, {}};
+  cli::addInputs(&inputs, cli::datasetInputs(spec.dataset));
+  cli::refuseOverwritingInputs(outputs, inputs);
 }
 
 void printOutcome(const RunSpec& spec, const RunOutcome& outcome);
@@ -71,6 +71,11 @@ int runRun(const cli::RunArgs& args) {
   if (const std::string note = pathLengthNote(prepared.inputs.dataset.sequence); !note.empty()) {
     fmt::print(stderr, "marglab run: note: {}: {}\n", prepared.inputs.dataset.sequence.gt_file,
                note);
+  }
+  if (const auto& images = prepared.inputs.dataset.images; images) {
+    if (const std::string note = unpairedFramesNote(*images); !note.empty()) {
+      fmt::print(stderr, "marglab run: note: {}\n", note);
+    }
   }
   if (!spec.dump_windows.empty()) std::filesystem::create_directories(spec.dump_dir);
   const bool terminal = cli::stderrIsTerminal();

@@ -8,7 +8,9 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <set>
 #include <sstream>
+#include <vector>
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
@@ -151,8 +153,13 @@ void refuseOverwritingInputs(const experiment::SweepPlan& plan, const std::strin
       }
     }
   }
-  cli::refuseOverwritingInputs({(out / "index.csv").string(), (out / ".lock").string()},
-                               {{file}, {}});
+  // Every file the sweep writes lies in out: out must not be a dataset's folder or lie in one.
+  cli::CommandInputs read{{file}, {}};
+  std::set<std::string> datasets;
+  for (const auto& run : plan.runs) {
+    if (datasets.insert(run.dataset).second) cli::addInputs(&read, cli::datasetInputs(run.dataset));
+  }
+  cli::refuseOverwritingInputs({(out / "index.csv").string(), (out / ".lock").string()}, read);
 }
 
 // --seeds: one part of a sweep too long for one sitting (README, "A sweep folder"): only the runs
@@ -220,7 +227,8 @@ const bool kRegistered = cli::registerCommand(
            ->check(cli::jobCount());
        sub.add_flag("--resume", args->resume,
                     "Keep runs whose results file is complete and planned the same; redo the rest");
-       sub.add_flag("--force", args->force, "Discard an earlier sweep in the output folder");
+       sub.add_flag("--force", args->force, "Discard an earlier sweep in the output folder")
+           ->excludes("--resume");
        sub.add_option("-o,--out", args->out, "Output folder (default: results/<sweep name>)");
        sub.add_flag("--dry-run", args->dry_run, "Validate and list the runs without running them");
        sub.add_option("--seeds", args->seeds,
@@ -236,7 +244,8 @@ const bool kRegistered = cli::registerCommand(
                     "slurm: follow the array until it ends (default: return after submission)");
        sub.add_option("--status", args->status_dir,
                       "Reconcile a sweep folder's index with Slurm and print where it stands")
-           ->check(cli::existingPath("--status", cli::PathKind::kFolder));
+           ->check(cli::existingPath("--status", cli::PathKind::kFolder))
+           ->excludes("file");
        sub.add_option("--slurm-partition", args->slurm.partition, "slurm: --partition");
        sub.add_option("--slurm-time", args->slurm.time,
                       "slurm: --time of every task (default: the group's timeout_s, in minutes)");
@@ -248,7 +257,19 @@ const bool kRegistered = cli::registerCommand(
                       "slurm: a further sbatch option, verbatim (repeatable; write "
                       "--slurm-arg=--qos=long)")
            ->allow_extra_args(false);
-       return [args] { return runSweepCommand(*args); };
+       std::vector<const CLI::Option*> slurm_only;
+       for (const char* name : {"--wait", "--slurm-partition", "--slurm-time", "--slurm-mem",
+                                "--slurm-cpus", "--slurm-arg"}) {
+         slurm_only.push_back(sub.get_option(name));
+       }
+       return [args, slurm_only] {
+         for (const CLI::Option* option : slurm_only) {
+           if (option->count() > 0 && args->backend != "slurm" && args->status_dir.empty()) {
+             throw UsageError(option->get_name() + " is an option of --backend slurm");
+           }
+         }
+         return runSweepCommand(*args);
+       };
      }});
 
 }  // namespace

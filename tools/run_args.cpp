@@ -207,6 +207,8 @@ void parseArguments(const std::vector<std::string>& arguments, CLI::App* app, Ru
   std::vector<std::string> reversed(arguments.rbegin(), arguments.rend());  // CLI11's order
   try {
     app->parse(reversed);
+  } catch (const CLI::Success&) {  // --help: CLI11's what() is "This should be caught in your main"
+    throw UsageError("--help prints the options and runs nothing: not an option of a run");
   } catch (const CLI::ParseError& e) {
     throw UsageError(e.what());
   }

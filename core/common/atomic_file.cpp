@@ -1,6 +1,7 @@
 #include "core/common/atomic_file.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <array>
@@ -56,7 +57,27 @@ void syncFolder(const std::string& path) {
   ::close(fd);
 }
 
+const char* specialFileKind(mode_t mode) {
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISFIFO(mode)) return "a FIFO (named pipe)";
+  if (S_ISSOCK(mode)) return "a socket";
+  return nullptr;
+}
+
 }  // namespace
+
+void refuseSpecialFileOutput(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return;
+  const char* kind = specialFileKind(st.st_mode);
+  if (kind == nullptr) return;
+  throw InputError(path, 0,
+                   std::string("is ") + kind +
+                       ", not a regular file: marglab writes an output to a temporary file and "
+                       "renames it onto the path, which would replace it; give the path of a "
+                       "regular file (to discard an output, write it into a temporary folder)");
+}
 
 namespace detail {
 void unlinkLiveTemporaries() noexcept {
@@ -75,6 +96,7 @@ int liveTemporaryCount() {
 AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
   static std::atomic<int> counter{0};
   installInterruptCleanup();
+  refuseSpecialFileOutput(path_);
   tmp_path_ = path_ + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
   slot_ = registerTemporary(tmp_path_);
   fd_ = ::open(tmp_path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
@@ -121,6 +143,12 @@ void AtomicFile::commit() {
   if (::fsync(fd_) != 0) fail("cannot sync", errno);
   const int fd = std::exchange(fd_, -1);
   if (::close(fd) != 0) fail("cannot close", errno);
+  try {
+    refuseSpecialFileOutput(path_);  // created while the temporary was written
+  } catch (const InputError&) {
+    discard();
+    throw;
+  }
   if (std::rename(tmp_path_.c_str(), path_.c_str()) != 0) {
     const int error = errno;
     const std::string message = "cannot rename " + tmp_path_ + " onto it: " + std::strerror(error);
@@ -131,6 +159,20 @@ void AtomicFile::commit() {
   slot_ = -1;
   tmp_path_.clear();
   syncFolder(path_);
+}
+
+void prepareOutputFolder(const std::string& path, const std::string& option) {
+  namespace fs = std::filesystem;
+  if (path.empty()) throw UsageError(option + " is empty: expected the path of a folder to write");
+  std::error_code ec;
+  fs::create_directories(path, ec);
+  if (ec) throw InputError(path, 0, "cannot create the folder of " + option + ": " + ec.message());
+  if (!fs::is_directory(path, ec)) {
+    throw InputError(path, 0, "is not a folder: expected a folder to write (" + option + ")");
+  }
+  if (::access(path.c_str(), W_OK) != 0) {
+    throw InputError(path, 0, "not writable: cannot write " + option + " there");
+  }
 }
 
 void writeFileAtomically(const std::string& path, std::string_view bytes) {

@@ -11,6 +11,9 @@
 //
 // On any failure the previous file at path is untouched, the temporary is removed, and the
 // InputError names the path, the temporary and the reason (strerror: "No space left on device").
+// A path that exists but is not a regular file (a device node such as /dev/null, a FIFO, a
+// socket) is refused, at construction and again just before the rename: renaming onto it would
+// replace the node with a regular file (for /dev/null, breaking it for everyone).
 //
 // Live temporaries are listed in a fixed-size, lock-free registry so that a SIGINT/SIGTERM
 // handler (interrupt.h) can unlink them with async-signal-safe calls only.
@@ -47,6 +50,16 @@ class AtomicFile {
   int fd_ = -1;
   int slot_ = -1;  // registry slot, -1 when not registered
 };
+
+// Throws InputError(path, 0, ...) when path exists (following symbolic links) and is not a regular
+// file or a folder: "is a character device, not a regular file ...". Folders are left to the
+// caller (a rename onto one fails, and a folder output is a folder).
+void refuseSpecialFileOutput(const std::string& path);
+
+// An output folder made ready before any work (`plot`, `report`, `notebooks`, `tables` fill one):
+// created with its parents when missing; throws UsageError for "" and InputError naming the path
+// and the reason when it cannot be created, is not a folder or is not writable.
+void prepareOutputFolder(const std::string& path, const std::string& option);
 
 // The whole text through an AtomicFile; creates missing parent folders first.
 void writeFileAtomically(const std::string& path, std::string_view bytes);

@@ -23,9 +23,10 @@ extern "C" void onInterrupt(int signal) {
   if (g_polling.load() > 0) return;
   detail::unlinkLiveTemporaries();
   // write(2) only: the one async-signal-safe way to say why the process stops.
-  const char* text = signal == SIGINT
-                         ? "\nmarglab: interrupted by SIGINT: stopped, unfinished outputs removed\n"
-                         : "\nmarglab: interrupted by SIGTERM: stopped, unfinished outputs removed\n";
+  const char* text =
+      signal == SIGINT    ? "\nmarglab: interrupted by SIGINT: stopped, unfinished outputs removed\n"
+      : signal == SIGHUP  ? "\nmarglab: interrupted by SIGHUP: stopped, unfinished outputs removed\n"
+                          : "\nmarglab: interrupted by SIGTERM: stopped, unfinished outputs removed\n";
   [[maybe_unused]] const ssize_t n = ::write(STDERR_FILENO, text, std::strlen(text));
   ::_exit(128 + signal);
 }
@@ -54,6 +55,13 @@ void installInterruptCleanup() {
   std::call_once(once, [] {
     installIfDefault(SIGINT);
     installIfDefault(SIGTERM);
+    installIfDefault(SIGHUP);  // the terminal closed
+    // Beyond the file size limit (ulimit -f), write(2) then fails with EFBIG, which the writer
+    // reports and cleans up after, instead of the default SIGXFSZ killing the process mid-write.
+    struct sigaction current {};
+    if (sigaction(SIGXFSZ, nullptr, &current) == 0 && current.sa_handler == SIG_DFL) {
+      std::signal(SIGXFSZ, SIG_IGN);
+    }
   });
 }
 

@@ -1,7 +1,8 @@
 #pragma once
-// SIGINT / SIGTERM while output files are being written (docs/design.md §7). The handler is
-// installed for a signal whose action is still the default, as soon as the first temporary exists
-// (AtomicFile), and acts in one of two ways; either way the process exits with 128 + the signal
+// SIGINT / SIGTERM / SIGHUP while output files are being written (docs/design.md §7); SIGXFSZ is
+// ignored so that a write beyond the file size limit fails with EFBIG and is cleaned up. The
+// handler is installed for a signal whose action is still the default, as soon as the first
+// temporary exists (AtomicFile), and acts in one of two ways; either way the process exits with 128 + the signal
 // number (130 for SIGINT, 143 for SIGTERM) and leaves no "*.tmp-*" file:
 //   - by default it unlinks the live temporaries (atomic_file.h) and calls _exit (both
 //     async-signal-safe);

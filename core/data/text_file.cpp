@@ -15,6 +15,9 @@ namespace marglab {
 
 namespace fs = std::filesystem;
 
+// As the whole-file text inputs (core/io/text_input.h): a line is never read without bound.
+constexpr std::size_t kMaxLineBytes = 1u << 20;
+
 TextFile::TextFile(std::string path) : path_(std::move(path)) {
   std::error_code ec;
   if (!fs::exists(path_, ec)) throw InputError(path_, 0, "expected an existing file (not found)");
@@ -39,6 +42,10 @@ bool TextFile::nextLine(std::string_view& line) {
     got_any = true;
     buffer_ += chunk;
     if (!buffer_.empty() && buffer_.back() == '\n') break;
+    if (buffer_.size() > kMaxLineBytes) {
+      ++line_;
+      fail("expected a text file with lines of at most 1 MiB (a longer line, or binary data)");
+    }
   }
   if (!got_any) {
     int err = Z_OK;

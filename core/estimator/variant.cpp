@@ -112,7 +112,7 @@ Variant Variant::parse(const std::string& text) {
   std::vector<std::string> parts;
   std::stringstream stream(text);
   for (std::string part; std::getline(stream, part, '-');) parts.push_back(part);
-  if (parts.size() != 4) {
+  if (parts.size() != 4 || text.back() == '-') {  // getline drops a trailing ""
     throw UsageError(fmt::format("unknown variant '{}': expected {}", text, variantSyntax()));
   }
   auto bad = [&](const char* what, const std::string& part) {

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
 #include "core/common/subprocess.h"
@@ -62,6 +63,7 @@ int runPlot(const PlotRequest& request) {
       request.out.empty()
           ? "notebooks-out/" + fs::path(request.dirs.front()).lexically_normal().filename().string()
           : request.out;
+  prepareOutputFolder(out, "--out");
   std::vector<std::string> args = {python,          script,
                                    "--out",         out,
                                    "--figures",     request.figures,

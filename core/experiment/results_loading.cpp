@@ -4,9 +4,13 @@
 #include "core/experiment/tables.h"
 
 #include <fmt/core.h>
+#include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <map>
+#include <set>
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
@@ -56,6 +60,54 @@ std::string tableDataset(const std::string& indexed, const RunMetadata* recorded
   }
 }
 
+// The camera frames of a sequence (0 when it does not load), cached per name.
+std::size_t cameraFrames(const std::string& name_or_path, std::map<std::string, std::size_t>* cache) {
+  const auto [it, fresh] = cache->emplace(name_or_path, 0);
+  if (fresh) {
+    try {
+      it->second = loadSequence(name_or_path, LoadOptions{false}).cam_t_ns.size();
+    } catch (const InputError&) {
+      it->second = 0;
+    }
+  }
+  return it->second;
+}
+
+// A run on a user's folder that records a shipped sequence's name is over the whole sequence only
+// when the folder holds as many frames (a 51-frame clip of kitti/06 is not kitti/06).
+void markClips(ResultSet* set) {
+  std::map<std::string, std::size_t> cache;
+  const std::vector<std::string> shipped = listSequences();
+  for (RunRecord& r : set->runs) {
+    const std::string& key = r.row.get("dataset");
+    if (r.indexed_dataset == key ||
+        std::find(shipped.begin(), shipped.end(), key) == shipped.end()) {
+      continue;
+    }
+    const std::size_t own = cameraFrames(r.indexed_dataset, &cache);
+    if (own > 0 && own != cameraFrames(key, &cache)) r.clip_frames = static_cast<long long>(own);
+  }
+}
+
+// Two datasets recording one name keep rows of their own (the shipped one keeps the name).
+void separateCollisions(ResultSet* set) {
+  std::map<std::string, std::set<std::string>> indexed;
+  for (const RunRecord& r : set->runs) indexed[r.row.get("dataset")].insert(r.indexed_dataset);
+  for (const auto& [key, names] : indexed) {
+    if (names.size() < 2) continue;
+    set->warnings.push_back(fmt::format(
+        "{}: runs on {} datasets record this name ({}): each keeps a row of its own, named by its "
+        "folder",
+        key, names.size(), fmt::join(names, ", ")));
+  }
+  for (RunRecord& r : set->runs) {
+    const std::string key = r.row.get("dataset");
+    if (indexed[key].size() > 1 && r.indexed_dataset != key) {
+      r.row.set("dataset", key + " (" + r.indexed_dataset + ")");
+    }
+  }
+}
+
 }  // namespace
 
 ResultSet loadResults(const std::vector<std::string>& dirs) {
@@ -66,6 +118,7 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
     for (const IndexRow& row : readIndex(index)) {
       RunRecord r;
       r.row = row;
+      r.indexed_dataset = row.get("dataset");
       r.dir = dir;
       r.results_path = (fs::path(dir) / row.get("results")).string();
       r.state = row.get("status") == "failed" ? RunRecord::State::kFailed
@@ -118,6 +171,8 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
           from_index));
     }
   }
+  markClips(&set);
+  separateCollisions(&set);
   return set;
 }
 

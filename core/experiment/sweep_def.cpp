@@ -5,6 +5,7 @@
 
 #include <toml++/toml.h>
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -12,6 +13,7 @@
 #include <sstream>
 
 #include "core/common/error.h"
+#include "core/io/text_input.h"
 #include "core/data/sequence.h"
 #include "core/estimator/variant.h"
 #include "core/pipeline/run_config.h"
@@ -358,7 +360,10 @@ class Parser {
     const toml::node* node = group.get("timeout_s");
     if (node == nullptr) return 0;
     const auto v = node->value<double>();
-    if (!v || *v < 0) throw error(*node, "timeout_s must be a number >= 0 (0: no limit)");
+    // nan, inf and 1e-300 are numbers too: a limit is whole milliseconds of a finite time.
+    if (!v || !std::isfinite(*v) || *v < 0 || (*v > 0 && *v < 1e-3)) {
+      throw error(*node, "timeout_s must be 0 (no limit) or a finite number of seconds >= 0.001");
+    }
     return *v;
   }
 
@@ -387,7 +392,9 @@ class Parser {
     fs::path path(**node->as_string());
     if (path.is_relative()) path = fs::path(base_dir_) / path;
     if (!fs::is_regular_file(path)) {
-      throw error(*node, "config_file " + path.string() + " does not exist");
+      throw error(*node, "config_file " + path.string() +
+                             (fs::exists(path) ? " is not a file: expected a TOML config file"
+                                               : " does not exist"));
     }
     RunConfig probe;
     probe.loadToml(path.string());  // its own errors name its own lines
@@ -559,12 +566,9 @@ SweepPlan parseSweep(const std::string& text, const std::string& name, const std
 }
 
 SweepPlan loadSweepFile(const std::string& path, const ParseOptions& options) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path, 0, "cannot read the sweep file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
+  const std::string text = readTextInput(path, "the sweep file", kSettingsTextLimits);
   const std::string base = fs::absolute(fs::path(path)).parent_path().string();
-  return parseSweep(buffer.str(), path, base, options);
+  return parseSweep(text, path, base, options);
 }
 
 std::string sweepTrackFile(const PlannedRun& run) { return "tracks/" + slug(run.dataset) + ".h5"; }

@@ -2,6 +2,7 @@
 
 #include <fmt/core.h>
 #include <fmt/format.h>
+#include <toml++/toml.h>
 
 #include <signal.h>
 #include <sys/wait.h>
@@ -19,6 +20,7 @@
 #include <thread>
 
 #include "core/common/error.h"
+#include "core/io/text_input.h"
 #include "core/common/subprocess.h"
 #include "core/common/utc_time.h"
 #include "core/data/sequence.h"
@@ -204,7 +206,9 @@ class Runner {
                                       plan_.runs[slot.row].timeout_s));
       } else if (StopSignals::received() != 0) {
         row.set("failure_kind", "interrupted");
-        row.set("reason", "the sweep was interrupted (" + detail::signalName(sig) + ")");
+        // The signal the sweep received (its runs are stopped with SIGTERM whatever it was).
+        row.set("reason",
+                "the sweep was interrupted (" + detail::signalName(StopSignals::received()) + ")");
       } else {
         row.set("failure_kind", "signal");
         row.set("reason", "killed by " + detail::signalName(sig));
@@ -382,6 +386,30 @@ std::string runFingerprint(const PlannedRun& run) {
          run.config_toml;
 }
 
+namespace {
+
+// --resume into the folder of another sweep would replace its index and orphan its runs.
+void refuseResumingAnotherSweep(const fs::path& out, const std::string& name) {
+  const fs::path recorded = out / "sweep.toml";
+  if (!fs::is_regular_file(recorded)) return;
+  std::string old_name;
+  try {
+    const toml::table root =
+        toml::parse(readTextInput(recorded.string(), "the sweep file", kSettingsTextLimits));
+    old_name = root["name"].value_or(std::string());
+  } catch (const toml::parse_error&) {
+    return;  // not ours to judge: the index check above vouched for the folder
+  }
+  if (!old_name.empty() && old_name != name) {
+    throw UsageError(fmt::format("{} holds the sweep '{}', not '{}': --resume continues the same "
+                                 "sweep; write this one elsewhere (--out), or start over with "
+                                 "--force",
+                                 out.string(), old_name, name));
+  }
+}
+
+}  // namespace
+
 // Runs a validated plan and prints the summary; the exit code of `sweep` and `reproduce`.
 int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& sweep_file,
                       const experiment::SweepOptions& options) {
@@ -397,13 +425,12 @@ int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& swee
         "{} already holds a sweep: continue it with --resume, or start over with --force",
         options.out_dir));
   }
-  std::ifstream in(sweep_file);
-  std::stringstream text;
-  text << in.rdbuf();
+  if (options.resume) refuseResumingAnotherSweep(out, plan.name);
+  const std::string text = readTextInput(sweep_file, "the sweep file", kSettingsTextLimits);
   fmt::print(options.out, "sweep {}: {} runs -> {}\n", plan.name, plan.runs.size(),
              options.out_dir);
   std::fflush(options.out);
-  const experiment::SweepSummary s = experiment::runSweep(plan, text.str(), options);
+  const experiment::SweepSummary s = experiment::runSweep(plan, text, options);
   fmt::print(options.out,
              "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{} in {:.1f} s\n",
              plan.name, s.ok, s.failed_numerical, s.failed_process,

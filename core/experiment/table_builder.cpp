@@ -280,12 +280,26 @@ class Builder {
     double most = 0;
     for (const std::string& c : columns) {
       for (const RunRecord* r : select(dataset, c).runs) {
-        const double f = r->row.number("frames");
-        if (!std::isfinite(f) || f <= 0) return "all";
+        double f = r->row.number("frames");
+        if (!std::isfinite(f) || f <= 0) f = 0;
+        // A clip's frames, never "all" (issue 38 item 6).
+        if (r->clip_frames > 0) f = f > 0 ? std::min<double>(f, r->clip_frames) : r->clip_frames;
+        if (f <= 0) return "all";
         most = std::max(most, f);
       }
     }
     return most > 0 ? fmt::format("{:.0f}", most) : "";
+  }
+
+  // Whether a run of the row is over a clip folder: the paper's whole-sequence values stay away.
+  bool clipRow(const std::string& dataset) const {
+    for (const auto& [key, sel] : by_cell_) {
+      if (key.dataset != dataset) continue;
+      for (const RunRecord* r : sel.runs) {
+        if (r->clip_frames > 0) return true;
+      }
+    }
+    return false;
   }
 
   // The paper's label of a dataset, `*` when a run's reference is a VIO estimate.
@@ -346,13 +360,14 @@ class Builder {
         row.key = dataset;
         row.label = rowLabel(labels, dataset, &context->any_estimate);
         row.frames = framesLabel(dataset, defining);
+        const bool clip = clipRow(dataset);
         row.ours_decimals = spec.ours_decimals;
         row.paper_decimals = spec.paper_decimals;
         row.scientific = spec.scientific;
         for (const BuiltColumn& c : columns) {
           row.ours.push_back(cellOf(spec.cell, context->seed_stats,
                                     select(dataset, c.column.variant), valuesOf(spec, *c.spec)));
-          row.paper.push_back(c.spec->paper
+          row.paper.push_back(c.spec->paper && !clip
                                   ? paperCell(paper, dataset, c.column.variant, t->quantities)
                                   : TableCell{});
         }
@@ -384,7 +399,7 @@ class Builder {
           for (const BuiltColumn& c : columns) {
             row.ours.push_back(
                 cellOf(spec.cell, context->seed_stats, sel, valuesOf(spec, *c.spec)));
-            row.paper.push_back(key == spec.paper_row_key
+            row.paper.push_back(key == spec.paper_row_key && !clipRow(dataset)
                                     ? paperCell(paper, dataset, c.column.variant, t->quantities)
                                     : TableCell{});
           }

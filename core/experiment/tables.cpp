@@ -38,6 +38,7 @@ std::vector<std::string> parseFormats(const std::string& text) {
     }
     formats.push_back(f);
   }
+  if (formats.empty()) throw UsageError("--format is empty: expected md, tex and/or csv");
   return formats;
 }
 
@@ -109,6 +110,7 @@ std::vector<std::string> writeTables(const TablesRequest& request, std::string* 
       request.out.empty() ? (fs::path(request.dirs.front()) / "tables").string() : request.out;
   const std::vector<TableSet> sets = buildTables(results, paper, request.seeds);
   if (request.require_tables) requireSomeTable(sets, request.dirs);
+  prepareOutputFolder(out, "--out");
   std::vector<std::string> written;
   for (const TableSet& set : sets) {
     for (std::string& path : writeSet(set, out, formats, markdown)) written.push_back(path);

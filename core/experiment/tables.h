@@ -123,6 +123,10 @@ struct RunRecord {
   double ate_rmse = 0, t_opt_s = 0, t_marg_s = 0, wall_s = 0, duration_s = 0;
   long long n_frames = 0;
   long long failure_frame = -1;
+  std::string indexed_dataset;  // the index's "dataset" (row's "dataset" is the table's key)
+  // A user's folder that holds only part of the sequence it records (a clip): its camera frames.
+  // 0 for a whole sequence, or when the folder can no longer be read.
+  long long clip_frames = 0;
 };
 
 struct ResultSet {
@@ -133,6 +137,8 @@ struct ResultSet {
 // Reads <dir>/index.csv of each folder and every results file it lists. A run whose results file
 // is not in the folder (a committed sweep folder keeps its index, not runs/) is read from its index
 // row, whose summary columns the sweep copied from the file; a warning counts them per folder.
+// Rows are keyed by the dataset's identity: two datasets that record the same name (two user
+// folders called 06) keep apart as "kitti/06 (FOLDER)", with a warning.
 ResultSet loadResults(const std::vector<std::string>& dirs);
 
 // ---- tables -------------------------------------------------------------------------------------

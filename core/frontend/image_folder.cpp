@@ -68,7 +68,10 @@ std::optional<StereoImageList> aslImages(const fs::path& mav) {
   for (const auto& [t, image] : left) {
     const std::string& path = existing(image);
     const auto r = right.find(t);
-    if (r == right.end()) continue;  // right frame dropped: no stereo frame
+    if (r == right.end()) {  // right frame dropped: no stereo frame
+      ++list.unpaired_left;
+      continue;
+    }
     list.t_ns.push_back(t);
     list.left.push_back(path);
     list.right.push_back(existing(r->second));
@@ -196,6 +199,13 @@ ImageSequence loadImageSequence(const std::string& name_or_path) {
   }
   applyFallback(&out);
   return out;
+}
+
+std::string unpairedFramesNote(const StereoImageList& list) {
+  if (list.unpaired_left == 0) return "";
+  return fmt::format("{} of the {} cam0 frames have no cam1 frame at the same timestamp and are "
+                     "dropped ({})",
+                     list.unpaired_left, list.unpaired_left + list.size(), list.source);
 }
 
 }  // namespace marglab

@@ -31,8 +31,13 @@ struct StereoImageList {
   std::vector<int64_t> t_ns;
   std::vector<std::string> left, right;  // image paths, one per frame
   std::string source;                    // the list / folder the paths came from
+  std::size_t unpaired_left = 0;         // cam0 frames without a cam1 frame at the same time
   std::size_t size() const { return t_ns.size(); }
 };
+
+// "" when every cam0 frame has its cam1 frame; else a note that says how many frames are dropped
+// (a cam1/data.csv shorter than cam0's, or a timestamp off by 1 ns, is otherwise silent).
+std::string unpairedFramesNote(const StereoImageList& list);
 
 // The stereo images of a loaded sequence folder, or nullopt when the folder has none.
 std::optional<StereoImageList> findStereoImages(const Sequence& sequence);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -147,14 +148,16 @@ RenderPlan planRendering(const std::string& dataset, long long frames, double st
 
 namespace {
 
-// The temporary sibling folder; removed unless renamed onto the output.
+// The temporary sibling folder "<target>.tmp-XXXXXX" (mkdtemp: a new name, never a folder of the
+// user's that happens to match); removed unless renamed onto the output.
 class TemporaryFolder {
  public:
-  explicit TemporaryFolder(fs::path path) : path_(std::move(path)) {
-    std::error_code ec;
-    fs::remove_all(path_, ec);  // a leftover of an earlier process with our pid
-    fs::create_directories(path_, ec);
-    if (ec) throw InputError(path_.string(), 0, "cannot create the folder: " + ec.message());
+  explicit TemporaryFolder(const fs::path& target) {
+    std::string name = target.string() + ".tmp-XXXXXX";
+    if (::mkdtemp(name.data()) == nullptr) {
+      throw InputError(name, 0, std::string("cannot create the folder: ") + std::strerror(errno));
+    }
+    path_ = name;
   }
   ~TemporaryFolder() {
     std::error_code ec;
@@ -181,6 +184,7 @@ class TemporaryFolder {
 // The output folder without a trailing separator; InputError when it exists and is not an empty
 // folder.
 fs::path checkedOutputFolder(const std::string& folder) {
+  if (folder.empty()) throw UsageError("-o is empty: expected the folder to render into");
   fs::path path = fs::path(folder).lexically_normal();
   if (path.filename().empty()) path = path.parent_path();
   std::error_code ec;
@@ -410,7 +414,7 @@ RenderSummary writeRenderedFolder(const RenderPlan& plan, const std::string& fol
   InterruptPolling polling;  // an interrupt unwinds, and the temporary folder is removed
   const fs::path target = checkedOutputFolder(folder);
   if (!target.parent_path().empty()) fs::create_directories(target.parent_path());
-  TemporaryFolder temporary(target.string() + fmt::format(".tmp-{}", ::getpid()));
+  TemporaryFolder temporary(target);
   if (plan.sequence.kind == DatasetKind::kKitti) {
     writeKittiFolder(plan, temporary.path());
   } else {

@@ -1,8 +1,8 @@
 #include "core/pipeline/run_config.h"
 
-#include <fstream>
 #include <limits>
-#include <sstream>
+
+#include "core/io/text_input.h"
 
 namespace marglab {
 namespace {
@@ -77,11 +77,7 @@ void RunConfig::set(const std::string& assignment, const std::string& option) {
 }
 
 void RunConfig::loadToml(const std::string& path) {
-  std::ifstream file(path);
-  if (!file) throw InputError(path, 0, "cannot open the config file");
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  loadTomlString(buffer.str(), path);
+  loadTomlString(readTextInput(path, "the config file", kSettingsTextLimits), path);
 }
 
 std::string RunConfig::toToml() const {

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "core/common/error.h"
+#include "core/io/text_input.h"
 
 namespace marglab {
 namespace {
@@ -190,11 +191,7 @@ RunSpec RunSpec::fromTomlString(const std::string& text, const std::string& name
 }
 
 RunSpec RunSpec::fromTomlFile(const std::string& path) {
-  std::ifstream file(path);
-  if (!file) throw InputError(path, 0, "cannot open the run spec file");
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  return fromTomlString(buffer.str(), path);
+  return fromTomlString(readTextInput(path, "the run spec file", kSettingsTextLimits), path);
 }
 
 }  // namespace marglab

@@ -16,6 +16,7 @@
 
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
+#include "core/io/text_input.h"
 #include "core/io/hdf5.h"
 #include "core/io/hdf5_trust.h"
 
@@ -288,9 +289,25 @@ double parseDouble(const std::string& token, const std::string& path, int line, 
 
 }  // namespace
 
+namespace {
+
+// The header "# marglab-tracks text 1": another version is refused, not read by guess.
+void checkTextVersion(std::istream& rest, const std::string& kind, const std::string& path,
+                      int line) {
+  std::string version;
+  rest >> version;
+  if (kind != "text" || version != std::to_string(kTrackFormatVersion)) {
+    throw InputError(path, line,
+                     fmt::format("format '{} {} {}' not supported: expected '{} text {}'",
+                                 kTrackFormatName, shortToken(kind), shortToken(version),
+                                 kTrackFormatName, kTrackFormatVersion));
+  }
+}
+
+}  // namespace
+
 TrackStream readTracksText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, "cannot open");
+  std::istringstream in(readTextInput(path, "the track file", kTrackTextLimits));
   TrackStream stream;
   std::vector<std::vector<int>> obs_lines;
   std::string line;
@@ -305,6 +322,7 @@ TrackStream readTracksText(const std::string& path) {
       std::string key, value;
       cs >> key >> value;
       if (key == "sequence:") stream.sequence = value;
+      if (key == kTrackFormatName) checkTextVersion(cs, value, path, n);
       if (key == "seed:")
         stream.seed = static_cast<uint64_t>(std::strtoull(value.c_str(), nullptr, 10));
       continue;
@@ -396,6 +414,32 @@ std::string recordingOf(std::string name) {
 
 }  // namespace
 
+namespace {
+
+// Pixels of the undistorted image may lie beyond the raw image (a fisheye's corners), but not by
+// more than the image's own size: u0 = 1e300 is not a measurement.
+void checkPixelsNearTheImage(const TrackStream& stream, const std::string& path,
+                             const CameraCalib& cam) {
+  if (cam.width <= 0 || cam.height <= 0) return;
+  const auto off = [&](const Eigen::Vector2d& uv) {
+    return uv.x() < -cam.width || uv.x() > 2.0 * cam.width || uv.y() < -cam.height ||
+           uv.y() > 2.0 * cam.height;
+  };
+  for (const TrackFrame& frame : stream.frames) {
+    for (const StereoObservation& o : frame.observations) {
+      if (off(o.uv0) || (o.has_right && off(o.uv1))) {
+        throw InputError(path, 0,
+                         fmt::format("frame t_ns {}, track {}: pixel ({}, {}) lies far outside "
+                                     "the {}x{} image (expected within one image size of it)",
+                                     frame.t_ns, o.track_id, off(o.uv0) ? o.uv0.x() : o.uv1.x(),
+                                     off(o.uv0) ? o.uv0.y() : o.uv1.y(), cam.width, cam.height));
+      }
+    }
+  }
+}
+
+}  // namespace
+
 void checkTracksBelongTo(const TrackStream& stream, const std::string& path,
                          const Sequence& sequence) {
   const std::string how =
@@ -406,7 +450,14 @@ void checkTracksBelongTo(const TrackStream& stream, const std::string& path,
                      fmt::format("the track file holds no frames (expected the tracks of {}){}",
                                  sequence.name, how));
   }
-  if (!stream.sequence.empty() && recordingOf(stream.sequence) != recordingOf(sequence.name)) {
+  if (stream.sequence.empty()) {
+    throw InputError(path, 0,
+                     fmt::format("the track file does not say its sequence (a '# sequence: NAME' "
+                                 "line, or the HDF5 attribute sequence), so it cannot be checked "
+                                 "against {}{}",
+                                 sequence.name, how));
+  }
+  if (recordingOf(stream.sequence) != recordingOf(sequence.name)) {
     throw InputError(path, 0,
                      fmt::format("the tracks are of sequence '{}' (recorded in the file), not of "
                                  "{} (--dataset){}",
@@ -427,6 +478,7 @@ void checkTracksBelongTo(const TrackStream& stream, const std::string& path,
                     foreign, stream.frames.size(), sequence.name, first_foreign,
                     stream.frames[first_foreign].t_ns, sequence.cam_file, how));
   }
+  checkPixelsNearTheImage(stream, path, sequence.calib.cam0);
 }
 
 }  // namespace marglab

@@ -25,8 +25,9 @@
 //   u1 v1 = "nan nan" when there is no right match (both or neither); landmark_id and
 //   is_outlier (0/1) are optional as a pair (default −1, 0). A line with t_ns alone declares a
 //   frame without observations. Lines of one frame are consecutive; t_ns never decreases (equal
-//   t_ns = the same frame). Optional header comments "# sequence: NAME" and "# seed: S" fill the
-//   stream's metadata. landmarks_w is not stored in text. Written numbers are the shortest
+//   t_ns = the same frame). Header comments "# sequence: NAME" and "# seed: S" fill the stream's
+//   metadata (`run --tracks` requires the sequence, unless --tracks-any-sequence); a header
+//   "# marglab-tracks text V" of another version than 1 is refused. landmarks_w is not stored in text. Written numbers are the shortest
 //   decimal that reads back to the same double, so a round trip is exact.
 //
 // Reading validates and throws InputError(file, line, what): text errors name the line; HDF5
@@ -83,8 +84,9 @@ void writeTrackFile(const std::string& path, const TrackStream& stream);
 TrackStream readTrackFile(const std::string& path);
 
 // Whether the tracks read from `path` belong to `sequence` (`run --tracks FILE --dataset SEQ`):
-// the file has frames; the sequence it records, when it records one, is SEQ (a folder "X_images"
-// and the shipped "X" are one recording); every frame lies at one of SEQ's camera timestamps.
+// the file has frames; it records its sequence, and that is SEQ (a folder "X_images" and the
+// shipped "X" are one recording); every frame lies at one of SEQ's camera timestamps; no pixel
+// lies farther than one image size outside SEQ's cam0 image.
 // Tracks of another recording would otherwise be paired with this one's ground truth and IMU and
 // give a plausible-looking, meaningless estimate. Throws InputError naming the file and what was
 // expected.

@@ -10,6 +10,15 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <thread>
+#include <vector>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -166,6 +175,81 @@ TEST_F(AnalysisTest, NotebooksExecuteOnTheSweep) {
       "/notebooks/*.ipynb') for c in json.load(open(p))['cells'] if c['cell_type'] == 'code']; "
       "sys.exit(any(c['outputs'] or c['execution_count'] for c in cells) or not cells)\"");
   EXPECT_EQ(clean.exit_code, 0) << "notebooks/*.ipynb committed with outputs\n" << clean.output;
+}
+
+// Starts `marglab ARGS` with SIGINT and SIGTERM at their defaults (a shell without job control
+// starts background commands with SIGINT ignored), output to `log`; returns its pid once `log`
+// holds `line` (or -1 when it ended before).
+pid_t startCliAndWaitFor(const std::vector<std::string>& args, const fs::path& log,
+                         const std::string& line) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    signal(SIGINT, SIG_DFL);
+    signal(SIGTERM, SIG_DFL);
+    const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(fd, 1);
+    dup2(fd, 2);
+    std::vector<std::string> all = {test::cliPath()};
+    all.insert(all.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (auto& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  // A wait for an event, bounded so that a broken build fails instead of hanging.
+  for (int i = 0; i < 3000; ++i) {
+    if (readFile(log).find(line) != std::string::npos) return pid;
+    if (waitpid(pid, nullptr, WNOHANG) == pid) return -1;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  kill(pid, SIGKILL);
+  waitpid(pid, nullptr, 0);
+  return -1;
+}
+
+// Issue 38 item 7: a Ctrl-C while the notebooks ran went on for 16 s, wrote more notebooks, kept
+// one with a KeyboardInterrupt traceback and printed Python's traceback; SIGTERM stopped at once.
+TEST_F(AnalysisTest, NotebooksStopOnSigintAsOnSigterm) {
+  if (pythonWith("nbformat, nbclient, nbconvert, ipykernel, matplotlib").empty()) {
+    GTEST_SKIP() << "Jupyter missing";
+  }
+  const fs::path out = dir_ / "out", log = dir_ / "notebooks.log";
+  const pid_t pid = startCliAndWaitFor({"notebooks", sweep_, "--out", out.string(), "--jobs", "2"},
+                                       log, "notebooks: executing");
+  ASSERT_GT(pid, 0) << readFile(log);
+  ASSERT_EQ(kill(pid, SIGINT), 0);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  const std::string output = readFile(log);
+  EXPECT_EQ(output.find("Traceback"), std::string::npos) << output;
+  EXPECT_NE(output.find("interrupted by SIGINT"), std::string::npos) << output;
+  if (fs::is_directory(out)) {
+    for (const auto& entry : fs::recursive_directory_iterator(out)) {
+      EXPECT_EQ(entry.path().string().find(".tmp-"), std::string::npos) << entry.path();
+      EXPECT_EQ(readFile(entry.path()).find("KeyboardInterrupt"), std::string::npos)
+          << entry.path();
+    }
+  }
+}
+
+// Issue 38 item 8: `notebooks --out <unwritable>` ran 21 s and died with a Python traceback.
+TEST_F(AnalysisTest, UnwritableOutputsFailBeforeAnyWork) {
+  const fs::path file = dir_ / "a_file";
+  std::ofstream(file) << "x";
+  const std::string under = (file / "out").string();
+  for (const std::string verb : {"notebooks", "plot", "report"}) {
+    const auto result =
+        runCli(verb + " '" + sweep_ + "' " + (verb == "plot" ? "-o" : "--out") + " '" + under + "'");
+    EXPECT_EQ(result.exit_code, 1) << verb << "\n" << result.output;
+    EXPECT_NE(result.output.find("marglab: error: " + under + ": cannot create the folder"),
+              std::string::npos)
+        << result.output;
+    EXPECT_EQ(result.output.find("Traceback"), std::string::npos) << result.output;
+    EXPECT_EQ(result.output.find("executing"), std::string::npos) << result.output;
+  }
 }
 
 TEST_F(AnalysisTest, ReportOpensInHeadlessChromium) {

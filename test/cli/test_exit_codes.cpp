@@ -196,5 +196,40 @@ TEST_F(ExitCodes, UnreadableFolderSaysPermissionDenied) {
       << result.output;
 }
 
+// Issue 38, low items: misuse that was accepted silently, or said the wrong thing.
+TEST_F(ExitCodes, MisuseOfIssue38IsRefused) {
+  const std::string sweep = "name = \"s\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
+                            "variants = [\"ns-qr-sqrt-f64\"]\n";
+  const std::string ok = file("ok.toml", sweep);
+  expectExit("run --dataset kitti/10 --variant ns-qr-sqrt-f32- --frames 5 -o " + quoted("r.h5"), 2,
+             "unknown variant 'ns-qr-sqrt-f32-'");
+  expectExit("sweep " + ok + " --resume --force", 2, "excludes");
+  expectExit("sweep " + ok + " --status " + folder("st"), 2, "excludes");
+  expectExit("sweep " + ok + " --slurm-mem 4G --dry-run", 2, "--slurm-mem is an option of");
+  for (const char* timeout : {"nan", "inf", "1e-300"}) {
+    expectExit("sweep " + file("t.toml", sweep + "timeout_s = " + timeout + "\n") + " --dry-run",
+               1, "t.toml:6: timeout_s must be 0 (no limit) or a finite number");
+  }
+  folder("cfg");
+  expectExit("sweep " + file("c.toml", sweep + "config_file = \"cfg\"\n") + " --dry-run", 1,
+             "cfg is not a file");
+  expectExit("sweep " + file("h.toml", sweep + "args = [\"--help\"]\n") + " --dry-run", 1,
+             "--help prints the options and runs nothing");
+  expectExit("tables " + folder("none") + " --format ''", 2, "--format is empty");
+  expectExit("run --dataset kitti/10 --variant ns-qr-sqrt-f64 --frames 3 -o " + quoted("e.h5"), 0);
+  for (const char* csv : {"", " --csv"}) {
+    expectExit("eigdump " + quoted("e.h5") + " --all" + csv, 1, "no marginalization events");
+  }
+  const std::string tiny = sweep + "frames = 3\n";
+  expectExit("sweep " + file("a.toml", tiny) + " --out " + quoted("swept"), 0);
+  const std::string other = "name = \"other\"" + tiny.substr(tiny.find('\n'));
+  expectExit("sweep " + file("b.toml", other) + " --resume --out " + quoted("swept"), 2,
+             "holds the sweep 's', not 'other'");
+  const std::string lm = file("lm.toml", "[lm]\nlambda_min = 1.0\nlambda_init = 1e-6\n");
+  expectExit("datasets track --dataset kitti/06_images --frames 2 --config " + lm + " -o " +
+                 quoted("t.h5"),
+             1, "expected lambda_min <= lambda_init");
+}
+
 }  // namespace
 }  // namespace marglab

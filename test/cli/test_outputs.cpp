@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -73,6 +75,17 @@ TEST_F(OutputsCliTest, FileSizeLimitIsAnErrorNotACrash) {
   expectCleanFailure(dir_, std::strerror(EFBIG));
 }
 
+// Issue 38 item 7: with SIGXFSZ at its default action (a shell's `ulimit -f`), the signal killed
+// the writer and left its temporary.
+TEST_F(OutputsCliTest, FileSizeLimitWithTheDefaultSignalLeavesNoTemporary) {
+  const fs::path out = dir_ / "x.h5";
+  const auto result = test::runShell("trap - XFSZ; ulimit -f 100; '" + std::string(test::cliPath()) +
+                                     "' datasets simulate --dataset kitti/10 -o " + q(out));
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find(std::strerror(EFBIG)), std::string::npos) << result.output;
+  EXPECT_TRUE(listing(dir_).empty()) << listing(dir_).front();
+}
+
 // Issue 18 item 8: `run --dataset SEQ -o SEQ/poses.txt` replaced the poses with HDF5.
 TEST_F(OutputsCliTest, OutputsNeverReplaceAnInputOfTheSameCommand) {
   const fs::path seq = dir_ / "seq";
@@ -96,11 +109,12 @@ TEST_F(OutputsCliTest, OutputsNeverReplaceAnInputOfTheSameCommand) {
        config.string()},
       {run + " --tracks " + q(dir_ / "tracks.txt") + " -o " + q(dir_ / "tracks.txt"),
        (dir_ / "tracks.txt").string(), (dir_ / "tracks.txt").string()},
-      {run + " -o " + q(seq / "calib.h5"), (seq / "calib.tum").string(), seq.string()},
+      {run + " -o " + q(dir_ / "calib.h5"), (dir_ / "calib.tum").string(),
+       (seq / "calib.txt").string()},
       {"datasets simulate --dataset " + q(seq) + " -o " + q(seq / "times.txt.gz"),
        (seq / "times.txt.gz").string(), seq.string()},
   };
-  fs::copy_file(seq / "calib.txt", seq / "calib.tum");  // the TUM file of -o calib.h5
+  fs::create_symlink(seq / "calib.txt", dir_ / "calib.tum");  // the TUM file of -o calib.h5
   for (const Case& c : cases) {
     const auto result = runCli(c.command);
     EXPECT_EQ(result.exit_code, 1) << c.command << "\n" << result.output;
@@ -112,9 +126,85 @@ TEST_F(OutputsCliTest, OutputsNeverReplaceAnInputOfTheSameCommand) {
   EXPECT_EQ(readText(seq / "poses.txt.gz"), poses);
   EXPECT_EQ(readText(config), "[lm]\nmax_iterations = 5\n");
   EXPECT_EQ(runCli("datasets check " + q(seq)).exit_code, 0);
-  // A new file inside the dataset folder replaces nothing.
-  const auto fresh = runCli(run + " -o " + q(seq / "fresh.h5"));
-  EXPECT_EQ(fresh.exit_code, 0) << fresh.output;
+}
+
+void expectRefused(const std::string& command, const std::string& output,
+                   const std::string& input) {
+  const auto result = runCli(command);
+  EXPECT_EQ(result.exit_code, 1) << command << "\n" << result.output;
+  EXPECT_NE(result.output.find("marglab: error: " + output + ": "), std::string::npos)
+      << result.output;
+  EXPECT_NE(result.output.find(input), std::string::npos) << result.output;
+}
+
+// Issue 38 item 2: the ground truth of KITTI's official layout lies outside the sequence folder
+// (dataset/poses/NN.txt); a new file in an input folder was accepted once, refused the second
+// time; `datasets track --config fe.toml -o fe.toml` replaced its own config.
+TEST_F(OutputsCliTest, OutputsNeverReplaceAnyInputNorWriteIntoAnInputFolder) {
+  const fs::path root = dir_ / "K" / "dataset";
+  const fs::path seq = root / "sequences" / "06";
+  fs::create_directories(seq);
+  fs::create_directories(root / "poses");
+  for (const char* name : {"times.txt.gz", "calib.txt"}) {
+    fs::copy_file(fs::path(datasetsRoot()) / "kitti" / "10" / name, seq / name);
+  }
+  const fs::path poses = root / "poses" / "06.txt.gz";
+  fs::copy_file(fs::path(datasetsRoot()) / "kitti" / "10" / "poses.txt.gz", poses);
+  const std::string gt = readText(poses);
+  fs::create_hard_link(poses, dir_ / "hard.h5");
+  const fs::path config = dir_ / "fe.toml";
+  std::ofstream(config) << "[frontend]\n";
+
+  const std::string run = "run --variant ns-qr-sqrt-f64 --frames 10 --dataset " + q(seq);
+  expectRefused(run + " -o " + q(poses), poses.string(), poses.string());
+  expectRefused(run + " -o " + q(dir_ / "hard.h5"), (dir_ / "hard.h5").string(), poses.string());
+  expectRefused("datasets simulate --dataset " + q(seq) + " -o " + q(poses), poses.string(),
+                poses.string());
+  // New files in an input folder, every time.
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    expectRefused(run + " -o " + q(seq / "fresh.h5"), (seq / "fresh.h5").string(), seq.string());
+  }
+  const std::string shipped = (fs::path(datasetsRoot()) / "kitti" / "06_images").string();
+  const std::string new_tracks = shipped + "/new_tracks.h5";
+  expectRefused("datasets track --dataset kitti/06_images --frames 2 -o " + q(new_tracks),
+                new_tracks, datasetsRoot());
+  expectRefused("datasets track --dataset kitti/06_images --frames 2 --config " + q(config) +
+                    " -o " + q(config),
+                config.string(), config.string());
+  EXPECT_FALSE(fs::exists(new_tracks));
+  EXPECT_EQ(readText(poses), gt);
+  EXPECT_EQ(readText(config), "[frontend]\n");
+  EXPECT_EQ(listing(seq), (std::vector<std::string>{"calib.txt", "times.txt.gz"}));
+}
+
+// Issue 38 item 1: `run -o /dev/null` replaced the device node with a 484 KB HDF5 file (the
+// temporary renamed onto it). A scratch node and FIFO, never the machine's own /dev/null.
+TEST_F(OutputsCliTest, DeviceNodesAndFifosAreRefusedNotReplaced) {
+  const fs::path node = dir_ / "null";
+  const fs::path fifo = dir_ / "fifo";
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0644), 0) << std::strerror(errno);
+  const bool have_node = mknod(node.c_str(), S_IFCHR | 0644, makedev(1, 3)) == 0;
+  const std::string run = "run --dataset kitti/10 --variant ns-qr-sqrt-f32 --frames 10 -o ";
+  std::vector<std::pair<std::string, fs::path>> cases = {
+      {run + q(fifo), fifo},
+      {"datasets simulate --dataset kitti/10 --frames 10 -o " + q(fifo), fifo},
+      {"datasets track --dataset kitti/06_images --frames 2 -o " + q(fifo), fifo},
+  };
+  fs::create_symlink(fifo, dir_ / "r.tum");  // the TUM trajectory beside -o r.h5
+  cases.push_back({run + q(dir_ / "r.h5"), dir_ / "r.tum"});
+  if (have_node) cases.push_back({run + q(node), node});
+  for (const auto& [command, refused] : cases) {
+    const auto result = runCli(command);
+    EXPECT_EQ(result.exit_code, 1) << command << "\n" << result.output;
+    EXPECT_NE(result.output.find("marglab: error: " + refused.string() + ": is a "),
+              std::string::npos)
+        << result.output;
+  }
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  if (have_node) {
+    EXPECT_TRUE(fs::is_character_file(node));
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "r.h5"));
 }
 
 // Starts `marglab run` on the whole KITTI 10 (minutes of work) with output in dir; returns its

@@ -169,6 +169,13 @@ TEST_F(RenderedFolder, BadArgumentsExitOneAndWriteNothing) {
   expectRefused("--dataset euroc/no_such_sequence --frames 2", "euroc/V1_03_difficult");
   expectRefused("--dataset tumvi/corridor2 --frames 2", "no trajectory");
   expectRefused("--dataset " + quote(dir_) + " --frames 2", "shipped sequence");
+  {  // Issue 38 item 8: -o "" rendered, then failed to rename.
+    const auto result = test::runShell("cd " + quote(dir_) + " && '" + test::cliPath() +
+                                       "' datasets render --dataset kitti/04 --frames 2 -o ''");
+    EXPECT_EQ(result.exit_code, 2) << result.output;
+    EXPECT_NE(result.output.find("-o is empty"), std::string::npos) << result.output;
+    expectNoTemporary();
+  }
   {  // a file in the way
     std::ofstream(out) << "x";
     const auto result = runCli("datasets render --dataset kitti/04 --frames 2 -o " + quote(out));
@@ -197,10 +204,18 @@ TEST_F(RenderedFolder, InterruptLeavesNothing) {
   const pid_t pid = test::startCli(
       {"datasets", "render", "--dataset", "kitti/00", "--frames", "400", "-o", out.string()},
       (dir_ / "log.txt").string());
-  const fs::path image =
-      out.string() + ".tmp-" + std::to_string(pid) + "/sequences/00/image_0/000002.png";
-  for (int i = 0; i < 1200 && !fs::exists(image); ++i) ::usleep(50'000);
-  ASSERT_TRUE(fs::exists(image)) << test::readText(dir_ / "log.txt");
+  // The temporary is a new "out.tmp-XXXXXX" (mkdtemp).
+  const auto image = [&] {
+    for (const auto& entry : fs::directory_iterator(dir_)) {
+      const fs::path candidate = entry.path() / "sequences/00/image_0/000002.png";
+      if (entry.path().filename().string().rfind("out.tmp-", 0) == 0 && fs::exists(candidate)) {
+        return true;
+      }
+    }
+    return false;
+  };
+  for (int i = 0; i < 1200 && !image(); ++i) ::usleep(50'000);
+  ASSERT_TRUE(image()) << test::readText(dir_ / "log.txt");
   ::kill(pid, SIGINT);
   int status = 0;
   ASSERT_EQ(::waitpid(pid, &status, 0), pid);

@@ -7,6 +7,8 @@ import errno
 import os
 import resource
 import signal
+import stat
+import subprocess
 import sys
 import tempfile
 import unittest
@@ -76,6 +78,37 @@ class AtomicSaveTest(unittest.TestCase):
         with open(self.path, "rb") as f:
             self.assertEqual(f.read(), b"old figure")
         self.assertOnlyTheFile()
+
+    def test_fifo_is_refused_not_replaced(self):
+        # Issue 38 item 1, on a scratch FIFO (never the machine's /dev/null).
+        fifo = os.path.join(self.dir.name, "fifo")
+        os.mkfifo(fifo)
+        with self.assertRaises(OSError) as raised:
+            atomic_save.write_text(fifo, "text")
+        self.assertEqual(raised.exception.filename, fifo)
+        self.assertTrue(stat.S_ISFIFO(os.stat(fifo).st_mode))
+        self.assertEqual(sorted(os.listdir(self.dir.name)), ["fifo", "fig.png"])
+
+    def test_stop_signals_remove_the_temporaries(self):
+        # Issue 38 item 7: SIGTERM during `plot` or `report` left *.tmp-PID-N files.
+        child = ("import os, signal, sys; sys.path.insert(0, %r); import atomic_save\n"
+                 "with atomic_save.atomic_path(%r) as tmp:\n"
+                 "    open(tmp, 'w').write('partial')\n"
+                 "    print('ready', flush=True)\n"
+                 "    signal.pause()\n" % (os.path.dirname(atomic_save.__file__), self.path))
+        for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+            proc = subprocess.Popen([sys.executable, "-c", child], stdout=subprocess.PIPE,
+                                    stderr=subprocess.PIPE,
+                                    preexec_fn=lambda: signal.signal(signal.SIGINT,
+                                                                     signal.default_int_handler))
+            self.assertEqual(proc.stdout.readline(), b"ready\n")
+            proc.send_signal(signum)
+            _, err = proc.communicate()
+            self.assertEqual(proc.returncode, 128 + signum, err)
+            self.assertNotIn(b"Traceback", err)
+            self.assertOnlyTheFile()
+        with open(self.path, "rb") as f:
+            self.assertEqual(f.read(), b"old figure")
 
 
 if __name__ == "__main__":

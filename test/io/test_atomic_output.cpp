@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -171,6 +173,7 @@ int interruptedChildExit(const std::string& path, int signal, bool polling) {
       sigemptyset(&block);
       sigaddset(&block, SIGINT);
       sigaddset(&block, SIGTERM);
+      sigaddset(&block, SIGHUP);
       sigprocmask(SIG_BLOCK, &block, &old);
       [[maybe_unused]] const ssize_t n = write(ready[1], "r", 1);
       for (;;) {
@@ -202,7 +205,47 @@ TEST_F(AtomicOutputTest, InterruptRemovesTheTemporaries) {
   EXPECT_EQ(listing(dir_), std::vector<std::string>{"run.h5"});
   EXPECT_EQ(interruptedChildExit(path, SIGTERM, true), 143);
   EXPECT_EQ(listing(dir_), std::vector<std::string>{"run.h5"});
+  // Issue 38 item 7: every signal the process can catch.
+  EXPECT_EQ(interruptedChildExit(path, SIGHUP, false), 129);
+  EXPECT_EQ(listing(dir_), std::vector<std::string>{"run.h5"});
   EXPECT_EQ(readText(path), "previous");
+}
+
+// Issue 38 item 1: the rename replaced a device node or FIFO at the path with a regular file.
+// A scratch node and FIFO, never the machine's own /dev/null.
+TEST_F(AtomicOutputTest, DeviceNodesAndFifosAreRefusedNotReplaced) {
+  std::vector<std::string> specials{file("fifo")};
+  ASSERT_EQ(mkfifo(specials[0].c_str(), 0644), 0) << std::strerror(errno);
+  if (mknod(file("null").c_str(), S_IFCHR | 0644, makedev(1, 3)) == 0) {
+    specials.push_back(file("null"));
+  }
+  for (const std::string& path : specials) {
+    std::string message = inputErrorOf([&] { writeFileAtomically(path, "text"); });
+    EXPECT_NE(message.find(path + ": is a "), std::string::npos) << message;
+    EXPECT_NE(message.find("not a regular file"), std::string::npos) << message;
+    message = inputErrorOf([&] {
+      h5::File f = h5::File::create(path);
+      f.setAttr("x", 1);
+      f.commit();
+    });
+    EXPECT_NE(message.find(path + ": is a "), std::string::npos) << message;
+  }
+  // A FIFO made at the path while its temporary is being written.
+  const std::string late = file("late");
+  {
+    AtomicFile f(late);
+    f.write("text");
+    ASSERT_EQ(mkfifo(late.c_str(), 0644), 0);
+    const std::string message = inputErrorOf([&] { f.commit(); });
+    EXPECT_NE(message.find("is a FIFO"), std::string::npos) << message;
+  }
+  EXPECT_TRUE(fs::is_fifo(specials[0]));
+  EXPECT_TRUE(fs::is_fifo(late));
+  if (specials.size() > 1) {
+    EXPECT_TRUE(fs::is_character_file(specials[1]));
+  }
+  EXPECT_EQ(listing(dir_).size(), specials.size() + 1);
+  EXPECT_EQ(detail::liveTemporaryCount(), 0);
 }
 
 // The Python side (tools/scripts/atomic_save.py): test/io/atomic_save_test.py.

@@ -27,6 +27,9 @@ import tempfile
 import time
 import urllib.request
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import atomic_save  # noqa: E402
+
 try:
     import websocket  # python3-websocket
 except ImportError:
@@ -212,8 +215,7 @@ def main():
                            clip={"x": 0, "y": 0, "width": args.width, "height": height,
                                  "scale": 1})
             os.makedirs(os.path.dirname(os.path.abspath(args.screenshot)), exist_ok=True)
-            with open(args.screenshot, "wb") as f:
-                f.write(base64.b64decode(shot["data"]))
+            atomic_save.write_bytes(args.screenshot, base64.b64decode(shot["data"]))
         problems = console_problems(dt.events) + problems
         dt.close()
         print("check_report.py: %s — %d tables, %d figures, page %dx%d px%s"
@@ -234,4 +236,5 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    atomic_save.unwind_on_stop_signals()  # Chromium is stopped and its profile removed
+    atomic_save.run_main(main, "check_report.py")

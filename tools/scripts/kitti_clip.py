@@ -4,7 +4,8 @@
 Usage: kitti_clip.py --dataset DIR --frames FIRST:LAST [--right-cx-shift PX] -o OUT
 
 DIR: a KITTI folder in the shipped layout (DIR/{calib.txt, times.txt, poses.txt, image_0/,
-image_1/}, e.g. datasets/kitti/06_images). OUT (must not exist) gets frames FIRST..LAST
+image_1/}, e.g. datasets/kitti/06_images) or the download's dataset/sequences/NN, whose poses are
+dataset/poses/NN.txt. OUT (must not exist) gets frames FIRST..LAST
 (inclusive, renumbered from 000000), their times from 0 and their poses relative to frame FIRST
 (T_FIRST⁻¹ T_k), in the same layout, so that `marglab run --dataset OUT` runs on that clip.
 
@@ -13,18 +14,32 @@ every disparity u0 − u1 grows by PX, the correction of a disparity offset meas
 tools/scripts/stereo_bias.py (results/real_kitti06/README.md). The shipped calib.txt is never
 changed; this writes a copy.
 
-Written into OUT.tmp-<pid> and renamed onto OUT at the end (nothing half-written on an error).
-Needs numpy.
+Written into a new OUT.tmp-XXXXXXXX (mkdtemp) and renamed onto OUT at the end (nothing
+half-written on an error or a signal). Needs numpy.
 """
 import argparse
+import math
 import os
 import shutil
 import sys
+import tempfile
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import atomic_save  # noqa: E402
 from stereo_bias import fail, read_lines  # noqa: E402
+
+
+def poses_path(src):
+    """DIR/poses.txt, else the download layout's dataset/poses/NN.txt beside sequences/NN."""
+    own = os.path.join(src, "poses.txt")
+    if os.path.isfile(own):
+        return own
+    seq = os.path.abspath(src).rstrip("/")
+    official = os.path.join(os.path.dirname(os.path.dirname(seq)), "poses",
+                            os.path.basename(seq) + ".txt")
+    return official if os.path.isfile(official) else own
 
 
 def shifted_calib(path, shift_px):
@@ -46,7 +61,7 @@ def shifted_calib(path, shift_px):
 
 def write_clip(src, first, last, shift_px, tmp):
     times = read_lines(os.path.join(src, "times.txt"), 1)
-    poses = read_lines(os.path.join(src, "poses.txt"), 12)
+    poses = read_lines(poses_path(src), 12)
     if last >= min(len(times), len(poses)):
         fail("%s: --frames ends at %d, the folder has %d frames with poses" % (
             src, last, min(len(times), len(poses))))
@@ -81,9 +96,16 @@ def main():
         first, last = 0, -1
     if not 0 <= first < last:
         fail("--frames %r: expected FIRST:LAST with 0 <= FIRST < LAST" % args.frames)
+    if not math.isfinite(args.right_cx_shift):
+        fail("--right-cx-shift %r: expected a finite number of pixels" % args.right_cx_shift)
     if os.path.exists(args.output):
         fail("%s: exists (give a new folder)" % args.output)
-    tmp = "%s.tmp-%d" % (args.output.rstrip("/"), os.getpid())
+    parent = os.path.dirname(os.path.abspath(args.output.rstrip("/")))
+    if not os.path.isdir(parent) or not os.access(parent, os.W_OK):
+        fail("%s: expected an existing folder this process may write, for -o %s"
+             % (parent, args.output))
+    tmp = tempfile.mkdtemp(prefix=os.path.basename(args.output.rstrip("/")) + ".tmp-",
+                           dir=parent)
     try:
         write_clip(args.dataset, first, last, args.right_cx_shift, tmp)
         os.rename(tmp, args.output)
@@ -94,4 +116,5 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    atomic_save.unwind_on_stop_signals()  # the temporary folder is removed on the way out
+    atomic_save.run_main(main, "kitti_clip.py")

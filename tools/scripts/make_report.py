@@ -319,4 +319,4 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    atomic_save.run_main(main, "make_report.py")

@@ -339,6 +339,41 @@ def read_index_rows(sweep_dir):
     return rows
 
 
+def recorded_dataset(path, indexed):
+    """"<kind>/<sequence>" as the results file records it (a user's folder is indexed by its path,
+    "/data/kitti/06"); the indexed name when the file cannot be read."""
+    try:
+        with h5py.File(path, "r") as f:
+            kind, sequence = decode(f.attrs.get("dataset", "")), decode(f.attrs.get("sequence", ""))
+    except (OSError, KeyError):
+        return indexed
+    return "%s/%s" % (kind, sequence) if kind and sequence else indexed
+
+
+def key_datasets(rows):
+    """Sets row["dataset"] of index rows (with "path") to the dataset's identity as
+    `marglab tables` keys it: the recorded "<kind>/<sequence>"; two different indexed datasets
+    that record the same name (two user folders called 06) keep apart as "kitti/06 (FOLDER)",
+    the shipped one keeping the plain name. Returns the warnings about such collisions."""
+    indexed = {}
+    for row in rows:
+        name, path = row["dataset"], row.get("path", "")
+        key = recorded_dataset(path, name) if path and os.path.isfile(path) else name
+        row["dataset"], row["indexed_dataset"] = key, name
+        indexed.setdefault(key, set()).add(name)
+    warnings = []
+    for key, names in sorted(indexed.items()):
+        if len(names) > 1:
+            warnings.append("%s: runs on %d datasets record this name (%s): each keeps a row of "
+                            "its own, named by its folder" % (key, len(names),
+                                                              ", ".join(sorted(names))))
+    for row in rows:
+        key, name = row["dataset"], row["indexed_dataset"]
+        if len(indexed[key]) > 1 and name != key:
+            row["dataset"] = "%s (%s)" % (key, name)
+    return warnings
+
+
 def read_index(sweep_dir):
     """index.csv of a sweep as a DataFrame, with `path` = the results file's path (or "")."""
     _need_pandas()

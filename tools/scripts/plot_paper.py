@@ -104,11 +104,15 @@ class Run:
 
 
 def read_rows(dirs):
+    """The index rows of the sweeps, keyed by the datasets' recorded kind and sequence (a user's
+    folder is indexed by its path), as `marglab tables` keys them."""
     rows = []
     for d in dirs:
         for row in mr.read_index_rows(d):
             row["_path"] = row["path"]
             rows.append(row)
+    for warning in mr.key_datasets(rows):
+        print("warning: " + warning, file=sys.stderr)
     return rows
 
 
@@ -469,4 +473,4 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    atomic_save.run_main(main, "plot_paper.py")

@@ -190,4 +190,4 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    atomic_save.run_main(main, "run_notebooks.py")
