@@ -3,15 +3,18 @@
 #include <bzlib.h>
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <random>
 #include <string_view>
 
 #include "core/common/error.h"
+#include "core/geometry/so3.h"
 
 namespace marglab {
 namespace {
@@ -168,6 +171,51 @@ BalProblem loadBalProblem(const std::string& path) {
   }
   fields.expectEnd();
   return problem;
+}
+
+namespace {
+
+double medianOf(std::vector<double> values) {
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+// A camera's centre C = −Rᵀt and back (t = −R C).
+Vec3<double> cameraCentre(const Vec<double, 9>& camera) {
+  return -(expSO3<double>(camera.head<3>()).transpose() * camera.segment<3>(3));
+}
+void setCameraCentre(const Vec3<double>& C, Vec<double, 9>* camera) {
+  camera->segment<3>(3) = -(expSO3<double>(camera->head<3>()) * C);
+}
+
+}  // namespace
+
+void normalizeBalProblem(BalProblem* problem, double scale) {
+  Vec3<double> median;
+  std::vector<double> values(problem->points.size());
+  for (int k = 0; k < 3; ++k) {
+    for (size_t i = 0; i < values.size(); ++i) values[i] = problem->points[i][k];
+    median[k] = medianOf(values);
+  }
+  for (size_t i = 0; i < values.size(); ++i) {
+    values[i] = (problem->points[i] - median).lpNorm<1>();
+  }
+  const double s = scale / medianOf(values);
+  for (Vec3<double>& X : problem->points) X = s * (X - median);
+  for (Vec<double, 9>& camera : problem->cameras) {
+    setCameraCentre(s * (cameraCentre(camera) - median), &camera);
+  }
+}
+
+void perturbBalProblem(BalProblem* problem, double sigma, std::uint64_t seed) {
+  std::mt19937_64 engine(seed);
+  std::normal_distribution<double> normal(0.0, sigma);
+  const auto draw = [&] { return Vec3<double>(normal(engine), normal(engine), normal(engine)); };
+  for (Vec<double, 9>& camera : problem->cameras) {
+    setCameraCentre(cameraCentre(camera) + draw(), &camera);
+  }
+  for (Vec3<double>& X : problem->points) X += draw();
 }
 
 }  // namespace marglab

@@ -13,6 +13,7 @@
 // index out of range, a non-positive count, a non-finite number, data after the last point —
 // throws InputError naming the file and the 1-based line of the offending field.
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -42,5 +43,16 @@ BalProblem loadBalProblem(const std::string& path);
 // The file's bytes, bzip2-decompressed when they start with "BZh"; InputError(path, 0, …) when the
 // file cannot be read or the bzip2 stream is corrupt.
 std::string readPlainOrBzip2(const std::string& path);
+
+// rootba's / Ceres' normalization (BALProblem::Normalize): with m the coordinate-wise median of
+// the points and s = scale / median_i ‖X_i − m‖₁, every point X ← s (X − m) and every camera
+// centre C = −Rᵀt ← s (C − m) (t ← −R C); rotations and intrinsics are unchanged. Reprojection
+// residuals are invariant.
+void normalizeBalProblem(BalProblem* problem, double scale);
+
+// rootba's perturbation (BalProblem::perturb, translation and landmark σ, no rotation): every
+// camera centre and every point moves by an independent N(0, σ²I₃) draw, from std::mt19937_64
+// seeded with `seed` (libstdc++'s normal distribution: reproducible here, not rootba's draws).
+void perturbBalProblem(BalProblem* problem, double sigma, std::uint64_t seed);
 
 }  // namespace marglab
