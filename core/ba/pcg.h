@@ -21,6 +21,7 @@
 // condition number CG saw (Golub & Van Loan §11.3.5). Computed once at the end, O(k²).
 
 #include <functional>
+#include <limits>
 #include <string>
 
 #include "core/common/eigen_types.h"
@@ -35,8 +36,9 @@ struct CgOptions {
 
 struct CgSummary {
   int iterations = 0;
-  double ritz_min = 0;  // NaN when no iteration ran
-  double ritz_max = 0;
+  // NaN when no CG iteration ran (also for a trial that failed before CG).
+  double ritz_min = std::numeric_limits<double>::quiet_NaN();
+  double ritz_max = std::numeric_limits<double>::quiet_NaN();
   std::string message;
 };
 
