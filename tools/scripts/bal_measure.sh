@@ -3,7 +3,7 @@
 # ba` solver under rootba's protocol (50 iterations, Huber 1 px, scale normalized to 100,
 # perturbation 0.01, seed 38401), rootba's tutorial run (ladybug-49, 20 iterations, normalized,
 # no perturbation, no robust loss) for every solver, and the Ceres peers with 2 threads; then the
-# table of tools/scripts/bal_profile.py.
+# table of tools/scripts/bal_profile.py and the figures of tools/scripts/bal_plot.py.
 #   usage: tools/scripts/bal_measure.sh [OUT_FOLDER (results/bal)] [MARGLAB (build/bin/marglab)]
 # One run at a time, one thread each (unless stated): times are wall-clock on a quiet machine.
 set -euo pipefail
@@ -31,3 +31,4 @@ done
 for group in protocol tutorial threads2; do
   /usr/bin/python3 tools/scripts/bal_profile.py "$OUT/$group" > "$OUT/$group.md"
 done
+/usr/bin/python3 tools/scripts/bal_plot.py "$OUT/protocol"
