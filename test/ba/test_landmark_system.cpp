@@ -130,5 +130,41 @@ TEST(BundleAdjustment, EverySolverDecreasesTheCostAndTheyAgree) {
   }
 }
 
+// A point at a camera's centre (P_z = 0): the residual is not finite. Every solver records the
+// failure as its status and reason and returns; none crashes or throws.
+TEST(BundleAdjustment, NumericalFailureIsARecordedStatus) {
+  BalProblem problem = shipped("dubrovnik-3-7-pre.txt");
+  const BalObservation& obs = problem.observations.front();
+  const SnavelyCamera<double> camera = SnavelyCamera<double>::fromBal(problem.cameras[obs.camera]);
+  problem.points[obs.point] = -camera.R_c_w.transpose() * camera.t_c_w;
+  for (const std::string& name : baSolverNames()) {
+    BaOptions options;
+    options.solver = parseBaSolver(name);
+    options.iterations = 3;
+    const BaResult result = solveBundleAdjustment(problem, options);
+    EXPECT_EQ(result.status, "failed") << name;
+    EXPECT_FALSE(result.reason.empty()) << name;
+  }
+}
+
+// A point seen once (2 rows for 3 unknowns) cannot be eliminated: it stays fixed, is counted, and
+// the others are solved.
+TEST(BundleAdjustment, PointsSeenOnceStayFixed) {
+  BalProblem problem = shipped("dubrovnik-3-7-pre.txt");
+  const int point = problem.observations.back().point;
+  std::vector<BalObservation> kept;
+  bool seen = false;
+  for (const BalObservation& obs : problem.observations) {
+    if (obs.point == point && std::exchange(seen, true)) continue;
+    kept.push_back(obs);
+  }
+  problem.observations = kept;
+  BaOptions options;
+  options.iterations = 5;
+  const BaResult result = solveBundleAdjustment(problem, options);
+  EXPECT_EQ(result.num_fixed_points, 1);
+  EXPECT_LT(result.final_cost, result.initial_cost);
+}
+
 }  // namespace
 }  // namespace marglab
