@@ -85,7 +85,7 @@ int runBa(BaArgs& a) {
 }
 
 const bool kRegistered = cli::registerCommand(
-    {"ba", "Bundle adjustment of a BAL problem: ns / sc elimination in f32 / f64, Ceres peers", 15,
+    {"ba", "Bundle adjustment of a BAL problem: ns / sc elimination in f32 / f64, Ceres peers", 65,
      [](CLI::App& sub) -> cli::CommandRun {
        auto args = std::make_shared<BaArgs>();
        addOptions(sub, *args);

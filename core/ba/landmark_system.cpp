@@ -28,8 +28,6 @@ auto inverseColumnScale(const Eigen::ArrayBase<Derived>& squared_norms) {
   return (NumericTraits<Scalar>::kEpsilon + squared_norms.sqrt()).inverse();
 }
 
-constexpr int kCamera = 9;
-
 // ns: g = Σ_l (Q2ᵀJ_p)ᵀ Q2ᵀr over each landmark's reduced rows.
 template <typename Scalar>
 VecX<Scalar> nullspaceGradient(const std::vector<LandmarkBlockNs<Scalar>>& blocks, Eigen::Index n) {
@@ -38,7 +36,8 @@ VecX<Scalar> nullspaceGradient(const std::vector<LandmarkBlockNs<Scalar>>& block
     const VecX<Scalar> g_local = block.reducedJp().transpose() * block.reducedR();
     const std::vector<int>& offsets = block.map().rcs_offset;
     for (size_t j = 0; j < offsets.size(); ++j) {
-      g.template segment<kCamera>(offsets[j]) += g_local.template segment<kCamera>(kCamera * j);
+      g.template segment<kBalCameraDim>(offsets[j]) +=
+          g_local.template segment<kBalCameraDim>(kBalCameraDim * j);
     }
   }
   return g;
@@ -52,8 +51,8 @@ void addNullspaceCameraBlocks(const std::vector<LandmarkBlockNs<Scalar>>& blocks
     const auto Jr = block.reducedJp();
     const std::vector<int>& offsets = block.map().rcs_offset;
     for (size_t j = 0; j < offsets.size(); ++j) {
-      const auto Jr_j = Jr.middleCols(kCamera * j, kCamera);
-      (*D)[offsets[j] / kCamera].noalias() += Jr_j.transpose() * Jr_j;
+      const auto Jr_j = Jr.middleCols(kBalCameraDim * j, kBalCameraDim);
+      (*D)[offsets[j] / kBalCameraDim].noalias() += Jr_j.transpose() * Jr_j;
     }
   }
 }
@@ -65,14 +64,16 @@ void addNullspaceProduct(const std::vector<LandmarkBlockNs<Scalar>>& blocks, con
   VecX<Scalar> x_local, y_local, t;
   for (const auto& block : blocks) {
     const std::vector<int>& offsets = block.map().rcs_offset;
-    x_local.resize(kCamera * static_cast<Eigen::Index>(offsets.size()));
+    x_local.resize(kBalCameraDim * static_cast<Eigen::Index>(offsets.size()));
     for (size_t j = 0; j < offsets.size(); ++j) {
-      x_local.template segment<kCamera>(kCamera * j) = x.template segment<kCamera>(offsets[j]);
+      x_local.template segment<kBalCameraDim>(kBalCameraDim * j) =
+          x.template segment<kBalCameraDim>(offsets[j]);
     }
     t.noalias() = block.reducedJp() * x_local;
     y_local.noalias() = block.reducedJp().transpose() * t;
     for (size_t j = 0; j < offsets.size(); ++j) {
-      Ax->template segment<kCamera>(offsets[j]) += y_local.template segment<kCamera>(kCamera * j);
+      Ax->template segment<kBalCameraDim>(offsets[j]) +=
+          y_local.template segment<kBalCameraDim>(kBalCameraDim * j);
     }
   }
 }
@@ -124,9 +125,9 @@ Status LandmarkSystem<Block>::linearize(const BalState<Scalar>& state, const Rob
 template <typename Block>
 void LandmarkSystem<Block>::cameraColumnScaling(const std::vector<ObservationRows>& rows) {
   Eigen::Array<Scalar, Eigen::Dynamic, 1> squared =
-      Eigen::Array<Scalar, Eigen::Dynamic, 1>::Zero(kCameraDim * problem_.numCameras());
+      Eigen::Array<Scalar, Eigen::Dynamic, 1>::Zero(kBalCameraDim * problem_.numCameras());
   for (size_t i = 0; i < rows.size(); ++i) {
-    squared.template segment<9>(kCameraDim * problem_.observations[i].camera) +=
+    squared.template segment<kBalCameraDim>(kBalCameraDim * problem_.observations[i].camera) +=
         rows[i].J_camera.colwise().squaredNorm().transpose().array();
   }
   camera_scaling_ = inverseColumnScale<Scalar>(squared).matrix();
@@ -137,19 +138,19 @@ Status LandmarkSystem<Block>::setBlock(int point, const std::vector<ObservationR
                                        Block* block) {
   const std::vector<int>& obs = point_observations_[point];
   const int n = static_cast<int>(obs.size());
-  MatX<Scalar> J_p = MatX<Scalar>::Zero(2 * n, kCameraDim * n);
+  MatX<Scalar> J_p = MatX<Scalar>::Zero(2 * n, kBalCameraDim * n);
   Mat<Scalar, Eigen::Dynamic, 3> J_l(2 * n, 3);
   VecX<Scalar> r(2 * n);
   PoseBlockMap map;
-  map.pose_dim = kCameraDim;
+  map.pose_dim = kBalCameraDim;
   for (int j = 0; j < n; ++j) {
     const int camera = problem_.observations[obs[j]].camera;
-    J_p.template block<2, 9>(2 * j, kCameraDim * j) =
+    J_p.template block<2, kBalCameraDim>(2 * j, kBalCameraDim * j) =
         rows[obs[j]].J_camera *
-        camera_scaling_.template segment<9>(kCameraDim * camera).asDiagonal();
+        camera_scaling_.template segment<kBalCameraDim>(kBalCameraDim * camera).asDiagonal();
     J_l.template middleRows<2>(2 * j) = rows[obs[j]].J_point;
     r.template segment<2>(2 * j) = rows[obs[j]].r;
-    map.rcs_offset.push_back(kCameraDim * camera);
+    map.rcs_offset.push_back(kBalCameraDim * camera);
   }
   point_scaling_[point] =
       inverseColumnScale<Scalar>(J_l.colwise().squaredNorm().array()).transpose();
@@ -165,7 +166,7 @@ auto LandmarkSystem<Block>::cameraBlocks(Scalar lambda, const MatX<Scalar>& S) c
     addNullspaceCameraBlocks(blocks_, &D);
   } else {
     for (size_t c = 0; c < D.size(); ++c) {
-      D[c] += S.template block<9, 9>(kCameraDim * c, kCameraDim * c);
+      D[c] += S.template block<kBalCameraDim, kBalCameraDim>(kBalCameraDim * c, kBalCameraDim * c);
     }
   }
   return D;
@@ -191,8 +192,8 @@ auto LandmarkSystem<Block>::operators(Scalar lambda, const MatX<Scalar>& S,
   ops.apply_M_inverse = [&M_inverse](const VecX<Scalar>& r, VecX<Scalar>* z) {
     z->resize(r.size());
     for (size_t c = 0; c < M_inverse.size(); ++c) {
-      z->template segment<9>(kCameraDim * c).noalias() =
-          M_inverse[c] * r.template segment<9>(kCameraDim * c);
+      z->template segment<kBalCameraDim>(kBalCameraDim * c).noalias() =
+          M_inverse[c] * r.template segment<kBalCameraDim>(kBalCameraDim * c);
     }
   };
   if constexpr (kIsNullspace<Block>) {
@@ -253,8 +254,9 @@ template <typename Block>
 Status LandmarkSystem<Block>::backSubstitute(const VecX<Scalar>& x, BaStep<Scalar>* step) const {
   step->delta_cameras.resize(problem_.cameras.size());
   for (size_t c = 0; c < step->delta_cameras.size(); ++c) {
-    step->delta_cameras[c] = camera_scaling_.template segment<9>(kCameraDim * c)
-                                 .cwiseProduct(x.template segment<9>(kCameraDim * c));
+    step->delta_cameras[c] =
+        camera_scaling_.template segment<kBalCameraDim>(kBalCameraDim * c)
+            .cwiseProduct(x.template segment<kBalCameraDim>(kBalCameraDim * c));
   }
   step->delta_points.assign(problem_.points.size(), Vec3<Scalar>::Zero());
   step->model_change = 0;

@@ -35,6 +35,9 @@
 
 namespace marglab {
 
+// Columns of one camera in the reduced camera system: ξ = (δt, δφ, δf, δk1, δk2).
+constexpr int kBalCameraDim = 9;
+
 template <typename Scalar>
 struct BaStep {
   std::vector<Vec<Scalar, 9>> delta_cameras;  // ξ per camera (snavely_camera.h)
@@ -47,7 +50,6 @@ template <typename Block>
 class LandmarkSystem {
  public:
   using Scalar = typename Block::Scalar;
-  static constexpr int kCameraDim = 9;
   // Keeps a reference to the problem's observations (the problem must outlive this object).
   explicit LandmarkSystem(const BalProblem& problem);
 
