@@ -1,0 +1,119 @@
+#include "core/ba/ba_results.h"
+
+#include <sys/resource.h>
+
+#include <vector>
+
+#include "core/common/utc_time.h"
+#include "core/io/hdf5.h"
+#include "marglab/version.h"
+
+namespace marglab {
+namespace {
+
+constexpr int kBaSchemaVersion = 1;
+
+void writeSettings(const h5::File& file, const BaRunRecord& run) {
+  const BaOptions& o = run.options;
+  file.setAttr("kind", "ba");
+  file.setAttr("schema_version", kBaSchemaVersion);
+  file.setAttr("marglab_version", MARGLAB_VERSION_STRING);
+  file.setAttr("git_sha", MARGLAB_GIT_SHA);
+  file.setAttr("created_utc", utcNowIso8601());
+  file.setAttr("problem", run.problem->name);
+  file.setAttr("problem_file", run.problem_file);
+  file.setAttr("num_cameras", run.problem->numCameras());
+  file.setAttr("num_points", run.problem->numPoints());
+  file.setAttr("num_observations", run.problem->numObservations());
+  file.setAttr("solver", toString(o.solver));
+  file.setAttr("precision", precisionOf(o.solver));
+  file.setAttr("iterations", o.iterations);
+  file.setAttr("huber_px", o.huber_px);
+  file.setAttr("perturb_sigma", o.perturb_sigma);
+  file.setAttr("seed", static_cast<std::int64_t>(o.seed));
+  file.setAttr("normalize_scale", o.normalize_scale);
+  file.setAttr("initial_lambda", o.initial_lambda);
+  file.setAttr("min_lambda", o.min_lambda);
+  file.setAttr("max_lambda", o.max_lambda);
+  file.setAttr("function_tolerance", o.function_tolerance);
+  file.setAttr("cg_max_iterations", o.cg.max_iterations);
+  file.setAttr("cg_eta", o.cg.eta);
+  file.setAttr("threads", o.threads);
+}
+
+void writeOutcome(const h5::File& file, const BaRunRecord& run) {
+  const BaResult& r = run.result;
+  file.setAttr("initial_cost", r.initial_cost);
+  file.setAttr("final_cost", r.final_cost);
+  file.setAttr("status", r.status);
+  file.setAttr("status_reason", r.reason);
+  file.setAttr("num_behind_initial", r.num_behind_initial);
+  file.setAttr("num_behind_final", r.num_behind_final);
+  file.setAttr("num_fixed_points", r.num_fixed_points);
+  file.setAttr("total_time_s", r.total_time_s);
+  file.setAttr("peak_rss_mb", run.peak_rss_mb);
+}
+
+void writeIterations(const h5::File& file, const std::vector<BaIteration>& rows) {
+  std::vector<std::int64_t> iteration, cg_iterations;
+  std::vector<std::uint8_t> accepted;
+  std::vector<double> cost, time_s, lambda, ritz_min, ritz_max;
+  std::vector<std::string> messages;
+  for (const BaIteration& row : rows) {
+    iteration.push_back(row.iteration);
+    cost.push_back(row.cost);
+    time_s.push_back(row.time_s);
+    lambda.push_back(row.lambda);
+    cg_iterations.push_back(row.cg_iterations);
+    accepted.push_back(row.accepted ? 1 : 0);
+    ritz_min.push_back(row.ritz_min);
+    ritz_max.push_back(row.ritz_max);
+    messages.push_back(row.message);
+  }
+  const h5::Group g = file.group("iterations");
+  g.write("iteration", iteration);
+  g.write("cost", cost);
+  g.write("time_s", time_s);
+  g.write("lambda", lambda);
+  g.write("cg_iterations", cg_iterations);
+  g.write("accepted", accepted);
+  g.write("ritz_min", ritz_min);
+  g.write("ritz_max", ritz_max);
+  g.setAttr("messages", messages);
+}
+
+}  // namespace
+
+void writeBaResults(const std::string& path, const BaRunRecord& run) {
+  h5::File file = h5::File::create(path);
+  writeSettings(file, run);
+  writeOutcome(file, run);
+  writeIterations(file, run.result.iterations);
+  file.commit();
+}
+
+Json baResultJson(const BaRunRecord& run) {
+  Json j;
+  j["problem"] = run.problem->name;
+  j["solver"] = toString(run.options.solver);
+  j["status"] = run.result.status;
+  j["status_reason"] = run.result.reason;
+  j["initial_cost"] = run.result.initial_cost;
+  j["final_cost"] = run.result.final_cost;
+  j["total_time_s"] = run.result.total_time_s;
+  j["peak_rss_mb"] = run.peak_rss_mb;
+  Json iterations = Json::array();
+  for (const BaIteration& row : run.result.iterations) {
+    iterations.push_back({{"cost", row.cost}, {"time_s", row.time_s}});
+  }
+  j["iterations"] = std::move(iterations);
+  return j;
+}
+
+double peakResidentMb() {
+  rusage usage{};
+  if (getrusage(RUSAGE_SELF, &usage) != 0) return -1;
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;
+}
+
+}  // namespace marglab

@@ -1,0 +1,126 @@
+#include "core/ba/ceres_ba.h"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <chrono>
+#include <limits>
+
+#include "core/ba/ba_state.h"
+
+namespace marglab {
+namespace {
+
+struct SnavelyResidual {
+  Vec<double, 2> z;
+  template <typename T>
+  bool operator()(const T* camera, const T* point, T* residual) const {
+    T P[3];
+    ceres::AngleAxisRotatePoint(camera, point, P);
+    for (int i = 0; i < 3; ++i) P[i] += camera[3 + i];
+    const T px = -P[0] / P[2];
+    const T py = -P[1] / P[2];
+    const T u = px * px + py * py;
+    const T d = T(1) + u * (camera[7] + u * camera[8]);
+    residual[0] = camera[6] * d * px - T(z.x());
+    residual[1] = camera[6] * d * py - T(z.y());
+    return true;
+  }
+};
+
+class Recorder : public ceres::IterationCallback {
+ public:
+  explicit Recorder(BaResult* result) : result_(result) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    BaIteration row;
+    row.iteration = s.iteration;
+    row.cost = s.cost;
+    row.time_s = seconds();
+    row.lambda = 1.0 / s.trust_region_radius;
+    row.cg_iterations = s.linear_solver_iterations;
+    row.accepted = s.step_is_successful;
+    row.ritz_min = row.ritz_max = std::numeric_limits<double>::quiet_NaN();
+    if (!s.step_is_valid) row.message = "invalid step";
+    result_->iterations.push_back(row);
+    return ceres::SOLVER_CONTINUE;
+  }
+  double seconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
+ private:
+  BaResult* result_;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
+ceres::Solver::Options solverOptions(const BaOptions& options) {
+  ceres::Solver::Options o;
+  o.minimizer_type = ceres::TRUST_REGION;
+  o.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  o.initial_trust_region_radius = 1.0 / options.initial_lambda;
+  o.min_trust_region_radius = 1.0 / options.max_lambda;
+  o.max_trust_region_radius = 1.0 / options.min_lambda;
+  o.max_num_iterations = options.iterations;
+  o.function_tolerance = options.function_tolerance;
+  o.gradient_tolerance = 0;
+  o.parameter_tolerance = 0;
+  o.max_linear_solver_iterations = options.cg.max_iterations;
+  o.eta = options.cg.eta;
+  o.jacobi_scaling = true;
+  o.num_threads = options.threads;
+  o.logging_type = ceres::SILENT;
+  o.linear_solver_type =
+      options.solver == BaSolver::kCeresSparse ? ceres::SPARSE_SCHUR : ceres::ITERATIVE_SCHUR;
+  o.preconditioner_type = ceres::SCHUR_JACOBI;
+  o.use_explicit_schur_complement = options.solver == BaSolver::kCeresExplicit;
+  return o;
+}
+
+std::string statusOf(ceres::TerminationType type) {
+  switch (type) {
+    case ceres::CONVERGENCE:
+      return "converged";
+    case ceres::NO_CONVERGENCE:
+      return "max_iterations";
+    default:
+      return "failed";
+  }
+}
+
+}  // namespace
+
+BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options) {
+  BalProblem variables = problem;  // Ceres updates the parameters in place
+  ceres::Problem ceres_problem;
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  for (const BalObservation& obs : variables.observations) {
+    ceres::LossFunction* loss =
+        options.huber_px > 0 ? new ceres::HuberLoss(options.huber_px) : nullptr;
+    ceres_problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<SnavelyResidual, 2, 9, 3>(new SnavelyResidual{obs.z}), loss,
+        variables.cameras[obs.camera].data(), variables.points[obs.point].data());
+  }
+  for (Vec3<double>& X : variables.points) ordering->AddElementToGroup(X.data(), 0);
+  for (Vec<double, 9>& c : variables.cameras) ordering->AddElementToGroup(c.data(), 1);
+  ceres::Solver::Options solver_options = solverOptions(options);
+  solver_options.linear_solver_ordering = ordering;
+  BaResult result;
+  Recorder recorder(&result);
+  solver_options.callbacks.push_back(&recorder);
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &ceres_problem, &summary);
+  const RobustLoss loss{options.huber_px};
+  result.initial_cost = summary.initial_cost;
+  result.final_cost = summary.final_cost;
+  result.status = statusOf(summary.termination_type);
+  result.reason = summary.message;
+  result.num_behind_initial =
+      evaluateCost(problem.observations, BalState<double>::fromProblem(problem), loss).num_behind;
+  result.num_behind_final =
+      evaluateCost(variables.observations, BalState<double>::fromProblem(variables), loss)
+          .num_behind;
+  result.total_time_s = recorder.seconds();
+  return result;
+}
+
+}  // namespace marglab

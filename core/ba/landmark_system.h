@@ -1,0 +1,83 @@
+#pragma once
+// One Levenberg–Marquardt linearization of a BAL problem, with the landmarks eliminated by the
+// estimator's landmark blocks (core/linalg/landmark_block.h: LandmarkBlockNs = nullspace
+// projection by QR, the square root kept; LandmarkBlockSc = Schur complement), in the phases of
+// rootba's linearizors (Demmel et al., CVPR 2021, §4–5):
+//
+//   linearize(state)  every observation's residual and Jacobians (snavely_camera.h), weighted by
+//                     the robust loss's √w; Jacobian scaling (Ceres', rootba's): every column of J
+//                     is divided by ε + its norm (cameras over all their observations, each
+//                     landmark over its own), so that the damping λI of the scaled problem is
+//                     λ·diag(JᵀJ) of the original one up to ε; then each landmark's rows
+//                     [J_p | J_l | r] (J_p over its cameras' 9 columns) go into its block: the
+//                     in-place QR (ns) or the Hessian blocks (sc). A point seen only once (2 rows
+//                     for 3 unknowns) cannot be eliminated; it stays fixed (counted).
+//   solve(λ)          the landmark damping λI folded into each block, the reduced camera system
+//                         (S + λI) δc = −g,   S = Σ_l (Q2ᵀJ_p)ᵀ(Q2ᵀJ_p)   (= H_pp − H_pl H_ll⁻¹
+//                         H_lp)
+//                     solved by Schur-Jacobi preconditioned CG (pcg.h; M = the 9×9 camera blocks
+//                     of S + λI): matrix-free for ns, S x = Σ_l (Q2ᵀJ_p)ᵀ((Q2ᵀJ_p) x) over each
+//                     landmark's reduced rows, never forming S; for sc, S is formed explicitly
+//                     (dense: the reduced camera systems of the shipped problems are at most
+//                     441 × 441); then the landmarks' back-substitution, the step unscaled, and the
+//                     change of the undamped linearized cost ½‖J s + r‖² − ½‖r‖² (the LM gain
+//                     ratio's denominator, from the blocks).
+//
+// Scalar is the block's: f32 solvers linearize, eliminate and iterate in float.
+
+#include <memory>
+#include <vector>
+
+#include "core/ba/ba_state.h"
+#include "core/ba/pcg.h"
+#include "core/common/status.h"
+#include "core/linalg/landmark_block.h"
+
+namespace marglab {
+
+// Columns of one camera in the reduced camera system: ξ = (δt, δφ, δf, δk1, δk2).
+constexpr int kBalCameraDim = 9;
+
+template <typename Scalar>
+struct BaStep {
+  std::vector<Vec<Scalar, 9>> delta_cameras;  // ξ per camera (snavely_camera.h)
+  std::vector<Vec3<Scalar>> delta_points;
+  double model_change = 0;  // ½‖J s + r‖² − ½‖r‖² (undamped, robust-weighted)
+  CgSummary cg;
+};
+
+template <typename Block>
+class LandmarkSystem {
+ public:
+  using Scalar = typename Block::Scalar;
+  // Keeps a reference to the problem's observations (the problem must outlive this object).
+  explicit LandmarkSystem(const BalProblem& problem);
+
+  Status linearize(const BalState<Scalar>& state, const RobustLoss& loss);
+  Status solve(Scalar lambda, const CgOptions& cg, BaStep<Scalar>* step);
+
+  int numFixedPoints() const { return num_fixed_points_; }
+  // The reduced system S, g (scaled columns, landmarks damped as by the last solve) formed densely:
+  // sc's explicit system; for ns the tests' check of the equivalence and of CG.
+  Status denseReducedSystem(MatX<Scalar>* S, VecX<Scalar>* g) const;
+
+ private:
+  struct ObservationRows;
+  void cameraColumnScaling(const std::vector<ObservationRows>& rows);
+  Status setBlock(int point, const std::vector<ObservationRows>& rows, Block* block);
+  // The 9×9 camera blocks of S + λI (ns: from the reduced rows; sc: from S).
+  std::vector<Mat<Scalar, 9, 9>> cameraBlocks(Scalar lambda, const MatX<Scalar>& S) const;
+  Status backSubstitute(const VecX<Scalar>& x, BaStep<Scalar>* step) const;
+  CgOperators<Scalar> operators(Scalar lambda, const MatX<Scalar>& S,
+                                const std::vector<Mat<Scalar, 9, 9>>& M_inverse) const;
+
+  const BalProblem& problem_;
+  std::vector<std::vector<int>> point_observations_;  // observation indices of each point
+  std::vector<int> point_block_;                      // block index of a point, −1 when fixed
+  std::vector<Block> blocks_;
+  std::vector<Vec3<Scalar>> point_scaling_;
+  VecX<Scalar> camera_scaling_;
+  int num_fixed_points_ = 0;
+};
+
+}  // namespace marglab
