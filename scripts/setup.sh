@@ -11,6 +11,7 @@ cd "$(dirname "$0")/.."
 PACKAGES=(
   build-essential cmake pkg-config git ccache  # ccache: repeated clean-clone builds take minutes
   universal-ctags  # tools/scripts/long_functions.py (test long_functions)
+  clang-format  # tools/scripts/check_format.sh (test clang_format)
   libeigen3-dev libsuitesparse-dev libceres-dev libcli11-dev libfmt-dev libhdf5-dev zlib1g-dev
   libbz2-dev  # bzip2-compressed BAL problems (core/ba/bal_problem.cpp)
   libgtest-dev libgmock-dev libbenchmark-dev libtomlplusplus-dev libopencv-dev

@@ -30,11 +30,11 @@
 #include "core/common/error.h"
 #include "core/common/interrupt.h"
 #include "core/data/sequence.h"
-#include "core/pipeline/run_config.h"
-#include "core/frontend/rendered_folder.h"
 #include "core/frontend/image_check.h"
 #include "core/frontend/image_folder.h"
+#include "core/frontend/rendered_folder.h"
 #include "core/frontend/track_source.h"
+#include "core/pipeline/run_config.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/sim_profile.h"
 #include "core/sim/track_io.h"
@@ -287,7 +287,7 @@ CommandRun setupTrack(CLI::App& app) {
     cli::refuseOverwritingInputs({options->output}, inputs);
     RunConfig config;
     if (!options->config.empty()) config.loadToml(options->config);
-    config.validate();  // the relations `run` refuses (lm.lambda_min > lm.lambda_init), too
+    config.validate();          // the relations `run` refuses (lm.lambda_min > lm.lambda_init), too
     installInterruptCleanup();  // SIGINT / SIGTERM while tracking: says so, exits 128 + signal
     const ImageSequence images = loadImageSequence(options->dataset);
     ImageTracking tracking;
@@ -342,7 +342,8 @@ CommandRun setupRender(CLI::App& app) {
                  "folder to create (must not exist or be empty), in the dataset's layout")
       ->required();
   return [options] {
-    if (options->output.empty()) throw UsageError("-o is empty: expected the folder to render into");
+    if (options->output.empty())
+      throw UsageError("-o is empty: expected the folder to render into");
     const auto start = std::chrono::steady_clock::now();
     const RenderPlan plan =
         planRendering(options->dataset, options->frames, options->start_s, options->seed);

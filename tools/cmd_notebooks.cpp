@@ -94,8 +94,8 @@ int runNotebooks(const NotebooksRequest& request) {
   }
   // The runner and its Jupyter kernels end with this process (subprocess.h).
   const int code = runHelper({python, script, "--sweep", request.dir, "--out", out, "--notebooks",
-                               source + "/notebooks", "--runs", request.runs, "--jobs",
-                               std::to_string(request.jobs)});
+                              source + "/notebooks", "--runs", request.runs, "--jobs",
+                              std::to_string(request.jobs)});
   if (code == 2) throw UsageError("marglab notebooks: see the message above");
   if (code != 0) {
     fmt::print(stderr, "marglab notebooks: {} failed (exit {})\n", script, code);

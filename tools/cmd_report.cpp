@@ -87,7 +87,7 @@ int runReport(const ReportRequest& request) {
     }
   }
   if (runHelper({python, make_report, "--sweep", request.dir, "--out", out, "--tables", tables,
-                  "--figures", figures}) != 0) {
+                 "--figures", figures}) != 0) {
     fmt::print(stderr, "marglab report: {} failed\n", make_report);
     return 1;
   }
@@ -106,8 +106,8 @@ int runReport(const ReportRequest& request) {
       request.screenshot.empty() ? (fs::path(out) / "report.png").string() : request.screenshot;
   // The checker and its headless Chromium end with this process (subprocess.h).
   const int code = runHelper({browser_python.empty() ? python : browser_python,
-                               scripts + "/check_report.py", page, "--report", "--min-tables", "2",
-                               "--min-figures", "1", "--screenshot", screenshot});
+                              scripts + "/check_report.py", page, "--report", "--min-tables", "2",
+                              "--min-figures", "1", "--screenshot", screenshot});
   if (code == 3) {
     fmt::print(stderr,
                "marglab report: cannot check the page in a browser: install the Debian packages\n"

@@ -99,12 +99,11 @@ void printOutcome(const RunSpec& spec, const RunOutcome& outcome) {
   fmt::print("marglab run {} {} {} (seed {}{})\n", spec.dataset, outcome.vio ? "VIO" : "VO",
              spec.variant.name(), spec.seed,
              outcome.vio ? std::string(", IMU ") + nameOf(kImuSourceNames, spec.imu) : "");
-  fmt::print(
-      "  status            {}\n",
-      outcome.status == RunStatus::kOk
-          ? "ok"
-          : fmt::format("FAILED at frame {} ({}): {}", outcome.failure_frame, outcome.failure_kind,
-                        outcome.failure_reason));
+  fmt::print("  status            {}\n",
+             outcome.status == RunStatus::kOk
+                 ? "ok"
+                 : fmt::format("FAILED at frame {} ({}): {}", outcome.failure_frame,
+                               outcome.failure_kind, outcome.failure_reason));
   fmt::print("  frames            {} ({:.1f} s of data, {:.0f} features/frame)\n", s.n_frames,
              s.duration_s, outcome.mean_features_per_frame);
   fmt::print("  front-end         {}\n", outcome.frontend_summary);

@@ -24,9 +24,8 @@ namespace marglab::cli {
 
 // An option that sets an estimator config key: the key's range (docs/design.md §9).
 inline CLI::Validator configKeyRange(const std::string& key) {
-  return CLI::Validator(
-      [key](std::string& text) { return RunConfig::checkValueText(key, text); }, "",
-      "config " + key);
+  return CLI::Validator([key](std::string& text) { return RunConfig::checkValueText(key, text); },
+                        "", "config " + key);
 }
 
 // A seed: a decimal integer in [0, 2^64 − 1]. CLI11 alone turns −1 into 2^64 − 1 and saturates

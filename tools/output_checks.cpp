@@ -90,8 +90,7 @@ bool isInsideFolder(const fs::path& file, const fs::path& folder) {
   return fi != f.end();
 }
 
-void refuseOverwritingInputs(const std::vector<std::string>& outputs,
-                             const CommandInputs& inputs) {
+void refuseOverwritingInputs(const std::vector<std::string>& outputs, const CommandInputs& inputs) {
   for (const std::string& output : outputs) {
     if (output.empty()) continue;
     refuseSameFile(output, inputs);
@@ -103,8 +102,8 @@ void checkOutputFile(const std::string& output, const std::string& option) {
   if (output.empty()) throw UsageError(option + " is empty: expected the path of a file to write");
   std::error_code ec;
   if (fs::is_directory(output, ec)) {
-    throw InputError(output, 0, "is a folder: expected the path of a file to write (" + option +
-                                    ")");
+    throw InputError(output, 0,
+                     "is a folder: expected the path of a file to write (" + option + ")");
   }
   refuseSpecialFileOutput(output);
   const fs::path parent = fs::absolute(output, ec).parent_path();

@@ -76,7 +76,8 @@ void addRunSubject(CLI::App& app, RunArgs& args) {
   app.add_option("--frames", spec.max_frames, "Process only the first N frames (0: all)")
       ->capture_default_str()
       ->check(nonNegativeInt("the number of frames (0: all)"));
-  app.add_option("--seed", spec.seed, "Seed of the simulated world, tracks and noise, in [0, 2^64 - 1]")
+  app.add_option("--seed", spec.seed,
+                 "Seed of the simulated world, tracks and noise, in [0, 2^64 - 1]")
       ->capture_default_str()
       ->check(seedRange());
 }
@@ -102,9 +103,8 @@ void addRunConfig(CLI::App& app, RunArgs& args) {
 // Where it writes, what it captures, and --spec.
 void addRunOutputs(CLI::App& app, RunArgs& args) {
   RunSpec& spec = args.spec;
-  app.add_option("-o,--output", spec.output, "Results file (HDF5)")->each([&args](const std::string&) {
-    args.output_given = true;
-  });
+  app.add_option("-o,--output", spec.output, "Results file (HDF5)")
+      ->each([&args](const std::string&) { args.output_given = true; });
   app.add_option("--dump-windows", spec.dump_windows,
                  "Capture the windows of these frames (comma-separated 0-based indices) before "
                  "their optimization, with the step taken, for `marglab bench` and the tests")
@@ -130,8 +130,8 @@ void checkSpecAlone(const CLI::App& app) {
     }
     // Thrown while parsing: a CLI11 error, reported like any other bad option (exit 2).
     throw CLI::ValidationError(
-        "--spec", fmt::format("FILE gives the whole run: {} cannot be given beside it (only -o)",
-                              name));
+        "--spec",
+        fmt::format("FILE gives the whole run: {} cannot be given beside it (only -o)", name));
   }
 }
 

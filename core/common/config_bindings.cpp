@@ -101,8 +101,8 @@ void setInteger(const Binding& binding, const toml::node& node, Error error) {
                                   describe(binding.rule, true)));
   }
   if (!v) {
-    throw error(node, fmt::format("expected {} for {}", describe(binding.rule, true),
-                                  binding.name()));
+    throw error(node,
+                fmt::format("expected {} for {}", describe(binding.rule, true), binding.name()));
   }
   if (!accepts(binding.rule, static_cast<double>(*v))) {
     throw error(node, fmt::format("{} = {}: expected {}", binding.name(), *v,
@@ -212,7 +212,9 @@ void applyAssignment(const Bindings& bindings, const std::string& assignment,
   const std::size_t eq = assignment.find('=');
   const std::string key = assignment.substr(0, eq);
   const std::size_t dot = key.find('.');
-  const auto name_char = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+  const auto name_char = [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+  };
   const bool well_formed =
       eq != std::string::npos && dot != std::string::npos && dot > 0 && dot + 1 < key.size() &&
       std::all_of(key.begin(), key.begin() + static_cast<std::ptrdiff_t>(dot), name_char) &&
@@ -285,9 +287,9 @@ std::string checkBindingText(const Bindings& bindings, const std::string& key,
   for (const Binding& b : bindings) {
     if (b.name() != key) continue;
     if (b.parse_choice) {
-      return b.parse_choice(text) ? std::string()
-                                  : fmt::format("{} = {}: expected {}", key, shortToken(text),
-                                                b.choices);
+      return b.parse_choice(text)
+                 ? std::string()
+                 : fmt::format("{} = {}: expected {}", key, shortToken(text), b.choices);
     }
     if (!b.numeric()) throw std::logic_error("checkValueText: " + key + " is not a number or name");
     const char* begin = text.c_str();

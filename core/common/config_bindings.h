@@ -67,7 +67,7 @@ struct Binding {
   bool* b = nullptr;
   std::uint64_t* u = nullptr;
   std::vector<double>* list = nullptr;  // a list of numbers, each in `rule`
-  Rule rule = Rule{};  // numeric keys (d, i, u) and the elements of a list
+  Rule rule = Rule{};                   // numeric keys (d, i, u) and the elements of a list
   // A key with a fixed set of names (an enum field): parse (false for an unknown name), print.
   std::function<bool(const std::string&)> parse_choice = nullptr;
   std::function<std::string()> print_choice = nullptr;

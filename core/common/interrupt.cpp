@@ -24,9 +24,10 @@ extern "C" void onInterrupt(int signal) {
   detail::unlinkLiveTemporaries();
   // write(2) only: the one async-signal-safe way to say why the process stops.
   const char* text =
-      signal == SIGINT    ? "\nmarglab: interrupted by SIGINT: stopped, unfinished outputs removed\n"
-      : signal == SIGHUP  ? "\nmarglab: interrupted by SIGHUP: stopped, unfinished outputs removed\n"
-                          : "\nmarglab: interrupted by SIGTERM: stopped, unfinished outputs removed\n";
+      signal == SIGINT ? "\nmarglab: interrupted by SIGINT: stopped, unfinished outputs removed\n"
+      : signal == SIGHUP
+          ? "\nmarglab: interrupted by SIGHUP: stopped, unfinished outputs removed\n"
+          : "\nmarglab: interrupted by SIGTERM: stopped, unfinished outputs removed\n";
   [[maybe_unused]] const ssize_t n = ::write(STDERR_FILENO, text, std::strlen(text));
   ::_exit(128 + signal);
 }

@@ -51,9 +51,9 @@ int openOutput(const ChildSpec& spec) {
   const std::string path = spec.discard_output ? "/dev/null" : spec.output;
   const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0644);
   if (fd < 0) {
-    throw InputError(path, 0,
-                     std::string("cannot open the log of ") + spec.argv.front() + ": " +
-                         std::strerror(errno));
+    throw InputError(
+        path, 0,
+        std::string("cannot open the log of ") + spec.argv.front() + ": " + std::strerror(errno));
   }
   return fd;
 }
@@ -133,9 +133,8 @@ pid_t startChild(const ChildSpec& spec) {
   if (out_fd >= 0) ::close(out_fd);
   if (null_fd >= 0) ::close(null_fd);
   if (pid < 0) {
-    throw InputError("", 0,
-                     "cannot start " + spec.argv.front() + ": fork failed: " +
-                         std::strerror(fork_error));
+    throw InputError(
+        "", 0, "cannot start " + spec.argv.front() + ": fork failed: " + std::strerror(fork_error));
   }
   // Also in the parent, so that a signal sent to the group right after fork cannot miss the child.
   ::setpgid(pid, pid);

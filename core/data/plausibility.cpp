@@ -83,8 +83,7 @@ std::string pathLengthNote(const Sequence& seq) {
   return fmt::format(
       "the trajectory moves {:.3g} m over {:.1f} s ({} poses): a static or short recording, "
       "little motion to estimate",
-      length, 1e-9 * static_cast<double>(seq.gt.t_ns.back() - seq.gt.t_ns.front()),
-      seq.gt.size());
+      length, 1e-9 * static_cast<double>(seq.gt.t_ns.back() - seq.gt.t_ns.front()), seq.gt.size());
 }
 
 namespace {
@@ -99,16 +98,17 @@ void checkIntrinsics(const CameraCalib& cam, const char* which, const std::strin
   };
   for (const auto& [name, f] : {std::pair<const char*, double>{"fx", cam.fx}, {"fy", cam.fy}}) {
     if (!(f >= kMinFocalPx && f <= kMaxFocalPx)) {
-      refuse(fmt::format("{} in [{:g}, {:g}] px (any real camera), found {:.6g}", name,
-                         kMinFocalPx, kMaxFocalPx, f));
+      refuse(fmt::format("{} in [{:g}, {:g}] px (any real camera), found {:.6g}", name, kMinFocalPx,
+                         kMaxFocalPx, f));
     }
   }
   const double w = cam.width > 0 ? cam.width : kMaxFocalPx;  // KITTI: no size in calib.txt
   const double h = cam.height > 0 ? cam.height : kMaxFocalPx;
   if (!(cam.cx >= 0 && cam.cx <= w && cam.cy >= 0 && cam.cy <= h)) {
-    refuse(fmt::format("the principal point inside the image [0, {:g}] x [0, {:g}] px, found "
-                       "({:.6g}, {:.6g})",
-                       w, h, cam.cx, cam.cy));
+    refuse(
+        fmt::format("the principal point inside the image [0, {:g}] x [0, {:g}] px, found "
+                    "({:.6g}, {:.6g})",
+                    w, h, cam.cx, cam.cy));
   }
   for (const double k : cam.distortion) {
     if (!(std::abs(k) <= kMaxDistortion)) {

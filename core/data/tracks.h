@@ -10,9 +10,9 @@
 namespace marglab {
 
 struct StereoObservation {
-  int64_t track_id = -1;          // unique per track; a re-detected point gets a new id
-  Eigen::Vector2d uv0;            // pixel in cam0 (undistorted pinhole image)
-  bool has_right = false;         // stereo match found in cam1
+  int64_t track_id = -1;   // unique per track; a re-detected point gets a new id
+  Eigen::Vector2d uv0;     // pixel in cam0 (undistorted pinhole image)
+  bool has_right = false;  // stereo match found in cam1
   Eigen::Vector2d uv1 = Eigen::Vector2d::Zero();
   // Simulation ground truth (−1 / false for external front-ends): which world point, and whether
   // this measurement was replaced by an outlier. Only statistics and tests read these.

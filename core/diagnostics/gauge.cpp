@@ -137,8 +137,8 @@ Vec7d directionInformation(const MatXd& Lambda, const GaugeDirections& direction
   Vec7d info;
   for (int k = 0; k < kNumGaugeDirections; ++k) {
     const auto eps = directions.col(k);
-    info(k) = eps.squaredNorm() == 0.0 ? std::numeric_limits<double>::quiet_NaN()
-                                       : eps.dot(Lambda * eps);
+    info(k) =
+        eps.squaredNorm() == 0.0 ? std::numeric_limits<double>::quiet_NaN() : eps.dot(Lambda * eps);
   }
   return info;
 }

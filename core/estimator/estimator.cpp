@@ -26,12 +26,9 @@ int MargEvent::numPoses() const {
 }
 
 template <typename Scalar>
-SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(const EstimatorSettings& config,
-                                                       const Variant& variant,
-                                                       const StereoRig<double>& rig,
-                                                       const SE3<double>& T_w_i_initial,
-                                                       std::optional<ImuSetup> imu,
-                                                       EstimatorReporting reporting)
+SlidingWindowEstimator<Scalar>::SlidingWindowEstimator(
+    const EstimatorSettings& config, const Variant& variant, const StereoRig<double>& rig,
+    const SE3<double>& T_w_i_initial, std::optional<ImuSetup> imu, EstimatorReporting reporting)
     : config_(config),
       reporting_(reporting),
       variant_(variant),
@@ -112,9 +109,9 @@ std::optional<SE3<double>> SlidingWindowEstimator<Scalar>::predictPose(int64_t t
   const int64_t newest = window_.frames.rbegin()->first;
   const ImuState<double> s_i = window_.stateOf(newest, StateAt::kCurrent).template cast<double>();
   const ImuSetup& imu = *window_.imu();
-  const ImuPreintegration<double> pre = preintegrate<double>(
-      imu.imu, s_i.t_ns, t_ns, s_i.b_g, s_i.b_a,
-      ImuSampleNoise<double>::fromDensities(imu.noise, imu.sample_period_s));
+  const ImuPreintegration<double> pre =
+      preintegrate<double>(imu.imu, s_i.t_ns, t_ns, s_i.b_g, s_i.b_a,
+                           ImuSampleNoise<double>::fromDensities(imu.noise, imu.sample_period_s));
   return predictState<double>(s_i, pre, imu.g_w).T_w_i;
 }
 
@@ -173,9 +170,10 @@ int SlidingWindowEstimator<Scalar>::addFrame(int64_t id, const TrackFrame& track
     const int64_t previous = window_.frames.rbegin()->first;
     window_.frames[id] = frame;
     addImuLink(previous, id);
-    const ImuState<Scalar> s_j = predictState<Scalar>(
-        window_.stateOf(previous, StateAt::kCurrent), window_.imu_links.at(previous).factor.preintegration(),
-        window_.imu()->g_w.template cast<Scalar>());
+    const ImuState<Scalar> s_j =
+        predictState<Scalar>(window_.stateOf(previous, StateAt::kCurrent),
+                             window_.imu_links.at(previous).factor.preintegration(),
+                             window_.imu()->g_w.template cast<Scalar>());
     Frame& added = window_.frames.at(id);
     added.T_w_i = s_j.T_w_i;
     added.T_w_i_lin = s_j.T_w_i;
@@ -290,7 +288,8 @@ WindowSnapshot SlidingWindowEstimator<Scalar>::snapshot() const {
 
 template <typename Scalar>
 SlidingWindowEstimator<Scalar> SlidingWindowEstimator<Scalar>::fromSnapshot(
-    const WindowSnapshot& w, const Variant& variant, const std::optional<EstimatorSettings>& config) {
+    const WindowSnapshot& w, const Variant& variant,
+    const std::optional<EstimatorSettings>& config) {
   const EstimatorSettings& settings = config ? *config : w.config;
   Window<Scalar> window = restoredWindow<Scalar>(w, variant, settings);
   EstimatorReporting reporting;

@@ -43,6 +43,7 @@
 
 #include "core/common/eigen_types.h"
 #include "core/common/status.h"
+#include "core/data/tracks.h"
 #include "core/diagnostics/gauge.h"
 #include "core/estimator/estimator_settings.h"
 #include "core/estimator/levenberg_marquardt.h"
@@ -56,7 +57,6 @@
 #include "core/geometry/camera.h"
 #include "core/geometry/se3.h"
 #include "core/io/results_records.h"
-#include "core/data/tracks.h"
 
 namespace marglab {
 

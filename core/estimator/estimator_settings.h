@@ -55,7 +55,9 @@ namespace marglab {
 //   nfr     — the dense prior, sparsified by nonlinear factor recovery (eq. 16): unary pose,
 //             velocity and bias factors and one pose–landmark factor per landmark replace it.
 enum class MargStrategy { kDiscard, kDense, kNfr };
-inline constexpr EnumNames<MargStrategy, 3> kMargStrategyNames{{{MargStrategy::kDiscard, "discard"}, {MargStrategy::kDense, "dense"}, {MargStrategy::kNfr, "nfr"}}};
+inline constexpr EnumNames<MargStrategy, 3> kMargStrategyNames{{{MargStrategy::kDiscard, "discard"},
+                                                                {MargStrategy::kDense, "dense"},
+                                                                {MargStrategy::kNfr, "nfr"}}};
 inline const char* toString(MargStrategy value) { return nameOf(kMargStrategyNames, value); }
 inline bool parseMargStrategy(const std::string& text, MargStrategy* value) {
   return parseName(kMargStrategyNames, text, value);
@@ -71,8 +73,13 @@ inline bool parseMargStrategy(const std::string& text, MargStrategy* value) {
 //                  relative-pose factor between consecutive blanket poses, unary velocity and
 //                  bias factors, and the same pose–landmark factors.
 enum class SparsifyTopology { kPaper, kJointStates, kRelativePose };
-inline constexpr EnumNames<SparsifyTopology, 3> kSparsifyTopologyNames{{{SparsifyTopology::kPaper, "paper"}, {SparsifyTopology::kJointStates, "joint-states"}, {SparsifyTopology::kRelativePose, "relative-pose"}}};
-inline const char* toString(SparsifyTopology value) { return nameOf(kSparsifyTopologyNames, value); }
+inline constexpr EnumNames<SparsifyTopology, 3> kSparsifyTopologyNames{
+    {{SparsifyTopology::kPaper, "paper"},
+     {SparsifyTopology::kJointStates, "joint-states"},
+     {SparsifyTopology::kRelativePose, "relative-pose"}}};
+inline const char* toString(SparsifyTopology value) {
+  return nameOf(kSparsifyTopologyNames, value);
+}
 inline bool parseSparsifyTopology(const std::string& text, SparsifyTopology* value) {
   return parseName(kSparsifyTopologyNames, text, value);
 }
@@ -84,7 +91,8 @@ inline bool parseSparsifyTopology(const std::string& text, SparsifyTopology* val
 //             in all (rejected λ trials count); stop on an absolute cost decrease < 1e-6
 //             (kBasaltStopCost) or max|δ| < stop_max_step.
 enum class LmStopRule { kMarglab, kBasalt };
-inline constexpr EnumNames<LmStopRule, 2> kLmStopRuleNames{{{LmStopRule::kMarglab, "marglab"}, {LmStopRule::kBasalt, "basalt"}}};
+inline constexpr EnumNames<LmStopRule, 2> kLmStopRuleNames{
+    {{LmStopRule::kMarglab, "marglab"}, {LmStopRule::kBasalt, "basalt"}}};
 inline const char* toString(LmStopRule value) { return nameOf(kLmStopRuleNames, value); }
 inline bool parseLmStopRule(const std::string& text, LmStopRule* value) {
   return parseName(kLmStopRuleNames, text, value);

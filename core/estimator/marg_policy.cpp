@@ -10,7 +10,8 @@
 namespace marglab {
 
 template <typename Scalar>
-std::optional<MargPlan> MarginalizationPolicy<Scalar>::stateMarginalization(const Window<Scalar>& w, bool force) const {
+std::optional<MargPlan> MarginalizationPolicy<Scalar>::stateMarginalization(const Window<Scalar>& w,
+                                                                            bool force) const {
   const std::vector<int64_t> states = w.stateIds();
   if (!w.isVio() || states.size() < 2 ||
       (!force && static_cast<int>(states.size()) <= config_.max_states)) {
@@ -28,7 +29,8 @@ std::optional<MargPlan> MarginalizationPolicy<Scalar>::stateMarginalization(cons
 }
 
 template <typename Scalar>
-MargPlan MarginalizationPolicy<Scalar>::keyframeMarginalization(const Window<Scalar>& w, int64_t frame_id) const {
+MargPlan MarginalizationPolicy<Scalar>::keyframeMarginalization(const Window<Scalar>& w,
+                                                                int64_t frame_id) const {
   MargPlan plan;
   plan.vars.insert({frame_id, StateBlock::kPose});
   for (const auto& [id, lm] : w.landmarks) {
@@ -46,8 +48,7 @@ std::optional<int64_t> MarginalizationPolicy<Scalar>::selectKeyframe(
   // Only pose-only keyframes (VIO: older than the states, or losing their speed-bias now).
   std::vector<int64_t> candidates;
   for (auto it = kfs.begin(); it != kfs.end() - 2; ++it) {
-    if (!w.frames.at(*it).has_speed_bias ||
-        marg_vars.count({*it, StateBlock::kSpeedBias}) != 0) {
+    if (!w.frames.at(*it).has_speed_bias || marg_vars.count({*it, StateBlock::kSpeedBias}) != 0) {
       candidates.push_back(*it);
     }
   }
@@ -147,8 +148,8 @@ void MarginalizationPolicy<Scalar>::planKeptLandmarks(const Window<Scalar>& w, i
     if (!seen_in_kf) continue;
     // nfr needs a positive definite Λ_t: a monocular observation alone gives the landmark a
     // rank-2 prior (no depth), so it is dropped unless a factor anchored at kf fixes the depth.
-    const bool anchored_at_kf = std::any_of(lm.nfr.begin(), lm.nfr.end(),
-                                            [kf](const auto& f) { return f.frame == kf; });
+    const bool anchored_at_kf =
+        std::any_of(lm.nfr.begin(), lm.nfr.end(), [kf](const auto& f) { return f.frame == kf; });
     if (config_.marg_strategy == MargStrategy::kNfr && !lm.obs.at(kf).has_right &&
         !anchored_at_kf) {
       decision->edits.erase_obs.emplace_back(id, kf);
@@ -171,7 +172,7 @@ void applyEdits(const WindowEdits& edits, Window<Scalar>* w) {
   }
 }
 
-#define MARGLAB_INST(S)                   \
+#define MARGLAB_INST(S)                    \
   template class MarginalizationPolicy<S>; \
   template void applyEdits<S>(const WindowEdits&, Window<S>*);
 MARGLAB_INSTANTIATE(MARGLAB_INST)

@@ -58,8 +58,8 @@ struct MargPrior {
   struct Block {
     VarKey var;
     int offset = 0;
-    SE3<Scalar> T0;             // linearization point of a pose block
-    Vec9S sb0 = Vec9S::Zero();  // linearization point of a speed-bias block
+    SE3<Scalar> T0;                          // linearization point of a pose block
+    Vec9S sb0 = Vec9S::Zero();               // linearization point of a speed-bias block
     Vec3<Scalar> p0 = Vec3<Scalar>::Zero();  // linearization point p_w of a landmark block
   };
 

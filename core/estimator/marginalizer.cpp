@@ -49,7 +49,8 @@ void gatherDirectRows(const Window<Scalar>& w, const MargPlan& plan,
   }
   for (const auto& [track, frame] : plan.kept_landmark_obs) {
     RowBlock<Scalar> rows;
-    if (w.landmarkRows(track, {frame}, rel, NfrRows::kExclude, &rows)) p->direct.push_back(std::move(rows));
+    if (w.landmarkRows(track, {frame}, rel, NfrRows::kExclude, &rows))
+      p->direct.push_back(std::move(rows));
   }
   for (const VarKey& var : plan.vars) {
     RowBlock<Scalar> rows;
@@ -341,7 +342,7 @@ Status trialMarginalization(const Window<Scalar>& window, MargPrior<Scalar> prio
 #define MARGLAB_INST(S)                                                                          \
   template S ldltPivotFloor<S>(PsdProjection, Eigen::Index);                                     \
   template std::unique_ptr<Marginalizer<S>> makeMarginalizer<S>(MargMethod, const PriorStorage&, \
-                                                                const EstimatorSettings&);         \
+                                                                const EstimatorSettings&);       \
   template Status trialMarginalization<S>(const Window<S>&, MargPrior<S>, const MargPlan&,       \
                                           MargMethod, MatXd*);
 MARGLAB_INSTANTIATE(MARGLAB_INST)

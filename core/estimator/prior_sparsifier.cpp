@@ -171,9 +171,8 @@ RigidDeflationOfEvent deflateRigid(const BlanketVars<Scalar>& b, const Sparsific
   const VecXd removed = VecXd::Ones(d.deflated()) - d.mu;
   *Lambda_s -= g * removed.asDiagonal() * g.transpose();
   const MatXd Sigma_g = Eigen::LLT<MatXd>(Lambda_t.template cast<double>()).solve(g);
-  const double trace_change = -(g.cwiseProduct(Sigma_g).colwise().sum().transpose())
-                                   .cwiseProduct(removed)
-                                   .sum();
+  const double trace_change =
+      -(g.cwiseProduct(Sigma_g).colwise().sum().transpose()).cwiseProduct(removed).sum();
   *kld += 0.5 * (trace_change - d.logDetChange());
   return out;
 }

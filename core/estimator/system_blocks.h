@@ -33,8 +33,8 @@ void scatterBlocks(const BlockLayout& vars, const MatX<Scalar>& H_blocks,
 
 // Adds JᵀJ, Jᵀr of a factor's rows to a system with columns column_of.
 template <typename Scalar, typename Rows>
-void addRows(const Rows& rows, const BlockLayout& vars, const ColumnMap& column_of,
-             MatX<Scalar>& H, VecX<Scalar>& b) {
+void addRows(const Rows& rows, const BlockLayout& vars, const ColumnMap& column_of, MatX<Scalar>& H,
+             VecX<Scalar>& b) {
   const MatX<Scalar> H_rows = rows.J.transpose() * rows.J;
   const VecX<Scalar> b_rows = rows.J.transpose() * rows.r;
   scatterBlocks(vars, H_rows, b_rows, column_of, H, b);
@@ -61,8 +61,8 @@ BlockLayout priorVars(const MargPrior<Scalar>& prior) {
 
 // Adds the prior's Hessian and gradient at δ to a system with columns column_of.
 template <typename Scalar>
-void addPrior(const MargPrior<Scalar>& prior, const VecX<Scalar>& delta,
-              const ColumnMap& column_of, MatX<Scalar>& H, VecX<Scalar>& b) {
+void addPrior(const MargPrior<Scalar>& prior, const VecX<Scalar>& delta, const ColumnMap& column_of,
+              MatX<Scalar>& H, VecX<Scalar>& b) {
   MatX<Scalar> Hp;
   VecX<Scalar> bp;
   prior.linearize(delta, &Hp, &bp);

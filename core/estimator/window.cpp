@@ -50,8 +50,7 @@ ImuState<Scalar> Window<Scalar>::stateOf(int64_t frame_id, StateAt at) const {
   s.t_ns = frame.t_ns;
   const bool first = at == StateAt::kFirstEstimate;
   s.T_w_i = first ? jacobianPoseOf(frame_id) : frame.T_w_i;
-  const Vec9S& sb = first && frame.speed_bias_linearized ? frame.speed_bias_lin
-                                                                          : frame.speed_bias;
+  const Vec9S& sb = first && frame.speed_bias_linearized ? frame.speed_bias_lin : frame.speed_bias;
   s.v_w = sb.template head<3>();
   s.b_g = sb.template segment<3>(3);
   s.b_a = sb.template tail<3>();
@@ -172,9 +171,9 @@ Scalar Window<Scalar>::landmarkCost(const Landmark& lm, const RelativePoses& rel
     const Vec3S p_i = lm.world() ? poseOf(frame_id).inverse() * lm.param : Vec3S::Zero();
     target = rel.next(frame_id, target);
     for (int cam = 0; cam < (obs.has_right ? 2 : 1); ++cam) {
-      const Vec3S q = lm.world() ? T_c_i_[cam] * p_i
-                                 : transformLandmark<Scalar>(rel.T_ct_h[rel.at(host, target, cam)],
-                                                             lm.param);
+      const Vec3S q =
+          lm.world() ? T_c_i_[cam] * p_i
+                     : transformLandmark<Scalar>(rel.T_ct_h[rel.at(host, target, cam)], lm.param);
       cost += reprojectionCost<Scalar>(cam == 0 ? rig_.cam0 : rig_.cam1, q,
                                        cam == 0 ? obs.uv0 : obs.uv1, noise_);
     }
@@ -356,7 +355,8 @@ std::vector<RowBlock<Scalar>> Window<Scalar>::directRows(const std::set<int64_t>
   std::vector<RowBlock<Scalar>> out;
   for (int64_t track : priorLandmarks()) {
     RowBlock<Scalar> rows;
-    if (landmarkRows(track, system_frames, rel, NfrRows::kInclude, &rows)) out.push_back(std::move(rows));
+    if (landmarkRows(track, system_frames, rel, NfrRows::kInclude, &rows))
+      out.push_back(std::move(rows));
   }
   for (const NfrFactor& f : nfr_states) out.push_back(linearizeNfr(f, -1, nullptr));
   for (const NfrJointFactor& f : nfr_joint) out.push_back(linearizeNfrJoint(f));

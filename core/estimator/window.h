@@ -188,7 +188,8 @@ class Window {
   };
 
   // VO (no imu): the body is cam0 (T_i_c0 = I, cam1 at T_c0_c1). VIO: the rig's extrinsics.
-  Window(const EstimatorSettings& config, const StereoRig<double>& rig, std::optional<ImuSetup> imu);
+  Window(const EstimatorSettings& config, const StereoRig<double>& rig,
+         std::optional<ImuSetup> imu);
 
   // The variables and factors; the estimator and its collaborators edit them.
   std::map<int64_t, Frame> frames;        // by frame index

@@ -73,11 +73,11 @@ bool Window<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm,
   return true;
 }
 
-#define MARGLAB_INST(S)                                                                          \
-  template void Window<S>::observationRows(const Landmark&, const std::set<int64_t>&,            \
-                                           const RelativePoses&,                                 \
-                                           std::vector<ReprojectionRows<S>>*, S*) const;         \
-  template bool Window<S>::linearizeLandmark(int64_t, const Landmark&, const std::set<int64_t>&, \
+#define MARGLAB_INST(S)                                                                            \
+  template void Window<S>::observationRows(const Landmark&, const std::set<int64_t>&,              \
+                                           const RelativePoses&,                                   \
+                                           std::vector<ReprojectionRows<S>>*, S*) const;           \
+  template bool Window<S>::linearizeLandmark(int64_t, const Landmark&, const std::set<int64_t>&,   \
                                              const RelativePoses&, LandmarkJacobians<S>*, NfrRows, \
                                              int) const;
 MARGLAB_INSTANTIATE(MARGLAB_INST)

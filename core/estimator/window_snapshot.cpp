@@ -41,8 +41,7 @@ void snapshotImu(const Window<Scalar>& w_in, const ImuSetup& imu, WindowSnapshot
   w.imu_noise = imu.noise;
   w.imu_sample_period_s = imu.sample_period_s;
   w.g_w = imu.g_w;
-  int64_t t_min = std::numeric_limits<int64_t>::max(),
-          t_max = std::numeric_limits<int64_t>::min();
+  int64_t t_min = std::numeric_limits<int64_t>::max(), t_max = std::numeric_limits<int64_t>::min();
   for (const auto& [from, link] : w_in.imu_links) {
     const ImuPreintegration<Scalar>& pre = link.factor.preintegration();
     w.imu_links.push_back({from, link.to, pre.biasGyroLin().template cast<double>(),
@@ -160,8 +159,8 @@ void restoreWindow(const WindowSnapshot& w, const PriorStorage& storage, Window<
     for (const auto& o : ls.obs) {
       if (est.frames.count(o.frame) == 0)
         throw InputError("", 0, "window: observing frame missing");
-      lm.obs[o.frame] =
-          typename Window<Scalar>::Observation{o.uv0.template cast<Scalar>(), o.has_right, o.uv1.template cast<Scalar>()};
+      lm.obs[o.frame] = typename Window<Scalar>::Observation{
+          o.uv0.template cast<Scalar>(), o.has_right, o.uv1.template cast<Scalar>()};
     }
     est.landmarks.emplace(ls.id, std::move(lm));
   }
@@ -236,7 +235,7 @@ WindowSnapshot::Step stepOf(const Window<Scalar>& window, int lm_iterations, dou
   template std::optional<ImuSetup> imuSetupOf<S>(const WindowSnapshot&);                  \
   template void restoreWindow<S>(const WindowSnapshot&, const PriorStorage&, Window<S>*); \
   template Window<S> restoredWindow<S>(const WindowSnapshot&, const Variant&,             \
-                                       const EstimatorSettings&);                           \
+                                       const EstimatorSettings&);                         \
   template WindowSnapshot::Step stepOf<S>(const Window<S>&, int, double, double);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST

@@ -12,9 +12,9 @@
 #include "core/estimator/estimator_settings.h"
 #include "core/estimator/marg_prior.h"
 #include "core/estimator/variant.h"
+#include "core/estimator/window.h"
 #include "core/geometry/camera.h"
 #include "core/geometry/se3.h"
-#include "core/estimator/window.h"
 
 namespace marglab {
 

@@ -61,7 +61,8 @@ std::string tableDataset(const std::string& indexed, const RunMetadata* recorded
 }
 
 // The camera frames of a sequence (0 when it does not load), cached per name.
-std::size_t cameraFrames(const std::string& name_or_path, std::map<std::string, std::size_t>* cache) {
+std::size_t cameraFrames(const std::string& name_or_path,
+                         std::map<std::string, std::size_t>* cache) {
   const auto [it, fresh] = cache->emplace(name_or_path, 0);
   if (fresh) {
     try {
@@ -121,8 +122,8 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
       r.indexed_dataset = row.get("dataset");
       r.dir = dir;
       r.results_path = (fs::path(dir) / row.get("results")).string();
-      r.state = row.get("status") == "failed" ? RunRecord::State::kFailed
-                                               : RunRecord::State::kMissing;
+      r.state =
+          row.get("status") == "failed" ? RunRecord::State::kFailed : RunRecord::State::kMissing;
       const bool has_file = !row.get("results").empty() && fs::is_regular_file(r.results_path);
       if (!has_file) r.row.set("dataset", tableDataset(row.get("dataset"), nullptr));
       if (has_file) {
@@ -160,7 +161,8 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
       } else if (fromIndexRow(&r)) {
         ++from_index;
       } else if (row.get("status") == "ok") {
-        set.warnings.push_back(r.results_path + " is listed as ok but neither it nor its index row "
+        set.warnings.push_back(r.results_path +
+                               " is listed as ok but neither it nor its index row "
                                "holds an ATE; counted as not run");
       }
       set.runs.push_back(std::move(r));

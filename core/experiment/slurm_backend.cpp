@@ -65,9 +65,9 @@ void explainTrackingFailure(const fs::path& out, IndexRow* row) {
   if (!exit.present || !exit.signal.empty() || exit.exit_code == 0) return;
   const fs::path log = out / "logs" / (id + ".log");
   row->set("failure_kind", "error");
-  row->set("reason", fmt::format("tracking the images of {} failed (exit {}): {} (see {})",
-                                 dataset, exit.exit_code, detail::lastNonEmptyLine(log.string()),
-                                 log.string()));
+  row->set("reason",
+           fmt::format("tracking the images of {} failed (exit {}): {} (see {})", dataset,
+                       exit.exit_code, detail::lastNonEmptyLine(log.string()), log.string()));
 }
 
 std::string describeRow(const IndexRow& row) {
@@ -99,7 +99,8 @@ class Submitter {
       std::set<std::string> after_ok;
       for (std::size_t i : indices) {
         const auto it = tracking.find(sweepTrackFile(plan_.runs[i]));
-        if (plan_.runs[i].frontend == FrontendKind::kImages && it != tracking.end()) after_ok.insert(it->second);
+        if (plan_.runs[i].frontend == FrontendKind::kImages && it != tracking.end())
+          after_ok.insert(it->second);
       }
       jobs.push_back(submitArray(time, indices, {after_ok.begin(), after_ok.end()}, rows));
     }
@@ -109,7 +110,6 @@ class Submitter {
   // What was submitted, in order: the tracking jobs, then the run arrays.
   const std::vector<std::string>& describedJobs() const { return described_; }
   const std::vector<std::string>& trackingJobs() const { return tracking_jobs_; }
-
 
  private:
   std::string timeOf(const PlannedRun& run) const {
@@ -324,14 +324,13 @@ int report(const std::string& name, const std::vector<IndexRow>& rows, const fs:
   for (const auto& [kind, n] : kinds)
     kind_text += fmt::format("{}{} {}", kind_text.empty() ? " (" : ", ", n, kind);
   if (!kind_text.empty()) kind_text += ")";
-  fmt::print(stream,
-             "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{}{}{} in {:.1f} s\n",
-             name, ok, numerical, process, kind_text,
-             reused ? fmt::format(" ({} kept from an earlier invocation)", reused) : "",
-             queued ? fmt::format(", {} still queued in Slurm", queued) : "",
-             unsubmitted ? fmt::format(", {} not {}", unsubmitted, slurm ? "submitted" : "run")
-                         : "",
-             wall_s);
+  fmt::print(
+      stream, "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{}{}{} in {:.1f} s\n",
+      name, ok, numerical, process, kind_text,
+      reused ? fmt::format(" ({} kept from an earlier invocation)", reused) : "",
+      queued ? fmt::format(", {} still queued in Slurm", queued) : "",
+      unsubmitted ? fmt::format(", {} not {}", unsubmitted, slurm ? "submitted" : "run") : "",
+      wall_s);
   fmt::print(stream, "  index {}\n", (out / "index.csv").string());
   if (stop_signal != 0) {
     fmt::print(stream, "  interrupted by {}: the arrays were cancelled; continue with --resume\n",
@@ -342,8 +341,9 @@ int report(const std::string& name, const std::vector<IndexRow>& rows, const fs:
     fmt::print(stream, "  follow: marglab sweep --status {} [--wait]\n", out.string());
   }
   if (!slurm && unsubmitted > 0) {
-    fmt::print(stream, "  a local sweep that was stopped: continue it with marglab sweep {} "
-                       "--resume --out {}\n",
+    fmt::print(stream,
+               "  a local sweep that was stopped: continue it with marglab sweep {} "
+               "--resume --out {}\n",
                (out / "sweep.toml").string(), out.string());
   }
   return process > 0 || unsubmitted > 0 ? 1 : 0;
@@ -443,7 +443,8 @@ bool submitQueue(Submitter* submitter, const std::vector<std::size_t>& queue,
     return false;
   }
   writeIndex(index_path, *rows);
-  for (const std::string& job : submitter->describedJobs()) fmt::print(out, "  submitted {}\n", job);
+  for (const std::string& job : submitter->describedJobs())
+    fmt::print(out, "  submitted {}\n", job);
   std::fflush(out);
   return true;
 }

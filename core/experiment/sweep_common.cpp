@@ -183,8 +183,7 @@ std::vector<IndexRow> readOwnSweepIndex(const fs::path& out) {
   try {
     rows = readIndex(index.string());
   } catch (const InputError& e) {
-    throw InputError(e.file(), e.line(),
-                     "not a marglab sweep index (" + e.detail() + ")" + why);
+    throw InputError(e.file(), e.line(), "not a marglab sweep index (" + e.detail() + ")" + why);
   }
   const std::string text = readTextFile(index.string());
   std::istringstream header(text.substr(0, text.find('\n')));
@@ -232,7 +231,7 @@ void clearEarlierSweep(const fs::path& out, const std::vector<IndexRow>& rows) {
     for (const auto& entry : fs::directory_iterator(out / sub, ec)) {
       const std::string name = entry.path().filename().string();
       const bool written = std::string(sub) == "tracks" ? entry.path().extension() == ".h5"
-                                                         : name.rfind("tracks_", 0) == 0;
+                                                        : name.rfind("tracks_", 0) == 0;
       if (written) fs::remove(entry.path(), ec);
     }
   }

@@ -13,9 +13,9 @@
 #include <sstream>
 
 #include "core/common/error.h"
-#include "core/io/text_input.h"
 #include "core/data/sequence.h"
 #include "core/estimator/variant.h"
+#include "core/io/text_input.h"
 #include "core/pipeline/run_config.h"
 
 namespace marglab::experiment {
@@ -27,7 +27,7 @@ int lineOf(const toml::node& node) { return static_cast<int>(node.source().begin
 
 // Options `marglab sweep` sets itself for every run.
 const char* const kReservedRunOptions[] = {"--dataset", "--variant", "--frames", "--seed",
-                                           "--config",  "-o",        "--output",  "--spec"};
+                                           "--config",  "-o",        "--output", "--spec"};
 
 bool validName(const std::string& name) {
   return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
@@ -308,7 +308,7 @@ class Parser {
     double timeout_s = 0;
     std::vector<std::string> args;
     std::optional<FrontendKind> frontend;
-    toml::table config;  // config_file merged with [group.config]
+    toml::table config;               // config_file merged with [group.config]
     std::vector<Override> overrides;  // one without name when the group has none
   };
 
@@ -457,9 +457,8 @@ class Parser {
       mergeInto(config, o.config);
       configs.push_back(toTomlText(config));
       checkMergedConfig(configs.back(), o.name.empty() ? g.line : o.line,
-                        o.name.empty()
-                            ? fmt::format("group '{}'", g.name)
-                            : fmt::format("group '{}', override '{}'", g.name, o.name));
+                        o.name.empty() ? fmt::format("group '{}'", g.name)
+                                       : fmt::format("group '{}', override '{}'", g.name, o.name));
     }
     return configs;
   }
@@ -553,8 +552,8 @@ std::vector<std::string> expandVariantEntry(const std::string& entry) {
     try {
       out.push_back(Variant::parse(entry).name());
     } catch (const UsageError& e) {
-      throw UsageError(
-          fmt::format("{} (or a set: paper, headline, ablation, precision, preconditioned)", e.what()));
+      throw UsageError(fmt::format(
+          "{} (or a set: paper, headline, ablation, precision, preconditioned)", e.what()));
     }
   }
   return out;

@@ -61,16 +61,16 @@ struct PlannedRun {
   std::string dataset;  // as `marglab run --dataset` takes it (folders resolved to absolute)
   std::string variant;  // canonical variant name, e.g. "ns-qr-sqrt-f32"
   std::uint64_t seed = 1;
-  int frames = 0;                       // 0: whole sequence
-  double timeout_s = 0;                 // 0: none
-  std::string override_name;            // "" for the unnamed override
+  int frames = 0;                        // 0: whole sequence
+  double timeout_s = 0;                  // 0: none
+  std::string override_name;             // "" for the unnamed override
   std::optional<FrontendKind> frontend;  // nullopt: not passed (the run's default, auto)
-  std::vector<std::string> extra_args;  // group args, then override args
-  std::string config_toml;              // merged config overrides (TOML text), "" when none
+  std::vector<std::string> extra_args;   // group args, then override args
+  std::string config_toml;               // merged config overrides (TOML text), "" when none
   // The spec its child runs (`marglab run --spec runs/<id>.spec.toml`, core/pipeline/run_spec.h),
   // as the checker built and validated it; "" without a checker: the child gets runArguments.
   std::string spec_toml;
-  int line = 0;                         // line of the group in the sweep file (for messages)
+  int line = 0;  // line of the group in the sweep file (for messages)
 };
 
 struct SweepPlan {

@@ -20,7 +20,6 @@
 #include <thread>
 
 #include "core/common/error.h"
-#include "core/io/text_input.h"
 #include "core/common/subprocess.h"
 #include "core/common/utc_time.h"
 #include "core/data/sequence.h"
@@ -29,6 +28,7 @@
 #include "core/experiment/sweep_common.h"
 #include "core/experiment/sweep_index.h"
 #include "core/io/results_file.h"
+#include "core/io/text_input.h"
 #include "marglab/version.h"
 
 namespace marglab::experiment {
@@ -111,7 +111,8 @@ class Runner {
     std::vector<std::size_t> startable;
     for (const std::size_t index : queue_) {
       const PlannedRun& run = plan_.runs[index];
-      const auto it = run.frontend == FrontendKind::kImages ? failed.find(sweepTrackFile(run)) : failed.end();
+      const auto it =
+          run.frontend == FrontendKind::kImages ? failed.find(sweepTrackFile(run)) : failed.end();
       if (it == failed.end()) {
         startable.push_back(index);
         continue;
@@ -131,8 +132,7 @@ class Runner {
     fs::create_directories(out / "tracks");
     const fs::path log =
         fs::absolute(out / "logs" / ("tracks_" + slug(dataset) + ".log")).lexically_normal();
-    fmt::print(options_.out, "tracking the images of {} -> {}\n", dataset,
-               (out / tracks).string());
+    fmt::print(options_.out, "tracking the images of {} -> {}\n", dataset, (out / tracks).string());
     std::fflush(options_.out);
     ChildSpec spec;
     spec.argv = {exe_, "datasets", "track", "--dataset", dataset, "-o", tracks};
@@ -401,10 +401,11 @@ void refuseResumingAnotherSweep(const fs::path& out, const std::string& name) {
     return;  // not ours to judge: the index check above vouched for the folder
   }
   if (!old_name.empty() && old_name != name) {
-    throw UsageError(fmt::format("{} holds the sweep '{}', not '{}': --resume continues the same "
-                                 "sweep; write this one elsewhere (--out), or start over with "
-                                 "--force",
-                                 out.string(), old_name, name));
+    throw UsageError(
+        fmt::format("{} holds the sweep '{}', not '{}': --resume continues the same "
+                    "sweep; write this one elsewhere (--out), or start over with "
+                    "--force",
+                    out.string(), old_name, name));
   }
 }
 

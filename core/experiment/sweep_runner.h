@@ -67,7 +67,7 @@ struct SweepSummary {
   int not_run = 0;                // still pending after an interruption
   int redone_other_revision = 0;  // complete, but written by another git revision: run again
   bool interrupted = false;
-  int stop_signal = 0;            // the SIGINT / SIGTERM that interrupted the sweep
+  int stop_signal = 0;  // the SIGINT / SIGTERM that interrupted the sweep
   double wall_s = 0;
   std::string index_path;
 };

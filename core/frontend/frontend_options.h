@@ -40,24 +40,29 @@ namespace marglab {
 //               system);
 //   none      — LK starts at the previous position (the front-end before prediction).
 enum class MotionPredictionSource { kEstimator, kTracker, kNone };
-inline constexpr EnumNames<MotionPredictionSource, 3> kMotionPredictionSourceNames{{{MotionPredictionSource::kEstimator, "estimator"}, {MotionPredictionSource::kTracker, "tracker"}, {MotionPredictionSource::kNone, "none"}}};
-inline const char* toString(MotionPredictionSource value) { return nameOf(kMotionPredictionSourceNames, value); }
+inline constexpr EnumNames<MotionPredictionSource, 3> kMotionPredictionSourceNames{
+    {{MotionPredictionSource::kEstimator, "estimator"},
+     {MotionPredictionSource::kTracker, "tracker"},
+     {MotionPredictionSource::kNone, "none"}}};
+inline const char* toString(MotionPredictionSource value) {
+  return nameOf(kMotionPredictionSourceNames, value);
+}
 inline bool parseMotionPredictionSource(const std::string& text, MotionPredictionSource* value) {
   return parseName(kMotionPredictionSourceNames, text, value);
 }
 
 struct FrontendOptions {
-  int grid_cell_px = -1;    // −1: dataset default
-  int pyramid_levels = -1;  // −1: dataset default; finest level included
-  int max_iterations = 5;   // LK Gauss–Newton steps per pyramid level
-  int window_px = 11;       // LK and NCC patch side (odd)
-  double fb_max_px = 0.2;   // forward–backward check
+  int grid_cell_px = -1;        // −1: dataset default
+  int pyramid_levels = -1;      // −1: dataset default; finest level included
+  int max_iterations = 5;       // LK Gauss–Newton steps per pyramid level
+  int window_px = 11;           // LK and NCC patch side (odd)
+  double fb_max_px = 0.2;       // forward–backward check
   double epipolar_max = 0.005;  // |b0ᵀ E b1| of a stereo match (sine of the angle to the plane)
-  double ncc_min = 0.7;     // zero-mean NCC of the tracked patch with its origin
-  double ransac_px = 1.0;   // geometric check: reprojection error bound [pinhole px]
+  double ncc_min = 0.7;         // zero-mean NCC of the tracked patch with its origin
+  double ransac_px = 1.0;       // geometric check: reprojection error bound [pinhole px]
   double min_eigen = 3e-3;  // Shi–Tomasi λ_min at half resolution (OpenCV units: gradients / 255)
   int corner_block_px = 3;
-  int border_px = 8;  // keypoints closer to the image edge are dropped
+  int border_px = 8;          // keypoints closer to the image edge are dropped
   int detect_margin_px = -1;  // −1: dataset default; no new keypoints this close to the left/right
                               // edges (tracks go on there)
   std::vector<double> disparity_guesses_px;  // empty: dataset default

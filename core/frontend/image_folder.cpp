@@ -82,12 +82,12 @@ std::optional<StereoImageList> aslImages(const fs::path& mav) {
     if (right.empty()) {
       throw InputError(cam1, 0, "lists no images (expected the right camera's frames)");
     }
-    throw InputError(cam1, 0,
-                     fmt::format("none of its {} timestamps is one of the {} of cam0/data.csv "
-                                 "(expected the stereo frames at the same times; the first: "
-                                 "cam0 {} ns, cam1 {} ns)",
-                                 right.size(), left.size(), left.begin()->first,
-                                 right.begin()->first));
+    throw InputError(
+        cam1, 0,
+        fmt::format("none of its {} timestamps is one of the {} of cam0/data.csv "
+                    "(expected the stereo frames at the same times; the first: "
+                    "cam0 {} ns, cam1 {} ns)",
+                    right.size(), left.size(), left.begin()->first, right.begin()->first));
   }
   return list;
 }
@@ -203,9 +203,10 @@ ImageSequence loadImageSequence(const std::string& name_or_path) {
 
 std::string unpairedFramesNote(const StereoImageList& list) {
   if (list.unpaired_left == 0) return "";
-  return fmt::format("{} of the {} cam0 frames have no cam1 frame at the same timestamp and are "
-                     "dropped ({})",
-                     list.unpaired_left, list.unpaired_left + list.size(), list.source);
+  return fmt::format(
+      "{} of the {} cam0 frames have no cam1 frame at the same timestamp and are "
+      "dropped ({})",
+      list.unpaired_left, list.unpaired_left + list.size(), list.source);
 }
 
 }  // namespace marglab

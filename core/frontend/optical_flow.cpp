@@ -378,7 +378,8 @@ void StereoFrontend::Impl::geometricCheck(const std::vector<std::size_t>& surviv
   const Eigen::Matrix3d E_motion = hat<double>(Eigen::Vector3d(t.normalized())) * R;
   for (std::size_t k = 0; k < survivors.size(); ++k) {
     if (prev_depth_points.count(prev_ids[survivors[k]]) != 0) continue;
-    const double e = bearingOf(cam0, uv_new[k]).dot(E_motion * bearingOf(cam0, prev_uv[survivors[k]]));
+    const double e =
+        bearingOf(cam0, uv_new[k]).dot(E_motion * bearingOf(cam0, prev_uv[survivors[k]]));
     if (std::abs(e) > options.epipolar_max) (*keep)[k] = false;
   }
 }
@@ -432,11 +433,11 @@ cv::Point2f StereoFrontend::Impl::disparityGuess(const Eigen::Vector2d& uv0,
                                                  double disparity_px) const {
   if (disparity_px <= 0) return toPoint(cam0.distortPixel(uv0));
   const double z = cam0.fx * baseline / disparity_px;
-  const Eigen::Vector3d p_c0 = z * Eigen::Vector3d((uv0.x() - cam0.cx) / cam0.fx,
-                                                   (uv0.y() - cam0.cy) / cam0.fy, 1);
-  const Eigen::Vector2d raw = cam1.distortPixel(Eigen::Vector2d(
-      cam1.fx * (T_c1_c0 * p_c0).x() / (T_c1_c0 * p_c0).z() + cam1.cx,
-      cam1.fy * (T_c1_c0 * p_c0).y() / (T_c1_c0 * p_c0).z() + cam1.cy));
+  const Eigen::Vector3d p_c0 =
+      z * Eigen::Vector3d((uv0.x() - cam0.cx) / cam0.fx, (uv0.y() - cam0.cy) / cam0.fy, 1);
+  const Eigen::Vector2d raw = cam1.distortPixel(
+      Eigen::Vector2d(cam1.fx * (T_c1_c0 * p_c0).x() / (T_c1_c0 * p_c0).z() + cam1.cx,
+                      cam1.fy * (T_c1_c0 * p_c0).y() / (T_c1_c0 * p_c0).z() + cam1.cy));
   return toPoint(raw);
 }
 
@@ -488,8 +489,8 @@ void StereoFrontend::Impl::matchStereo(
         const auto miss = unmatched.find(id);
         if (miss == unmatched.end() ||
             static_cast<std::size_t>(miss->second) % guesses == round - 1) {
-          start = disparityGuess(frame->observations[i].uv0,
-                                 options.disparity_guesses_px[round - 1]);
+          start =
+              disparityGuess(frame->observations[i].uv0, options.disparity_guesses_px[round - 1]);
         }
       }
       if (!start) continue;
@@ -585,8 +586,8 @@ void StereoFrontend::Impl::trackTemporal(const std::vector<cv::Mat>& pyramid0,
   const std::vector<cv::Point2f> start = predictLeft(prediction, &in_view, &scale);
   std::vector<cv::Point2f> tracked = start;
   std::vector<bool> lk_ok;
-  std::vector<bool> ok = trackForwardBackward(prev_pyramid, pyramid0, prev_points, &tracked,
-                                              &lk_ok, options.pyramid_levels);
+  std::vector<bool> ok = trackForwardBackward(prev_pyramid, pyramid0, prev_points, &tracked, &lk_ok,
+                                              options.pyramid_levels);
   if (prediction != nullptr) {
     retrackScaled(prev_pyramid, pyramid0, start, scale, in_view, &tracked, &ok);
   }

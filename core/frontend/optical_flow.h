@@ -65,12 +65,12 @@
 
 #include <opencv2/core.hpp>
 
+#include "core/data/tracks.h"
 #include "core/data/types.h"
 #include "core/frontend/camera_model.h"
 #include "core/frontend/frontend_options.h"
 #include "core/frontend/motion_prediction.h"
 #include "core/io/results_records.h"
-#include "core/data/tracks.h"
 
 namespace marglab {
 

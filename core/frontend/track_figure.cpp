@@ -83,8 +83,9 @@ std::string drawTrackFigure(const TrackFigureRequest& request) {
                                  list.size(), request.dataset));
   }
   const std::size_t k = static_cast<std::size_t>(request.frame);
-  TrackStream stream = request.tracks_file.empty() ? trackImages(images, FrontendOptions{}, k + 1).stream
-                                                   : readTrackFile(request.tracks_file);
+  TrackStream stream = request.tracks_file.empty()
+                           ? trackImages(images, FrontendOptions{}, k + 1).stream
+                           : readTrackFile(request.tracks_file);
   // The track file may start later (cut to the ground truth): find frame k by its timestamp.
   std::size_t index = stream.frames.size();
   for (std::size_t i = 0; i < stream.frames.size(); ++i) {

@@ -148,10 +148,10 @@ void startImages(const TrackSourceOptions& options, const ImageSequence& folder,
   const std::vector<int64_t>& t = folder.images->t_ns;
   std::size_t first = 0, last = t.size();
   if (seq.hasTrajectory()) {
-    first = static_cast<std::size_t>(
-        std::lower_bound(t.begin(), t.end(), seq.gt.t_ns.front()) - t.begin());
-    last = static_cast<std::size_t>(
-        std::upper_bound(t.begin(), t.end(), seq.gt.t_ns.back()) - t.begin());
+    first = static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), seq.gt.t_ns.front()) -
+                                     t.begin());
+    last = static_cast<std::size_t>(std::upper_bound(t.begin(), t.end(), seq.gt.t_ns.back()) -
+                                    t.begin());
   }
   if (options.max_frames > 0) {
     last = std::min(last, first + static_cast<std::size_t>(options.max_frames));

@@ -32,21 +32,21 @@
 #include <vector>
 
 #include "core/common/enum_names.h"
+#include "core/data/tracks.h"
 #include "core/data/types.h"
 #include "core/frontend/image_folder.h"
 #include "core/frontend/optical_flow.h"
 #include "core/io/results_file.h"
 #include "core/sim/sim_profile.h"
-#include "core/data/tracks.h"
 #include "core/sim/trajectory_spline.h"
 
 namespace marglab {
 
 enum class FrontendKind { kAuto, kImages, kSimulated };
-inline constexpr EnumNames<FrontendKind, 3> kFrontendKindNames{{{FrontendKind::kAuto, "auto"},
-                                                                {FrontendKind::kImages, "images"},
-                                                                {FrontendKind::kSimulated,
-                                                                 "simulated"}}};
+inline constexpr EnumNames<FrontendKind, 3> kFrontendKindNames{
+    {{FrontendKind::kAuto, "auto"},
+     {FrontendKind::kImages, "images"},
+     {FrontendKind::kSimulated, "simulated"}}};
 
 struct TrackSourceOptions {
   std::string dataset;
@@ -86,8 +86,8 @@ struct TrackSource {
   Sequence sequence;  // with the shipped fallback's ground truth / IMU where used
   std::unique_ptr<TrajectoryFunction> trajectory;
   bool has_ground_truth = false;
-  TrackStream stream;    // the estimator's frames (images: those tracked so far)
-  std::string frontend;  // "images" | "simulated" | "tracks"
+  TrackStream stream;                     // the estimator's frames (images: those tracked so far)
+  std::string frontend;                   // "images" | "simulated" | "tracks"
   std::vector<FrontendFrameStats> stats;  // /frontend rows: every frame the source produced
   std::vector<std::pair<std::string, std::string>> provenance;  // results-file root attributes
   std::unique_ptr<ImageTracker> images;  // frontend "images": the estimator's frames to come

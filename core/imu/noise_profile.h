@@ -24,7 +24,8 @@
 namespace marglab {
 
 enum class ImuNoiseProfile { kKalibr, kBasalt };
-inline constexpr EnumNames<ImuNoiseProfile, 2> kImuNoiseProfileNames{{{ImuNoiseProfile::kKalibr, "kalibr"}, {ImuNoiseProfile::kBasalt, "basalt"}}};
+inline constexpr EnumNames<ImuNoiseProfile, 2> kImuNoiseProfileNames{
+    {{ImuNoiseProfile::kKalibr, "kalibr"}, {ImuNoiseProfile::kBasalt, "basalt"}}};
 inline const char* toString(ImuNoiseProfile value) { return nameOf(kImuNoiseProfileNames, value); }
 inline bool parseImuNoiseProfile(const std::string& text, ImuNoiseProfile* value) {
   return parseName(kImuNoiseProfileNames, text, value);

@@ -14,8 +14,7 @@ namespace marglab {
 namespace {
 
 std::string sizeText(std::size_t bytes) {
-  return bytes >= (1u << 20) ? fmt::format("{} MiB", bytes >> 20)
-                             : fmt::format("{} bytes", bytes);
+  return bytes >= (1u << 20) ? fmt::format("{} MiB", bytes >> 20) : fmt::format("{} bytes", bytes);
 }
 
 // Checks the text as it arrives, so that /dev/zero or a binary file fails at its first chunk.
@@ -26,20 +25,23 @@ class TextChecker {
 
   void append(const char* data, std::size_t size, std::string* text) {
     if (text->size() + size > limits_.max_bytes) {
-      throw InputError(path_, 0, fmt::format("larger than {}: expected {} (a text file)",
-                                             sizeText(limits_.max_bytes), what_));
+      throw InputError(path_, 0,
+                       fmt::format("larger than {}: expected {} (a text file)",
+                                   sizeText(limits_.max_bytes), what_));
     }
     for (std::size_t i = 0; i < size; ++i) {
       if (data[i] == '\0') {
-        throw InputError(path_, line_, fmt::format("expected {} as text, found binary data (a "
-                                                   "NUL byte)",
-                                                   what_));
+        throw InputError(path_, line_,
+                         fmt::format("expected {} as text, found binary data (a "
+                                     "NUL byte)",
+                                     what_));
       }
       line_bytes_ = data[i] == '\n' ? 0 : line_bytes_ + 1;
       if (data[i] == '\n') ++line_;
       if (line_bytes_ > limits_.max_line) {
-        throw InputError(path_, line_, fmt::format("line longer than {}: expected {} as text",
-                                                   sizeText(limits_.max_line), what_));
+        throw InputError(path_, line_,
+                         fmt::format("line longer than {}: expected {} as text",
+                                     sizeText(limits_.max_line), what_));
       }
     }
     text->append(data, size);

@@ -41,8 +41,11 @@
 namespace marglab {
 
 enum class RankThresholdMode { kAbsolute, kRelative };
-inline constexpr EnumNames<RankThresholdMode, 2> kRankThresholdModeNames{{{RankThresholdMode::kAbsolute, "absolute"}, {RankThresholdMode::kRelative, "relative"}}};
-inline const char* toString(RankThresholdMode value) { return nameOf(kRankThresholdModeNames, value); }
+inline constexpr EnumNames<RankThresholdMode, 2> kRankThresholdModeNames{
+    {{RankThresholdMode::kAbsolute, "absolute"}, {RankThresholdMode::kRelative, "relative"}}};
+inline const char* toString(RankThresholdMode value) {
+  return nameOf(kRankThresholdModeNames, value);
+}
 inline bool parseRankThresholdMode(const std::string& text, RankThresholdMode* value) {
   return parseName(kRankThresholdModeNames, text, value);
 }

@@ -38,9 +38,9 @@ BlockScaling<Scalar> BlockScaling<Scalar>::fromHessian(const MatX<Scalar>& H,
   if (kind == Preconditioning::kNone) return s;
   for (int k = 0; k < n / kBlock; ++k) {
     const Mat3<double> H_kk = H.template block<3, 3>(kBlock * k, kBlock * k)
-                           .template selfadjointView<Eigen::Lower>()
-                           .toDenseMatrix()
-                           .template cast<double>();
+                                  .template selfadjointView<Eigen::Lower>()
+                                  .toDenseMatrix()
+                                  .template cast<double>();
     Mat3<double> P = Mat3<double>::Zero(), Q = Mat3<double>::Zero();
     const Eigen::LLT<Mat3<double>> llt(H_kk);
     if (kind == Preconditioning::kBlockJacobi && llt.info() == Eigen::Success &&

@@ -39,13 +39,13 @@ class BlockScaling {
   int size() const { return kBlock * static_cast<int>(P_.size()); }
   bool empty() const { return P_.empty(); }
 
-  MatX<Scalar> scaled(const MatX<Scalar>& H) const;            // Pᵀ H P (symmetric)
-  VecX<Scalar> scaledGradient(const VecX<Scalar>& b) const;    // Pᵀ b
-  VecX<Scalar> toDelta(const VecX<Scalar>& y) const;           // P y
-  VecX<Scalar> toScaled(const VecX<Scalar>& delta) const;      // Q δ
-  MatX<Scalar> unscaled(const MatX<Scalar>& H_s) const;        // Qᵀ Ĥ Q (symmetric)
+  MatX<Scalar> scaled(const MatX<Scalar>& H) const;              // Pᵀ H P (symmetric)
+  VecX<Scalar> scaledGradient(const VecX<Scalar>& b) const;      // Pᵀ b
+  VecX<Scalar> toDelta(const VecX<Scalar>& y) const;             // P y
+  VecX<Scalar> toScaled(const VecX<Scalar>& delta) const;        // Q δ
+  MatX<Scalar> unscaled(const MatX<Scalar>& H_s) const;          // Qᵀ Ĥ Q (symmetric)
   VecX<Scalar> unscaledGradient(const VecX<Scalar>& b_s) const;  // Qᵀ b̂
-  MatX<Scalar> unscaledRows(const MatX<Scalar>& J_s) const;    // J_s Q: rows over y → over δ
+  MatX<Scalar> unscaledRows(const MatX<Scalar>& J_s) const;      // J_s Q: rows over y → over δ
 
   // The blocks from column `start` (a multiple of 3) on: the kept part after a marginalization.
   BlockScaling tail(int start) const;

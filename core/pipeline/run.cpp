@@ -131,9 +131,8 @@ namespace {
 
 // The root attributes of a run's results file: what ran, on what, with which settings.
 template <typename Scalar>
-RunMetadata runMetadata(const RunSpec& spec, const TrackSource& source,
-                        const RunConfig& config, bool vio,
-                        const std::map<std::string, std::string>& imu_provenance,
+RunMetadata runMetadata(const RunSpec& spec, const TrackSource& source, const RunConfig& config,
+                        bool vio, const std::map<std::string, std::string>& imu_provenance,
                         const std::string& spec_toml) {
   const Sequence& sequence = source.sequence;
   RunMetadata metadata;
@@ -164,8 +163,8 @@ RunMetadata runMetadata(const RunSpec& spec, const TrackSource& source,
 // The gauge diagnostics of one marginalization event (/marg) and, every store_prior_every
 // events, the prior itself.
 void writeMargEvent(const MargEvent& event, int frame_index, std::int64_t t_ns,
-                    std::int64_t marg_index, const RunSpec& spec,
-                    const RunConfig& config, ResultsWriter& writer) {
+                    std::int64_t marg_index, const RunSpec& spec, const RunConfig& config,
+                    ResultsWriter& writer) {
   const PriorLayout& layout = event.layout;
   const GaugeState& state = event.state;
   const std::uint64_t seed = config.diagnostics.seed + static_cast<std::uint64_t>(marg_index);
@@ -174,7 +173,8 @@ void writeMargEvent(const MargEvent& event, int frame_index, std::int64_t t_ns,
       sqrt_storage ? diagnoseSqrtPrior(event.J_m, event.r_m, layout, state, seed)
                    : diagnosePrior(event.H_m, event.b_m, layout, state, seed);
   writer.appendMarg(makeMargRecord(frame_index, t_ns, event.prior_rows, diagnostics));
-  if (config.diagnostics.store_prior_every > 0 && marg_index % config.diagnostics.store_prior_every == 0) {
+  if (config.diagnostics.store_prior_every > 0 &&
+      marg_index % config.diagnostics.store_prior_every == 0) {
     writer.appendPriorMatrices(marg_index, layout, event.H_m, event.b_m,
                                sqrt_storage ? &event.J_m : nullptr,
                                sqrt_storage ? &event.r_m : nullptr);
@@ -240,8 +240,7 @@ void recordFrame(int k, const TrackFrame& frame, const FrameResult& result, Fram
   trace->positions.push_back(record.p_est);
   trace->quaternions.push_back(record.q_est);
   if (result.marg_event && result.status.ok() && !result.marg_event->layout.empty()) {
-    writeMargEvent(*result.marg_event, k, frame.t_ns, trace->marg_index++, spec, config,
-                   writer);
+    writeMargEvent(*result.marg_event, k, frame.t_ns, trace->marg_index++, spec, config, writer);
   }
   if (result.sparsify_event && result.status.ok()) {
     const SparsifyEvent& event = *result.sparsify_event;
@@ -305,7 +304,8 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
   SlidingWindowEstimator<Scalar> estimator(config.estimator, spec.variant,
                                            rigFromCalib(sequence.calib), T_w_c0_first,
                                            std::move(imu), config.reporting());
-  const bool predict = source.images && config.frontend.prediction == MotionPredictionSource::kEstimator;
+  const bool predict =
+      source.images && config.frontend.prediction == MotionPredictionSource::kEstimator;
   const SE3<double> T_i_c0 = vio ? T_b_c0 : SE3<double>();
   TrackingMonitor monitor(config.failure);
   // Simulated tracks cannot lose the scene: where they thin out (the simulated world ends a few
@@ -323,8 +323,8 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
       frame.observations.front().uv0.x() = std::numeric_limits<double>::quiet_NaN();
     }
     trace.features += static_cast<double>(frame.observations.size());
-    const bool dump = std::find(spec.dump_windows.begin(), spec.dump_windows.end(), k) !=
-                      spec.dump_windows.end();
+    const bool dump =
+        std::find(spec.dump_windows.begin(), spec.dump_windows.end(), k) != spec.dump_windows.end();
     if (dump) estimator.captureNextWindow();
     const FrameResult result = estimator.processFrame(frame);
     if (std::optional<WindowSnapshot> window = estimator.takeCapturedWindow()) {
@@ -504,9 +504,9 @@ void addModeProblems(const RunSpec& spec, const RunInputs& inputs, std::vector<P
   }
   const MargStrategy strategy = spec.config.estimator.marg_strategy;
   if (strategy != MargStrategy::kDiscard && !vio) {
-    out->push_back(
-        {ProblemKind::kUsage, "", 0,
-         fmt::format("marginalization strategy {} needs VIO (EuRoC or TUM-VI)", toString(strategy))});
+    out->push_back({ProblemKind::kUsage, "", 0,
+                    fmt::format("marginalization strategy {} needs VIO (EuRoC or TUM-VI)",
+                                toString(strategy))});
   }
 }
 

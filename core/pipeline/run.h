@@ -26,13 +26,13 @@
 #include <vector>
 
 #include "core/data/types.h"
-#include "core/pipeline/run_config.h"
 #include "core/estimator/variant.h"
-#include "core/pipeline/run_spec.h"
 #include "core/estimator/window.h"
 #include "core/frontend/track_source.h"
 #include "core/geometry/camera.h"
 #include "core/io/results_file.h"
+#include "core/pipeline/run_config.h"
+#include "core/pipeline/run_spec.h"
 #include "core/sim/trajectory_spline.h"
 
 namespace marglab {

@@ -38,13 +38,12 @@ void addFailureBindings(FailureSettings& f, Bindings* list) {
   const char* s = "failure";
   list->push_back(numberKey(s, "max_position_error_m", &f.max_position_error_m,
                             orSentinel(above(0), -1, "dataset default")));
-  list->push_back(integerKey(s, "min_tracked_observations", &f.min_tracked_observations,
-                             between(0, 100000)));
-  list->push_back(integerKey(s, "max_tracking_loss_frames", &f.max_tracking_loss_frames,
-                             between(1, 1000000)));
+  list->push_back(
+      integerKey(s, "min_tracked_observations", &f.min_tracked_observations, between(0, 100000)));
+  list->push_back(
+      integerKey(s, "max_tracking_loss_frames", &f.max_tracking_loss_frames, between(1, 1000000)));
   list->push_back(numberKey(s, "inconsistent_px", &f.inconsistent_px, above(0)));
-  list->push_back(numberKey(s, "max_inconsistent_share", &f.max_inconsistent_share,
-                            between(0, 1)));
+  list->push_back(numberKey(s, "max_inconsistent_share", &f.max_inconsistent_share, between(0, 1)));
 }
 
 void addDiagnosticsBindings(DiagnosticsSettings& d, Bindings* list) {

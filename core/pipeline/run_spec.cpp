@@ -70,7 +70,8 @@ class RunTableReader {
         {"isa", [&](const toml::node& n) { s.isa = text(n, "isa"); }},
         {"set", [&](const toml::node& n) { s.overrides = texts(n, "set"); }},
         {"output", [&](const toml::node& n) { s.output = text(n, "output"); }},
-        {"dump_windows", [&](const toml::node& n) { s.dump_windows = integers(n, "dump_windows"); }},
+        {"dump_windows",
+         [&](const toml::node& n) { s.dump_windows = integers(n, "dump_windows"); }},
         {"dump_dir", [&](const toml::node& n) { s.dump_dir = text(n, "dump_dir"); }},
         {"inject_nan_frame",
          [&](const toml::node& n) { s.inject_nan_frame = integer(n, "inject_nan_frame", -1); }},
@@ -111,7 +112,8 @@ class RunTableReader {
       }
     } catch (const std::exception&) {
     }
-    throw error(node, "expected an integer in [0, 2^64 - 1] for run.seed (a string above 2^63 - 1)");
+    throw error(node,
+                "expected an integer in [0, 2^64 - 1] for run.seed (a string above 2^63 - 1)");
   }
   Variant variant(const toml::node& node) const {
     try {
@@ -130,14 +132,16 @@ class RunTableReader {
   }
   std::vector<std::string> texts(const toml::node& node, const char* key) const {
     const toml::array* array = node.as_array();
-    if (array == nullptr) throw error(node, fmt::format("expected a list of strings for run.{}", key));
+    if (array == nullptr)
+      throw error(node, fmt::format("expected a list of strings for run.{}", key));
     std::vector<std::string> out;
     for (const toml::node& item : *array) out.push_back(text(item, key));
     return out;
   }
   std::vector<int> integers(const toml::node& node, const char* key) const {
     const toml::array* array = node.as_array();
-    if (array == nullptr) throw error(node, fmt::format("expected a list of integers for run.{}", key));
+    if (array == nullptr)
+      throw error(node, fmt::format("expected a list of integers for run.{}", key));
     std::vector<int> out;
     for (const toml::node& item : *array) out.push_back(integer(item, key, 0));
     return out;

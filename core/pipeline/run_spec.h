@@ -34,9 +34,9 @@
 #include <vector>
 
 #include "core/common/enum_names.h"
-#include "core/pipeline/run_config.h"
 #include "core/estimator/variant.h"
 #include "core/frontend/track_source.h"
+#include "core/pipeline/run_config.h"
 
 namespace marglab {
 

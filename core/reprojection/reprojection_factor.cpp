@@ -59,9 +59,9 @@ void stackLandmarkRows(int64_t track_id, int64_t host,
   }
 }
 
-#define MARGLAB_INST(S)                                                                          \
+#define MARGLAB_INST(S)                                                                         \
   template void stackLandmarkRows<S>(int64_t, int64_t, const std::vector<ReprojectionRows<S>>&, \
-                                     const std::vector<PoseLandmarkRows<S>>&,                    \
+                                     const std::vector<PoseLandmarkRows<S>>&,                   \
                                      LandmarkJacobians<S>*);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST

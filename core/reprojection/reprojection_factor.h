@@ -84,8 +84,9 @@ struct BodyPoint {
 // The Huber cost of one observation at the current state (0 when q does not project).
 
 template <typename Scalar>
-inline TargetPoint<Scalar> hostedTargetPoint(const SE3<Scalar>& T_ct_h_jac, const SE3<Scalar>& T_ct_h,
-                                      const Vec3<Scalar>& landmark) {
+inline TargetPoint<Scalar> hostedTargetPoint(const SE3<Scalar>& T_ct_h_jac,
+                                             const SE3<Scalar>& T_ct_h,
+                                             const Vec3<Scalar>& landmark) {
   TargetPoint<Scalar> point;
   point.q_jac = transformLandmark<Scalar>(T_ct_h_jac, landmark, &point.D_q_l, &point.D_q_T);
   point.q = transformLandmark<Scalar>(T_ct_h, landmark);
@@ -94,16 +95,17 @@ inline TargetPoint<Scalar> hostedTargetPoint(const SE3<Scalar>& T_ct_h_jac, cons
 
 template <typename Scalar>
 inline BodyPoint<Scalar> worldBodyPoint(const SE3<Scalar>& T_w_i_jac, const SE3<Scalar>& T_w_i,
-                                 const Vec3<Scalar>& p_w_jac, const Vec3<Scalar>& p_w) {
+                                        const Vec3<Scalar>& p_w_jac, const Vec3<Scalar>& p_w) {
   BodyPoint<Scalar> body;
-  body.p_i_jac = poseLandmarkResidual<Scalar>(T_w_i_jac, p_w_jac, Vec3<Scalar>::Zero(),
-                                              &body.D_p_T, &body.D_p_l);
+  body.p_i_jac = poseLandmarkResidual<Scalar>(T_w_i_jac, p_w_jac, Vec3<Scalar>::Zero(), &body.D_p_T,
+                                              &body.D_p_l);
   body.p_i = T_w_i.inverse() * p_w;
   return body;
 }
 
 template <typename Scalar>
-inline TargetPoint<Scalar> worldTargetPoint(const SE3<Scalar>& T_c_i, const BodyPoint<Scalar>& body) {
+inline TargetPoint<Scalar> worldTargetPoint(const SE3<Scalar>& T_c_i,
+                                            const BodyPoint<Scalar>& body) {
   TargetPoint<Scalar> point;
   const Mat3<Scalar> R_c_i = T_c_i.rotationMatrix();
   point.q_jac = T_c_i * body.p_i_jac;
@@ -114,9 +116,10 @@ inline TargetPoint<Scalar> worldTargetPoint(const SE3<Scalar>& T_c_i, const Body
 }
 
 template <typename Scalar>
-inline bool linearizeReprojection(const PinholeCamera<Scalar>& camera, const TargetPoint<Scalar>& point,
-                           const Vec<Scalar, 2>& z, const ReprojectionNoise<Scalar>& noise,
-                           ReprojectionRows<Scalar>* rows, Scalar* cost) {
+inline bool linearizeReprojection(const PinholeCamera<Scalar>& camera,
+                                  const TargetPoint<Scalar>& point, const Vec<Scalar, 2>& z,
+                                  const ReprojectionNoise<Scalar>& noise,
+                                  ReprojectionRows<Scalar>* rows, Scalar* cost) {
   Vec<Scalar, 2> uv_jac, uv;
   Mat<Scalar, 2, 3> D_uv_q;
   if (!camera.project(point.q_jac, &uv_jac, &D_uv_q)) return false;
@@ -136,7 +139,7 @@ inline bool linearizeReprojection(const PinholeCamera<Scalar>& camera, const Tar
 
 template <typename Scalar>
 inline Scalar reprojectionCost(const PinholeCamera<Scalar>& camera, const Vec3<Scalar>& q,
-                        const Vec<Scalar, 2>& z, const ReprojectionNoise<Scalar>& noise) {
+                               const Vec<Scalar, 2>& z, const ReprojectionNoise<Scalar>& noise) {
   Vec<Scalar, 2> uv;
   if (!camera.project(q, &uv)) return Scalar(0);
   return huberCost<Scalar>((uv - z).norm(), noise.huber_px, noise.sigma_px);

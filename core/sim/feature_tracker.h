@@ -41,8 +41,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/data/types.h"
 #include "core/data/tracks.h"
+#include "core/data/types.h"
 #include "core/sim/trajectory_spline.h"
 #include "core/sim/world.h"
 

@@ -35,7 +35,8 @@
 namespace marglab {
 
 enum class SimProfile { kIdeal, kRealistic };
-inline constexpr EnumNames<SimProfile, 2> kSimProfileNames{{{SimProfile::kIdeal, "ideal"}, {SimProfile::kRealistic, "realistic"}}};
+inline constexpr EnumNames<SimProfile, 2> kSimProfileNames{
+    {{SimProfile::kIdeal, "ideal"}, {SimProfile::kRealistic, "realistic"}}};
 inline const char* toString(SimProfile value) { return nameOf(kSimProfileNames, value); }
 inline bool parseSimProfile(const std::string& text, SimProfile* value) {
   return parseName(kSimProfileNames, text, value);

@@ -16,9 +16,9 @@
 
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
-#include "core/io/text_input.h"
 #include "core/io/hdf5.h"
 #include "core/io/hdf5_trust.h"
+#include "core/io/text_input.h"
 
 namespace marglab {
 namespace {
@@ -297,10 +297,10 @@ void checkTextVersion(std::istream& rest, const std::string& kind, const std::st
   std::string version;
   rest >> version;
   if (kind != "text" || version != std::to_string(kTrackFormatVersion)) {
-    throw InputError(path, line,
-                     fmt::format("format '{} {} {}' not supported: expected '{} text {}'",
-                                 kTrackFormatName, shortToken(kind), shortToken(version),
-                                 kTrackFormatName, kTrackFormatVersion));
+    throw InputError(
+        path, line,
+        fmt::format("format '{} {} {}' not supported: expected '{} text {}'", kTrackFormatName,
+                    shortToken(kind), shortToken(version), kTrackFormatName, kTrackFormatVersion));
   }
 }
 

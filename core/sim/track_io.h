@@ -43,8 +43,8 @@
 #include <string>
 #include <vector>
 
-#include "core/data/types.h"
 #include "core/data/tracks.h"
+#include "core/data/types.h"
 
 namespace marglab {
 

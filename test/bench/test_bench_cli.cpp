@@ -20,9 +20,8 @@ namespace fs = std::filesystem;
 TEST(BenchCli, QuickJsonHasTheIssueKeysAndWritesTheTable) {
   const fs::path dir = fs::temp_directory_path() / "marglab_test_bench_cli";
   fs::remove_all(dir);
-  const test::CliResult r =
-      test::runCli("bench --quick --frames 15 --json --variant sc-sc-sqp-f32 --out '" +
-                   dir.string() + "'");
+  const test::CliResult r = test::runCli(
+      "bench --quick --frames 15 --json --variant sc-sc-sqp-f32 --out '" + dir.string() + "'");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   for (const char* key :
        {"speedup_ns_f32_over_sc_f64", "speedup_over_ceres_dense_schur", "speedup_over_ceres_best",

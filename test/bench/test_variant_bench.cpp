@@ -25,9 +25,9 @@ std::vector<Variant> parsed(const std::vector<std::string>& names) {
 TEST(VariantBench, TimesTheReferenceFirstThenEachVariantOnce) {
   const std::vector<NamedWindow> windows = loadWindows();
   ASSERT_FALSE(windows.empty());
-  const std::vector<VariantWindowTimes> t = timeVariants(
-      windows.front().window, parsed({"sc-sc-sqp-f32", "ns-qr-sqrt-f32", "sc-sc-sqrtp-f64"}), 1,
-      1e-4);
+  const std::vector<VariantWindowTimes> t =
+      timeVariants(windows.front().window,
+                   parsed({"sc-sc-sqp-f32", "ns-qr-sqrt-f32", "sc-sc-sqrtp-f64"}), 1, 1e-4);
   ASSERT_EQ(t.size(), 3u);
   EXPECT_EQ(t[0].variant, "ns-qr-sqrt-f32");
   EXPECT_EQ(t[1].variant, "sc-sc-sqp-f32");
@@ -58,8 +58,9 @@ TEST(VariantBench, AVariantThatFailsOnAWindowIsRecordedNotTimed) {
 VariantBench twoWindows() {
   VariantBench b;
   b.windows = {"a", "b"};
-  b.times = {{{"ns-qr-sqrt-f32", "", 1e-6, 2e-6}, {"sc-sc-sqp-f32", "", 3e-6, 2e-6}},
-             {{"ns-qr-sqrt-f32", "", 1e-6, 2e-6}, {"sc-sc-sqp-f32", "not positive definite", 0, 0}}};
+  b.times = {
+      {{"ns-qr-sqrt-f32", "", 1e-6, 2e-6}, {"sc-sc-sqp-f32", "", 3e-6, 2e-6}},
+      {{"ns-qr-sqrt-f32", "", 1e-6, 2e-6}, {"sc-sc-sqp-f32", "not positive definite", 0, 0}}};
   return b;
 }
 

@@ -10,9 +10,9 @@
 #include <fstream>
 #include <string>
 
-#include "core/estimator/window_io.h"
 #include "core/bench/window_replay.h"
 #include "core/common/error.h"
+#include "core/estimator/window_io.h"
 #include "core/pipeline/run.h"
 
 namespace marglab {

@@ -25,9 +25,9 @@
 #include <sstream>
 #include <string>
 
-#include "test_paths.h"
-#include "core/common/source_dir.h"
 #include "common/cli_runner.h"
+#include "core/common/source_dir.h"
+#include "test_paths.h"
 
 namespace marglab {
 namespace {
@@ -101,8 +101,8 @@ args = ["--isa", "sse2"]
 };
 
 TEST_F(AnalysisTest, TablesPythonReaderAndCheckResultsAgreeOnEveryRun) {
-  const auto agree = runShell(python_ + " '" + sourceDir() +
-                              "/test/cli/readers_agree.py' '" + sweep_ + "'");
+  const auto agree =
+      runShell(python_ + " '" + sourceDir() + "/test/cli/readers_agree.py' '" + sweep_ + "'");
   EXPECT_EQ(agree.exit_code, 0) << agree.output;
   EXPECT_NE(agree.output.find("AGREE 4 runs"), std::string::npos) << agree.output;
 }
@@ -170,8 +170,7 @@ TEST_F(AnalysisTest, NotebooksExecuteOnTheSweep) {
   EXPECT_TRUE(fs::is_regular_file(out / "notebooks.json"));
   // The committed notebooks carry no outputs (only the executed copies do).
   const auto clean = runShell(
-      python_ + " -c \"import json, glob, sys; cells = [c for p in glob.glob('" +
-      sourceDir() +
+      python_ + " -c \"import json, glob, sys; cells = [c for p in glob.glob('" + sourceDir() +
       "/notebooks/*.ipynb') for c in json.load(open(p))['cells'] if c['cell_type'] == 'code']; "
       "sys.exit(any(c['outputs'] or c['execution_count'] for c in cells) or not cells)\"");
   EXPECT_EQ(clean.exit_code, 0) << "notebooks/*.ipynb committed with outputs\n" << clean.output;
@@ -241,8 +240,8 @@ TEST_F(AnalysisTest, UnwritableOutputsFailBeforeAnyWork) {
   std::ofstream(file) << "x";
   const std::string under = (file / "out").string();
   for (const std::string verb : {"notebooks", "plot", "report"}) {
-    const auto result =
-        runCli(verb + " '" + sweep_ + "' " + (verb == "plot" ? "-o" : "--out") + " '" + under + "'");
+    const auto result = runCli(verb + " '" + sweep_ + "' " + (verb == "plot" ? "-o" : "--out") +
+                               " '" + under + "'");
     EXPECT_EQ(result.exit_code, 1) << verb << "\n" << result.output;
     EXPECT_NE(result.output.find("marglab: error: " + under + ": cannot create the folder"),
               std::string::npos)
@@ -293,12 +292,12 @@ TEST(AnalysisCli, NfrLengthTablePrefixIsTheShortRun) {
   fs::create_directories(dir);
   std::ofstream(dir / "nfr.toml") << "[marginalization]\nstrategy = \"nfr\"\n";
   const auto run = [&](int frames, int seed) {
-    const std::string out = (dir / ("f" + std::to_string(frames) + "_s" + std::to_string(seed) +
-                                    ".h5")).string();
-    const auto r = runCli("run --dataset euroc/MH_03_medium --variant ns-qr-sqrt-f64 --seed " +
-                          std::to_string(seed) + " --frames " + std::to_string(frames) +
-                          " --no-diagnostics --config '" + (dir / "nfr.toml").string() +
-                          "' -o '" + out + "'");
+    const std::string out =
+        (dir / ("f" + std::to_string(frames) + "_s" + std::to_string(seed) + ".h5")).string();
+    const auto r =
+        runCli("run --dataset euroc/MH_03_medium --variant ns-qr-sqrt-f64 --seed " +
+               std::to_string(seed) + " --frames " + std::to_string(frames) +
+               " --no-diagnostics --config '" + (dir / "nfr.toml").string() + "' -o '" + out + "'");
     EXPECT_EQ(r.exit_code, 0) << r.output;
     return out;
   };

@@ -103,8 +103,9 @@ TEST_F(ExitCodes, Sweep) {
                                "name = \"v\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
                                "variants = [\"ns-qr-sqrt-f64\"]\nargs = [\"--mode\", \"vio\"]\n");
   const std::string seeds =
-      file("seeds.toml", "name = \"s\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
-                         "variants = [\"ns-qr-sqrt-f64\"]\nseeds = [1, 2, 3]\n");
+      file("seeds.toml",
+           "name = \"s\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
+           "variants = [\"ns-qr-sqrt-f64\"]\nseeds = [1, 2, 3]\n");
   expectExit("sweep --dry-run --seeds 2,9 " + seeds, 1,
              "seeds.toml: --seeds: no run of this sweep has seed 9");
   expectExit("sweep --dry-run --seeds x " + seeds, 2);
@@ -198,8 +199,9 @@ TEST_F(ExitCodes, UnreadableFolderSaysPermissionDenied) {
 
 // Issue 38, low items: misuse that was accepted silently, or said the wrong thing.
 TEST_F(ExitCodes, MisuseOfIssue38IsRefused) {
-  const std::string sweep = "name = \"s\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
-                            "variants = [\"ns-qr-sqrt-f64\"]\n";
+  const std::string sweep =
+      "name = \"s\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/10\"]\n"
+      "variants = [\"ns-qr-sqrt-f64\"]\n";
   const std::string ok = file("ok.toml", sweep);
   expectExit("run --dataset kitti/10 --variant ns-qr-sqrt-f32- --frames 5 -o " + quoted("r.h5"), 2,
              "unknown variant 'ns-qr-sqrt-f32-'");
@@ -207,8 +209,8 @@ TEST_F(ExitCodes, MisuseOfIssue38IsRefused) {
   expectExit("sweep " + ok + " --status " + folder("st"), 2, "excludes");
   expectExit("sweep " + ok + " --slurm-mem 4G --dry-run", 2, "--slurm-mem is an option of");
   for (const char* timeout : {"nan", "inf", "1e-300"}) {
-    expectExit("sweep " + file("t.toml", sweep + "timeout_s = " + timeout + "\n") + " --dry-run",
-               1, "t.toml:6: timeout_s must be 0 (no limit) or a finite number");
+    expectExit("sweep " + file("t.toml", sweep + "timeout_s = " + timeout + "\n") + " --dry-run", 1,
+               "t.toml:6: timeout_s must be 0 (no limit) or a finite number");
   }
   folder("cfg");
   expectExit("sweep " + file("c.toml", sweep + "config_file = \"cfg\"\n") + " --dry-run", 1,

@@ -7,9 +7,9 @@
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
-#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -79,8 +79,9 @@ TEST_F(OutputsCliTest, FileSizeLimitIsAnErrorNotACrash) {
 // the writer and left its temporary.
 TEST_F(OutputsCliTest, FileSizeLimitWithTheDefaultSignalLeavesNoTemporary) {
   const fs::path out = dir_ / "x.h5";
-  const auto result = test::runShell("trap - XFSZ; ulimit -f 100; '" + std::string(test::cliPath()) +
-                                     "' datasets simulate --dataset kitti/10 -o " + q(out));
+  const auto result =
+      test::runShell("trap - XFSZ; ulimit -f 100; '" + std::string(test::cliPath()) +
+                     "' datasets simulate --dataset kitti/10 -o " + q(out));
   EXPECT_EQ(result.exit_code, 1) << result.output;
   EXPECT_NE(result.output.find(std::strerror(EFBIG)), std::string::npos) << result.output;
   EXPECT_TRUE(listing(dir_).empty()) << listing(dir_).front();

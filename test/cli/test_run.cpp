@@ -93,8 +93,9 @@ TEST_F(RunCliTest, SchurRunDoesNotDependOnTheHeapLayout) {
   for (const Isa isa : kAllIsas) {
     if (!isaAvailable(isa)) continue;
     SCOPED_TRACE(isaName(isa));
-    const std::string args = std::string("run --dataset euroc/MH_02_easy --variant sc-qr-sqrt-f64 ") +
-                             "--frames 60 --no-diagnostics --isa " + isaName(isa) + " -o ";
+    const std::string args =
+        std::string("run --dataset euroc/MH_02_easy --variant sc-qr-sqrt-f64 ") +
+        "--frames 60 --no-diagnostics --isa " + isaName(isa) + " -o ";
     const std::string plain = path(std::string("plain_") + isaName(isa) + ".h5");
     const std::string moved = path(std::string("moved_") + isaName(isa) + ".h5");
     ASSERT_EQ(runCli(args + "'" + plain + "'").exit_code, 0);

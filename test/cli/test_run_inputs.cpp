@@ -28,7 +28,6 @@ using test::runCli;
 
 class RunInputs : public test::TempDirTest {
  protected:
-
   // Runs `run ARGS -o out.h5` and expects exit `code`, every fragment in the output and no
   // results file.
   void expectRefused(const std::string& args, int code,
@@ -63,7 +62,6 @@ class RunInputs : public test::TempDirTest {
     const std::string cut = lines > 0 ? " | head -n " + std::to_string(lines) : "";
     ASSERT_EQ(test::runShell("zcat " + quote(gz) + cut + " > " + quote(out)).exit_code, 0);
   }
-
 };
 
 // Defect 5: `run --tracks k10.h5 --dataset kitti/05` reported status ok, ATE 5.44 m.
@@ -79,9 +77,9 @@ TEST_F(RunInputs, TrackFileOfAnotherSequenceIsRefused) {
   const auto own = runCli("run --variant ns-qr-sqrt-f64 --frames 5 --tracks " + quote(k10) +
                           " --dataset kitti/10 -o " + quote(dir_ / "own.h5"));
   EXPECT_EQ(own.exit_code, 0) << own.output;
-  const auto forced = runCli("run --variant ns-qr-sqrt-f64 --frames 5 --tracks " + quote(k10) +
-                             " --tracks-any-sequence --dataset kitti/05 -o " +
-                             quote(dir_ / "forced.h5"));
+  const auto forced =
+      runCli("run --variant ns-qr-sqrt-f64 --frames 5 --tracks " + quote(k10) +
+             " --tracks-any-sequence --dataset kitti/05 -o " + quote(dir_ / "forced.h5"));
   EXPECT_NE(forced.output.find("status"), std::string::npos) << forced.output;
 }
 
@@ -205,7 +203,8 @@ TEST_F(RunInputs, CheckRefusesTheImageFoldersRunRefuses) {
     std::getline(in, line);
     return mav / cam / "data" / line.substr(line.find(',') + 1);
   };
-  const auto rewrite_yaml = [](const fs::path& yaml, const std::string& from, const std::string& to) {
+  const auto rewrite_yaml = [](const fs::path& yaml, const std::string& from,
+                               const std::string& to) {
     std::string text = readText(yaml);
     const auto at = text.find(from);
     if (at != std::string::npos) text.replace(at, from.size(), to);
@@ -292,8 +291,8 @@ TEST_F(RunInputs, CameraListsWithoutAStereoFrameSayWhich) {
     text = line + "\n";
     for (int i = 0; i < c.rows && std::getline(in, line); ++i) {
       const auto comma = line.find(',');
-      text += std::to_string(std::stoll(line.substr(0, comma)) + c.shift_ns) +
-              line.substr(comma) + "\n";
+      text += std::to_string(std::stoll(line.substr(0, comma)) + c.shift_ns) + line.substr(comma) +
+              "\n";
     }
     std::ofstream(csv) << text;
     expectRefused("--dataset " + quote(seq), 1, {csv.string() + ": " + c.message});
@@ -331,8 +330,7 @@ TEST_F(RunInputs, UnboundedCountsAreUsageErrors) {
       {"massspring --no-plot --iterations 100000000", "--iterations: 100000000: expected"},
       {"datasets track --dataset euroc/V1_01_easy_images --passes 1000000" + out,
        "--passes: 1000000: expected the number of passes, an integer in [1, 100]"},
-      {"run --dataset kitti/05 --variant ns-qr-sqrt-f64 --frames 10 --dump-windows 99999999" +
-           out,
+      {"run --dataset kitti/05 --variant ns-qr-sqrt-f64 --frames 10 --dump-windows 99999999" + out,
        "--dump-windows 99999999: the run has 10 frames"},
       {"run --dataset kitti/05 --variant ns-qr-sqrt-f64 --dump-windows 3,99999999" + out,
        "--dump-windows 99999999: the run has 2761 frames (kitti/05)"},
@@ -368,8 +366,9 @@ TEST_F(RunInputs, EveryProblemOfTheOptionsIsReported) {
 TEST_F(RunInputs, PsdHessianPriorNeedsAHessianStorage) {
   const fs::path config = dir_ / "psd.toml";
   std::ofstream(config) << "[marginalization]\npsd_hessian_prior = true\n";
-  const auto result = runCli("run --dataset kitti/05 --variant sc-sc-sqrt-f32 --frames 5 --config " +
-                             quote(config) + " -o " + quote(dir_ / "x.h5"));
+  const auto result =
+      runCli("run --dataset kitti/05 --variant sc-sc-sqrt-f32 --frames 5 --config " +
+             quote(config) + " -o " + quote(dir_ / "x.h5"));
   EXPECT_EQ(result.exit_code, 1) << result.output;
   EXPECT_NE(result.output.find("psd.toml:2: marginalization.psd_hessian_prior = true with variant "
                                "sc-sc-sqrt-f32: expected a Hessian prior storage"),
@@ -385,12 +384,13 @@ TEST_F(RunInputs, PsdHessianPriorNeedsAHessianStorage) {
 // though `run --frontend simulated` uses the ground truth of its shipped recording.
 TEST_F(RunInputs, SimulateUsesTheGroundTruthRunUses) {
   const fs::path tracks = dir_ / "v101.h5";
-  const auto simulate = runCli("datasets simulate --dataset euroc/V1_01_easy_images -o " +
-                               quote(tracks));
+  const auto simulate =
+      runCli("datasets simulate --dataset euroc/V1_01_easy_images -o " + quote(tracks));
   ASSERT_EQ(simulate.exit_code, 0) << simulate.output;
-  const auto run = runCli("run --variant ns-qr-sqrt-f64 --frames 5 --dataset "
-                          "euroc/V1_01_easy_images --tracks " +
-                          quote(tracks) + " -o " + quote(dir_ / "run.h5"));
+  const auto run = runCli(
+      "run --variant ns-qr-sqrt-f64 --frames 5 --dataset "
+      "euroc/V1_01_easy_images --tracks " +
+      quote(tracks) + " -o " + quote(dir_ / "run.h5"));
   EXPECT_EQ(run.exit_code, 0) << run.output;
 }
 
@@ -416,8 +416,7 @@ TEST_F(RunInputs, FailedTrajectoryWriteLeavesNeitherFile) {
   const auto folder = runCli("run --variant ns-qr-sqrt-f64 --frames 5 --dataset kitti/05 -o " +
                              quote(dir_ / "imm.h5"));
   EXPECT_EQ(folder.exit_code, 1) << folder.output;
-  EXPECT_NE(folder.output.find(tum.string() + ": is a folder"), std::string::npos)
-      << folder.output;
+  EXPECT_NE(folder.output.find(tum.string() + ": is a folder"), std::string::npos) << folder.output;
   EXPECT_FALSE(fs::exists(dir_ / "imm.h5"));
 }
 

@@ -101,9 +101,11 @@ TEST_F(RunSpecTest, SweepRefusesInputsOfAnotherSequenceBeforeAnyWork) {
   const auto simulate =
       runCli("datasets simulate --dataset kitti/05 --frames 5 -o " + quote(tracks));
   ASSERT_EQ(simulate.exit_code, 0) << simulate.output;
-  expectPlanRefuses("datasets = [\"kitti/10\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nframes = 5\n"
-                    "args = [\"--tracks\", " + quote(tracks) + "]\n",
-                    "g__kitti-10__ns-qr-sqrt-f32__s1", "k05.h5");
+  expectPlanRefuses(
+      "datasets = [\"kitti/10\"]\nvariants = [\"ns-qr-sqrt-f32\"]\nframes = 5\n"
+      "args = [\"--tracks\", " +
+          quote(tracks) + "]\n",
+      "g__kitti-10__ns-qr-sqrt-f32__s1", "k05.h5");
   // A recording of the user's own: V1_01's images at other timestamps, so that no shipped sequence
   // supplies its ground truth or IMU.
   const fs::path folder = dir_ / "myrecording";
@@ -166,7 +168,8 @@ TEST_F(RunSpecTest, RelationErrorIsRefusedBeforeAnyWork) {
 TEST_F(RunSpecTest, RunRepeatedFromItsSpecIsBitIdentical) {
   const fs::path first = dir_ / "first.h5";
   const auto run = runCli(
-      "run --dataset kitti/05 --variant sc-sc-sq-f32 --frames 40 --seed 3 --set lm.max_iterations=4 "
+      "run --dataset kitti/05 --variant sc-sc-sq-f32 --frames 40 --seed 3 --set "
+      "lm.max_iterations=4 "
       "--threads 1 -o " +
       quote(first));
   ASSERT_EQ(run.exit_code, 0) << run.output;
@@ -175,9 +178,9 @@ TEST_F(RunSpecTest, RunRepeatedFromItsSpecIsBitIdentical) {
   const fs::path second = dir_ / "second.h5";
   const auto again = runCli("run --spec " + quote(spec) + " -o " + quote(second));
   ASSERT_EQ(again.exit_code, 0) << again.output;
-  const auto compare = test::runShell("/usr/bin/python3 '" + std::string(sourceDir()) +
-                                      "/tools/scripts/compare_runs.py' " + quote(first) + " " +
-                                      quote(second));
+  const auto compare =
+      test::runShell("/usr/bin/python3 '" + std::string(sourceDir()) +
+                     "/tools/scripts/compare_runs.py' " + quote(first) + " " + quote(second));
   EXPECT_EQ(compare.exit_code, 0) << compare.output;
   EXPECT_NE(compare.output.find("SAME"), std::string::npos) << compare.output;
   EXPECT_EQ(rootAttribute(first, "config_toml"), rootAttribute(second, "config_toml"));
@@ -191,9 +194,9 @@ TEST_F(RunSpecTest, RunRepeatedFromItsSpecIsBitIdentical) {
 // A sweep group's `set` reaches the run's config; the sweep's child ran the spec file beside the
 // index, and running that file again gives the same numbers.
 TEST_F(RunSpecTest, SweepRunRepeatedFromItsSpecFileIsBitIdentical) {
-  const fs::path file =
-      sweepFile("datasets = [\"kitti/05\"]\nvariants = [\"sc-sc-sq-f32\"]\nframes = 30\n"
-                "set = [\"lm.max_iterations=4\"]\n");
+  const fs::path file = sweepFile(
+      "datasets = [\"kitti/05\"]\nvariants = [\"sc-sc-sq-f32\"]\nframes = 30\n"
+      "set = [\"lm.max_iterations=4\"]\n");
   const fs::path out = dir_ / "out";
   const auto sweep = runCli("sweep " + quote(file) + " -o " + quote(out));
   ASSERT_EQ(sweep.exit_code, 0) << sweep.output;
@@ -207,9 +210,9 @@ TEST_F(RunSpecTest, SweepRunRepeatedFromItsSpecFileIsBitIdentical) {
   const auto rerun = test::runShell("cd " + quote(out) + " && '" + test::cliPath() +
                                     "' run --spec runs/" + id + ".spec.toml -o " + quote(again));
   ASSERT_EQ(rerun.exit_code, 0) << rerun.output;
-  const auto compare = test::runShell("/usr/bin/python3 '" + std::string(sourceDir()) +
-                                      "/tools/scripts/compare_runs.py' " + quote(results) + " " +
-                                      quote(again));
+  const auto compare =
+      test::runShell("/usr/bin/python3 '" + std::string(sourceDir()) +
+                     "/tools/scripts/compare_runs.py' " + quote(results) + " " + quote(again));
   EXPECT_EQ(compare.exit_code, 0) << compare.output;
 }
 

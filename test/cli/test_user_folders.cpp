@@ -31,9 +31,9 @@ class UserFoldersTest : public test::TempDirTest {
     const fs::path shipped = fs::path(datasetsRoot()) / "kitti" / "06";
     fs::copy_file(shipped / "calib.txt", folder / "calib.txt");
     for (const char* file : {"times.txt", "poses.txt"}) {
-      const auto r = test::runShell("zcat " + quote(shipped / (std::string(file) + ".gz")) +
-                                    " | head -" + std::to_string(frames) + " > " +
-                                    quote(folder / file));
+      const auto r =
+          test::runShell("zcat " + quote(shipped / (std::string(file) + ".gz")) + " | head -" +
+                         std::to_string(frames) + " > " + quote(folder / file));
       EXPECT_EQ(r.exit_code, 0) << r.output;
     }
     return folder;
@@ -112,8 +112,8 @@ TEST_F(UserFoldersTest, KittiClipReadsTheDownloadLayoutAndRefusesBadArguments) {
   head("times.txt", seq / "times.txt");
   head("poses.txt", poses / "06.txt");
   std::ofstream(dir_ / "a_file") << "x";
-  const std::string clip = "/usr/bin/python3 " + quote(fs::path(sourceDir()) / "tools" /
-                                                       "scripts" / "kitti_clip.py") +
+  const std::string clip = "/usr/bin/python3 " +
+                           quote(fs::path(sourceDir()) / "tools" / "scripts" / "kitti_clip.py") +
                            " --dataset " + quote(seq) + " --frames 0:2 ";
   const auto ok = test::runShell(clip + "-o " + quote(dir_ / "clip"));
   EXPECT_EQ(ok.exit_code, 0) << ok.output;

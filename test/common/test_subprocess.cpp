@@ -97,8 +97,8 @@ TEST_F(Subprocess, HelperEndingNormallyLeavesNothingBehind) {
 }
 
 TEST_F(Subprocess, HelperDiesWithASigkilledParent) {
-  const pid_t parent = startParent("echo $$ > '" + (dir_ / "pid").string() + "'; sleep " +
-                                   marker_ + "; :");
+  const pid_t parent =
+      startParent("echo $$ > '" + (dir_ / "pid").string() + "'; sleep " + marker_ + "; :");
   ASSERT_GT(parent, 0);
   ASSERT_TRUE(waitForFile(dir_ / "pid"));
   ASSERT_EQ(kill(parent, SIGKILL), 0);

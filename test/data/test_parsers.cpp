@@ -245,8 +245,8 @@ TEST(EurocSensorYaml, BadInput) {
                    "expected a rigid transform in 'T_BS.data'");
   for (const char* resolution : {"[752, 1e300]", "[752.5, 480]", "[0, 480]", "[752, 65537]"}) {
     yaml = kSensorYaml;
-    const std::string bad_size = writeFile(
-        dir.file("size.yaml"), yaml.replace(yaml.find("[752, 480]"), 10, resolution));
+    const std::string bad_size =
+        writeFile(dir.file("size.yaml"), yaml.replace(yaml.find("[752, 480]"), 10, resolution));
     expectInputError([&] { readEurocSensorYaml(bad_size); }, bad_size, 16,
                      "expected a resolution of whole numbers in [1, 65536]");
   }

@@ -225,7 +225,7 @@ TEST(ErrorMessages, LongTokensAreCutAndEmptyFilesLeaveNoPrefix) {
     ADD_FAILURE() << "expected InputError";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(path + ":2: expected a text file with lines of at most 1 "
-                                         "MiB"),
+                                                "MiB"),
               std::string::npos)
         << e.what();
   }
@@ -243,7 +243,8 @@ TEST(Plausibility, ImpossibleKittiCalibrationIsAnInputError) {
     const char* message;
   };
   const std::vector<Case> cases = {
-      {"P1 of the wrong sign", "P1:", 3, "3.798145000000e+02", "expected cam1 to the right of cam0"},
+      {"P1 of the wrong sign", "P1:", 3, "3.798145000000e+02",
+       "expected cam1 to the right of cam0"},
       {"fx = 1e30", "P0:", 0, "1e30", "cam0: expected fx in [20, 10000] px"},
       {"fy = 2", "P1:", 5, "2", "cam1: expected fy in [20, 10000] px"},
       {"principal point far outside", "P0:", 2, "-5e5", "cam0: expected the principal point"},

@@ -71,9 +71,9 @@ void expectSameFunction(const PriorStorage& storage) {
   plain.linearize(d, &H_a, &b_a);
   scaled.linearize(d, &H_b, &b_b);
   EXPECT_LE((H_b - H_a).template cast<double>().norm(), tol * H_a.template cast<double>().norm());
-  EXPECT_LE((b_b - b_a).template cast<double>().norm(),
-            tol * (H_a.template cast<double>().norm() * d.template cast<double>().norm() +
-                   b.norm()));
+  EXPECT_LE(
+      (b_b - b_a).template cast<double>().norm(),
+      tol * (H_a.template cast<double>().norm() * d.template cast<double>().norm() + b.norm()));
   const double change = static_cast<double>(plain.costChange(d, step));
   EXPECT_NEAR(static_cast<double>(scaled.costChange(d, step)), change, tol * cost);
   EXPECT_LE((scaled.hessianAtAnchor() - H.cast<Scalar>()).template cast<double>().norm(),

@@ -52,7 +52,8 @@ EstimatorSettings everyFrameAKeyframe(MargStrategy strategy) {
 
 std::map<int64_t, SE3<double>> runToTheEnd(const VioScenario& scenario, const Variant& variant,
                                            const EstimatorSettings& config, int* sparsify_events) {
-  SlidingWindowEstimator<double> estimator = scenario.estimator<double>(variant, config, test::kWithoutShadowPrior);
+  SlidingWindowEstimator<double> estimator =
+      scenario.estimator<double>(variant, config, test::kWithoutShadowPrior);
   for (const TrackFrame& frame : scenario.stream.frames) {
     const FrameResult result = estimator.processFrame(frame);
     EXPECT_TRUE(result.status.ok()) << result.status.toString();
@@ -131,7 +132,8 @@ void expectRecoveredEvents(const Variant& variant, double max_position_error_m,
   config.nfr_topology = topology;
   config.nfr_rigid_deflation = rigid_tol > 0;
   int matched_events = 0;
-  SlidingWindowEstimator<Scalar> estimator = scenario.estimator<Scalar>(variant, config, test::kWithoutShadowPrior);
+  SlidingWindowEstimator<Scalar> estimator =
+      scenario.estimator<Scalar>(variant, config, test::kWithoutShadowPrior);
   int events = 0;
   double max_error = 0;
   for (const TrackFrame& frame : scenario.stream.frames) {
@@ -216,11 +218,10 @@ TEST(NfrStrategy, JointStatesLoseLessInformationThanThePaperTopology) {
   const VioScenario& scenario = fifteenSeconds();
   auto firstKld = [&scenario](SparsifyTopology topology) {
     EstimatorSettings config;
-      config.marg_strategy = MargStrategy::kNfr;
+    config.marg_strategy = MargStrategy::kNfr;
     config.nfr_topology = topology;
-    SlidingWindowEstimator<double> estimator =
-        scenario.estimator<double>(Variant::parse("ns-qr-sqrt-f64"), config,
-                                   test::kWithoutShadowPrior);
+    SlidingWindowEstimator<double> estimator = scenario.estimator<double>(
+        Variant::parse("ns-qr-sqrt-f64"), config, test::kWithoutShadowPrior);
     for (const TrackFrame& frame : scenario.stream.frames) {
       const FrameResult result = estimator.processFrame(frame);
       EXPECT_TRUE(result.status.ok()) << result.status.toString();

@@ -31,7 +31,8 @@ TEST_P(VioVariantTest, NoiseFreeSimulationTracksTheTruthToACentimetre) {
   const Variant variant = Variant::parse(GetParam());
   ASSERT_EQ(variant.precision, Precision::kF64);
   EstimatorSettings config;
-  SlidingWindowEstimator<double> estimator = scenario.estimator<double>(variant, config, test::kWithoutShadowPrior);
+  SlidingWindowEstimator<double> estimator =
+      scenario.estimator<double>(variant, config, test::kWithoutShadowPrior);
   double max_error = 0;
   for (const TrackFrame& frame : scenario.stream.frames) {
     const FrameResult result = estimator.processFrame(frame);

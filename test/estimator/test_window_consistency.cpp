@@ -35,7 +35,8 @@ TYPED_TEST(WindowConsistency, ErrorsArePixelOffsetsOfTheSharedObservations) {
   const StereoRig<double> rig = kittiLikeRig();
   W window(EstimatorSettings{}, rig, std::nullopt);
   const SE3<double> T_w_c0;  // frame 0 at the origin
-  const SE3<double> T_w_c1(expSO3(Eigen::Vector3d(0.01, -0.03, 0.02)), Eigen::Vector3d(0.3, -0.1, 1.2));
+  const SE3<double> T_w_c1(expSO3(Eigen::Vector3d(0.01, -0.03, 0.02)),
+                           Eigen::Vector3d(0.3, -0.1, 1.2));
   window.frames[0].T_w_i = T_w_c0.cast<Scalar>();
   window.frames[1].T_w_i = T_w_c1.cast<Scalar>();
 
@@ -57,11 +58,11 @@ TYPED_TEST(WindowConsistency, ErrorsArePixelOffsetsOfTheSharedObservations) {
   const Eigen::Vector3d p_a(1.5, -0.4, 12.0), p_b(-3.0, 0.8, 25.0), p_c(0.5, 0.2, -8.0);
   window.landmarks[1] = hostedIn0(p_a);
   window.landmarks[1].obs[1] = observed(p_a, {3.0, 4.0});  // 5 px
-  window.landmarks[2].host = -1;                          // a world point
+  window.landmarks[2].host = -1;                           // a world point
   window.landmarks[2].param = p_b.cast<Scalar>();
   window.landmarks[2].obs[0].uv0.setZero();
   window.landmarks[2].obs[1] = observed(p_b, {-0.6, 0.8});  // 1 px
-  window.landmarks[3] = hostedIn0(p_c);  // behind both cameras
+  window.landmarks[3] = hostedIn0(p_c);                     // behind both cameras
   window.landmarks[3].obs[1].uv0 = Vec<Scalar, 2>(600, 180);
   window.landmarks[4].host = 1;  // hosted in frame 1: its own observation, skipped
   window.landmarks[4].param = landmarkFromPoint<double>(Eigen::Vector3d(0, 0, 10)).cast<Scalar>();

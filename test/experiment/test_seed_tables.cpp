@@ -42,17 +42,15 @@ double sampleStdOf(const std::vector<double>& v) {
 
 class SeedTables : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    fs::create_directories(dir_ / "sweep" / "runs");
-  }
+  void SetUp() override { fs::create_directories(dir_ / "sweep" / "runs"); }
 
   // A run with a trajectory error that depends on the salt; its index row. Returns the ATE the
   // results file holds (/summary ate_rmse).
   double addRun(const std::string& dataset, const std::string& variant, int seed, double salt,
                 RunStatus status = RunStatus::kOk, const std::string& frames = "0") {
     const std::string sequence = dataset.substr(dataset.find('/') + 1);
-    const std::string id = fmt::format("g{}__{}__{}__s{}", frames == "0" ? "" : frames, sequence,
-                                       variant, seed);
+    const std::string id =
+        fmt::format("g{}__{}__{}__s{}", frames == "0" ? "" : frames, sequence, variant, seed);
     const std::string results = "runs/" + id + ".h5";
     RunMetadata m;
     m.dataset = dataset.substr(0, dataset.find('/'));

@@ -108,9 +108,7 @@ Expected writeRun(const std::string& path, const std::string& dataset, const std
 
 class StrategyTables : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    fs::create_directories(dir_ / "sweep" / "runs");
-  }
+  void SetUp() override { fs::create_directories(dir_ / "sweep" / "runs"); }
 
   // Writes the run and its index row (the strategy is also the override, as in
   // experiments/sparsify_euroc.toml).

@@ -10,10 +10,10 @@
 
 #include "common/cli_runner.h"
 #include "core/common/error.h"
-#include "core/pipeline/run_config.h"
 #include "core/estimator/variant.h"
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_index.h"
+#include "core/pipeline/run_config.h"
 
 namespace marglab::experiment {
 namespace {

@@ -40,7 +40,6 @@ const fs::path kImages = fs::path(sourceDir()) / "datasets/euroc/V1_01_easy_imag
 
 class SweepFolders : public test::TempDirTest {
  protected:
-
   fs::path write(const std::string& name, const std::string& text) const {
     std::ofstream(dir_ / name) << text;
     return dir_ / name;
@@ -52,7 +51,6 @@ class SweepFolders : public test::TempDirTest {
                  "name = \"quick\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/04\"]\n"
                  "variants = [\"ns-qr-sqrt-f64\"]\nframes = 5\n");
   }
-
 };
 
 // Defect 1: `marglab sweep experiments/real_images.toml` from the repository root failed: the
@@ -61,8 +59,8 @@ TEST_F(SweepFolders, ImagesSweepWithTheDefaultRelativeOutputFolder) {
   write("img.toml",
         "name = \"img\"\n[[group]]\nname = \"images\"\ndatasets = [\"euroc/V1_01_easy_images\"]\n"
         "variants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\nframes = 5\n");
-  const auto sweep = runShell("cd " + quote(dir_) + " && '" + test::cliPath() +
-                              "' sweep img.toml --jobs 1");
+  const auto sweep =
+      runShell("cd " + quote(dir_) + " && '" + test::cliPath() + "' sweep img.toml --jobs 1");
   ASSERT_EQ(sweep.exit_code, 0) << sweep.output;
   const fs::path out = dir_ / "results/img";
   EXPECT_TRUE(fs::is_regular_file(out / "tracks/euroc-V1_01_easy_images.h5")) << sweep.output;
@@ -96,8 +94,8 @@ pid_t startSweep(const fs::path& sweep_file, const fs::path& out, const fs::path
     options.jobs = 1;
     options.executable = exe.string();
     options.out = std::fopen((out.string() + ".log").c_str(), "w");
-    const int code = runSweepAndReport(loadSweepFile(sweep_file.string()), sweep_file.string(),
-                                       options);
+    const int code =
+        runSweepAndReport(loadSweepFile(sweep_file.string()), sweep_file.string(), options);
     std::fflush(options.out);
     _exit(code);
   }
@@ -111,10 +109,10 @@ TEST_F(SweepFolders, StoppedSweepStopsItsTrackingChildAndSaysInterrupted) {
   const std::string marker = "60." + std::to_string(getpid());
   const std::string pattern = "'[6]0[.]" + std::to_string(getpid()) + "'";
   const fs::path exe = writeFakeMarglab(dir_, marker);
-  const fs::path file = write("stop.toml",
-                              "name = \"stop\"\n[[group]]\nname = \"g\"\ndatasets = [\"" +
-                                  (dir_ / "V1_01_easy_images").string() +
-                                  "\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n");
+  const fs::path file =
+      write("stop.toml", "name = \"stop\"\n[[group]]\nname = \"g\"\ndatasets = [\"" +
+                             (dir_ / "V1_01_easy_images").string() +
+                             "\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n");
   const fs::path out = dir_ / "out";
   const pid_t sweep = startSweep(file, out, exe);
   ASSERT_GT(sweep, 0);
@@ -144,11 +142,10 @@ TEST_F(SweepFolders, FailedTrackingFailsOnlyThatDatasetsRuns) {
   fs::create_symlink(kImages, dir_ / "good_images");
   fs::create_symlink(kImages, dir_ / "bad_images");
   const fs::path exe = writeFakeMarglab(dir_, "0");
-  const fs::path file =
-      write("two.toml", "name = \"two\"\n[[group]]\nname = \"g\"\ndatasets = [\"" +
-                            (dir_ / "bad_images").string() + "\", \"" +
-                            (dir_ / "good_images").string() +
-                            "\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n");
+  const fs::path file = write(
+      "two.toml", "name = \"two\"\n[[group]]\nname = \"g\"\ndatasets = [\"" +
+                      (dir_ / "bad_images").string() + "\", \"" + (dir_ / "good_images").string() +
+                      "\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n");
   const fs::path out = dir_ / "out";
   const pid_t sweep = startSweep(file, out, exe);
   int status = 0;
@@ -235,9 +232,10 @@ TEST_F(SweepFolders, ImagesFrontendOnADatasetWithoutImagesIsRefusedBeforeAnyRun)
     SCOPED_TRACE(how);
     const auto result = runCli("sweep " + quote(file) + " " + how);
     EXPECT_EQ(result.exit_code, 1) << result.output;
-    EXPECT_NE(result.output.find(file.string() + ":2: run g__kitti-04__ns-qr-sqrt-f64__s1: " +
-                                 "--frontend images: " + datasetsRoot() + "/kitti/04 has no images"),
-              std::string::npos)
+    EXPECT_NE(
+        result.output.find(file.string() + ":2: run g__kitti-04__ns-qr-sqrt-f64__s1: " +
+                           "--frontend images: " + datasetsRoot() + "/kitti/04 has no images"),
+        std::string::npos)
         << result.output;
   }
   EXPECT_FALSE(fs::exists(dir_ / "out"));
@@ -286,9 +284,9 @@ TEST_F(SweepFolders, AnalysisSkipsATruncatedFileAndNamesANonUtf8Index) {
   const auto notebooks =
       runCli("notebooks " + quote(out) + " --jobs 1 --out " + quote(dir_ / "nb"));
   EXPECT_EQ(notebooks.exit_code, 0) << notebooks.output;
-  EXPECT_NE(notebooks.output.find("warning: " + truncated.string() +
-                                  ": not a complete results file"),
-            std::string::npos)
+  EXPECT_NE(
+      notebooks.output.find("warning: " + truncated.string() + ": not a complete results file"),
+      std::string::npos)
       << notebooks.output;
   EXPECT_EQ(notebooks.output.find("Traceback"), std::string::npos) << notebooks.output;
   EXPECT_TRUE(fs::is_regular_file(dir_ / "nb/runs/g__kitti-04__ns-qr-sqrt-f64__s1.html"));
@@ -334,8 +332,8 @@ TEST_F(SweepFolders, TrailingSlashNamesTheSameDataset) {
   const fs::path file = write(
       "slash.toml", "name = \"slash\"\n[[group]]\nname = \"a\"\ndatasets = [\"" + folder +
                         "\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n"
-                        "[[group]]\nname = \"b\"\ndatasets = [\"" + folder +
-                        "/\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n");
+                        "[[group]]\nname = \"b\"\ndatasets = [\"" +
+                        folder + "/\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n");
   const SweepPlan plan = loadSweepFile(file.string());
   ASSERT_EQ(plan.runs.size(), 2u);
   EXPECT_EQ(plan.runs[0].dataset, plan.runs[1].dataset);
@@ -349,11 +347,10 @@ TEST_F(SweepFolders, TrailingSlashNamesTheSameDataset) {
 TEST_F(SweepFolders, UserFoldersGetTheirTableRows) {
   fs::create_symlink(kImages, dir_ / "V1_01_easy_images");
   fs::create_symlink(fs::path(sourceDir()) / "datasets/kitti/04", dir_ / "04");
-  const fs::path file =
-      write("user.toml", "name = \"user\"\n[[group]]\nname = \"g\"\ndatasets = [\"" +
-                             (dir_ / "V1_01_easy_images").string() + "/\", \"" +
-                             (dir_ / "04").string() +
-                             "\"]\nvariants = [\"headline\"]\nframes = 5\n");
+  const fs::path file = write(
+      "user.toml", "name = \"user\"\n[[group]]\nname = \"g\"\ndatasets = [\"" +
+                       (dir_ / "V1_01_easy_images").string() + "/\", \"" + (dir_ / "04").string() +
+                       "\"]\nvariants = [\"headline\"]\nframes = 5\n");
   const fs::path out = dir_ / "out";
   const auto sweep = runCli("sweep " + quote(file) + " --jobs 2 --out " + quote(out));
   ASSERT_EQ(sweep.exit_code, 0) << sweep.output;

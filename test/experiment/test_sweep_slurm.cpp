@@ -213,8 +213,8 @@ frames = 5
   const std::regex tracking_job(R"(submitted tracking job ([0-9]+) )");
   std::smatch m;
   ASSERT_TRUE(std::regex_search(slurm.output, m, tracking_job)) << slurm.output;
-  EXPECT_NE(readText(out / "slurm" / "array-2.sbatch").find("#SBATCH --dependency=afterok:" +
-                                                           m[1].str() + "\n"),
+  EXPECT_NE(readText(out / "slurm" / "array-2.sbatch")
+                .find("#SBATCH --dependency=afterok:" + m[1].str() + "\n"),
             std::string::npos);
   EXPECT_FALSE(fs::exists(out / "slurm" / "array-3.sbatch"));  // tracked once
   EXPECT_TRUE(fs::is_regular_file(out / "tracks/euroc-V1_01_easy_images.h5"));
@@ -255,12 +255,12 @@ TEST(SlurmSweep, FailedTrackingJobFailsItsRunsSayingWhy) {
       }
     }
   }
-  std::ofstream(dir / "bad.toml") << "name = \"bad\"\n[[group]]\nname = \"images\"\ndatasets = [\""
-                                  << (dir / "clip").string()
-                                  << "\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n";
+  std::ofstream(dir / "bad.toml")
+      << "name = \"bad\"\n[[group]]\nname = \"images\"\ndatasets = [\"" << (dir / "clip").string()
+      << "\"]\nvariants = [\"ns-qr-sqrt-f64\"]\nfrontend = \"images\"\n";
   const fs::path out = dir / "out";
-  const auto sweep = runCli("sweep " + quote(dir / "bad.toml") + " --backend slurm --wait --out " +
-                            quote(out));
+  const auto sweep =
+      runCli("sweep " + quote(dir / "bad.toml") + " --backend slurm --wait --out " + quote(out));
   EXPECT_EQ(sweep.exit_code, 1) << sweep.output;
   const auto rows = readIndex((out / "index.csv").string());
   ASSERT_EQ(rows.size(), 1u);

@@ -52,7 +52,7 @@ struct TrackTruth {
 
 struct Measured {
   std::vector<double> track_error, stereo_error;  // [px] in the pinhole image
-  std::vector<double> disparity_error;  // [px] signed, pinhole image (header)
+  std::vector<double> disparity_error;            // [px] signed, pinhole image (header)
   std::vector<double> raw_error;  // [px] left tracking error in the raw image (where LK works)
   std::vector<double> continued;  // per frame k ≥ 1: n_tracked(k) / n_features(k − 1)
   int wrong_forward = 0, wrong_removed = 0, surviving_outliers = 0, associated = 0;
@@ -153,14 +153,14 @@ inline Measured trackRendered(const std::string& label, const RenderedScene& sce
   }
   std::printf(
       "%s: %zu tracked observations, error median %.4f px, p95 %.4f px (raw image: median %.4f "
-      "px, p95 %.4f px); stereo median %.4f px (%zu), disparity error median %+.4f px; continued median %.1f %%; wrong forward "
+      "px, p95 %.4f px); stereo median %.4f px (%zu), disparity error median %+.4f px; continued "
+      "median %.1f %%; wrong forward "
       "steps %d, removed %.1f %%; %d associated, %d outliers survived\n",
       label.c_str(), m.track_error.size(), percentile(m.track_error, 0.5),
       percentile(m.track_error, 0.95), percentile(m.raw_error, 0.5), percentile(m.raw_error, 0.95),
       percentile(m.stereo_error, 0.5), m.stereo_error.size(), percentile(m.disparity_error, 0.5),
-      100.0 * percentile(m.continued, 0.5),
-      m.wrong_forward, 100.0 * m.wrong_removed / std::max(m.wrong_forward, 1), m.associated,
-      m.surviving_outliers);
+      100.0 * percentile(m.continued, 0.5), m.wrong_forward,
+      100.0 * m.wrong_removed / std::max(m.wrong_forward, 1), m.associated, m.surviving_outliers);
   return m;
 }
 

@@ -28,7 +28,6 @@ bool samePixels(const cv::Mat& a, const cv::Mat& b) {
 
 class ImageFile : public test::TempDirTest {
  protected:
-
   // Writes `image` with imgcodecs and checks that both decoders read back the same pixels.
   void expectSameAsImread(const std::string& name, const cv::Mat& image,
                           const std::vector<int>& params = {}) {
@@ -47,7 +46,6 @@ class ImageFile : public test::TempDirTest {
     rng.fill(image, cv::RNG::UNIFORM, 0, CV_MAT_DEPTH(type) == CV_16U ? 65536 : 256);
     return image;
   }
-
 };
 
 TEST_F(ImageFile, ShippedEurocFramesDecodeAsImread) {

@@ -34,7 +34,6 @@ class KittiMotion : public test::TempDirTest {
  protected:
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   static fs::path shipped() { return fs::path(datasetsRoot()) / kKitti06; }
-
 };
 
 double median(std::vector<double> v) {
@@ -83,9 +82,10 @@ KittiRun runShippedKitti(const std::string& out) {
   run.ate = reader.summary().ate_rmse;
   for (const FrontendRecord& r : rows) run.features += r.n_features;
   run.features /= static_cast<double>(std::max<std::size_t>(rows.size(), 1));
-  std::printf("kitti/06_images: continued %.1f %% (median), %.0f features/frame, ATE %.4f m, "
-              "drift %.2f %%\n",
-              100 * run.continued, run.features, run.ate, 100 * run.drift);
+  std::printf(
+      "kitti/06_images: continued %.1f %% (median), %.0f features/frame, ATE %.4f m, "
+      "drift %.2f %%\n",
+      100 * run.continued, run.features, run.ate, 100 * run.drift);
   return run;
 }
 
@@ -181,7 +181,8 @@ TEST_F(KittiMotion, ImagesGoingBlackFailAsTracking) {
       const cv::Mat black = cv::Mat::zeros(370, 1226, CV_8UC1);
       const std::vector<uint8_t> png = encodePng(black);
       std::ofstream(folder / images / name, std::ios::binary)
-          .write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+          .write(reinterpret_cast<const char*>(png.data()),
+                 static_cast<std::streamsize>(png.size()));
     }
   }
   std::ifstream times(shipped() / "times.txt");
@@ -201,9 +202,10 @@ TEST_F(KittiMotion, ImagesGoingBlackFailAsTracking) {
   EXPECT_EQ(reader.info().failure_kind, "tracking");
   EXPECT_GE(reader.info().failure_frame, 20);
   EXPECT_LE(reader.info().failure_frame, 25);
-  EXPECT_EQ(reader.info().metadata.extra.end(),
-            std::find_if(reader.info().metadata.extra.begin(), reader.info().metadata.extra.end(),
-                         [](const auto& kv) { return kv.first == "gt_source" && kv.second != "none"; }));
+  EXPECT_EQ(
+      reader.info().metadata.extra.end(),
+      std::find_if(reader.info().metadata.extra.begin(), reader.info().metadata.extra.end(),
+                   [](const auto& kv) { return kv.first == "gt_source" && kv.second != "none"; }));
 }
 
 }  // namespace

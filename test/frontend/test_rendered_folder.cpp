@@ -46,7 +46,6 @@ constexpr int kFrames = 30;
 
 class RenderedFolder : public test::TempDirTest {
  protected:
-
   // Renders the family's folder through the CLI; returns its path.
   fs::path render(const Family& family, int frames) const {
     const fs::path out = dir_ / "folder";

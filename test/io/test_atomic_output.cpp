@@ -20,8 +20,8 @@
 #include <vector>
 
 #include "common/cli_runner.h"
-#include "common/temp_dir.h"
 #include "common/fault_injection.h"
+#include "common/temp_dir.h"
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/common/interrupt.h"

@@ -54,17 +54,18 @@ TEST(TextInput, ReadsTextWithinTheBounds) {
 TEST(TextInput, RefusesBeyondTheBoundsAndBinaryData) {
   const test::TempDir dir;
   std::ofstream(dir.file("big.toml")) << std::string(40, '\n');
-  EXPECT_NE(inputErrorOf(dir.file("big.toml"), {32, 10}).find(
-                dir.file("big.toml") + ": larger than 32 bytes: expected the config file"),
+  EXPECT_NE(inputErrorOf(dir.file("big.toml"), {32, 10})
+                .find(dir.file("big.toml") + ": larger than 32 bytes: expected the config file"),
             std::string::npos);
   std::ofstream(dir.file("long.toml")) << "a\nbb\n" << std::string(11, 'c') << "\n";
-  EXPECT_NE(inputErrorOf(dir.file("long.toml"), {100, 10}).find(
-                dir.file("long.toml") + ":3: line longer than 10 bytes"),
+  EXPECT_NE(inputErrorOf(dir.file("long.toml"), {100, 10})
+                .find(dir.file("long.toml") + ":3: line longer than 10 bytes"),
             std::string::npos);
   std::ofstream(dir.file("bin.toml")) << "a = 1\n" << std::string(3, '\0') << "\x81\xff";
-  EXPECT_NE(inputErrorOf(dir.file("bin.toml"), {100, 10}).find(
-                dir.file("bin.toml") + ":2: expected the config file as text, found binary data"),
-            std::string::npos);
+  EXPECT_NE(
+      inputErrorOf(dir.file("bin.toml"), {100, 10})
+          .find(dir.file("bin.toml") + ":2: expected the config file as text, found binary data"),
+      std::string::npos);
   EXPECT_NE(inputErrorOf(dir.file("missing.toml"), {100, 10}).find("cannot open the config file"),
             std::string::npos);
   EXPECT_NE(inputErrorOf(dir.path().string(), {100, 10}).find("cannot read the config file"),
@@ -75,8 +76,7 @@ TEST(TextInput, EndlessDevicesAndFifosStopAtTheBound) {
   const test::TempDir dir;
   const std::string zero = dir.file("zero");
   if (mknod(zero.c_str(), S_IFCHR | 0644, makedev(1, 5)) == 0) {
-    EXPECT_NE(inputErrorOf(zero, kSettingsTextLimits).find("found binary data"),
-              std::string::npos);
+    EXPECT_NE(inputErrorOf(zero, kSettingsTextLimits).find("found binary data"), std::string::npos);
   }
   const std::string fifo = dir.file("fifo");
   ASSERT_EQ(mkfifo(fifo.c_str(), 0644), 0);

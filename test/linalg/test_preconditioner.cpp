@@ -127,12 +127,13 @@ TYPED_TEST(PreconditionerTest, PreconditionedSchurComplementMatchesTheDoubleRefe
   const MatXd Hd = H.template cast<double>();
   const VecX<Scalar> b = H.col(2);
   const int m = 12, k = static_cast<int>(H.rows()) - m;
-  const MatXd S_ref = Hd.bottomRightCorner(k, k) -
-                      Hd.bottomLeftCorner(k, m) * Hd.topLeftCorner(m, m).ldlt().solve(
-                                                      Hd.topRightCorner(m, k));
+  const MatXd S_ref =
+      Hd.bottomRightCorner(k, k) -
+      Hd.bottomLeftCorner(k, m) * Hd.topLeftCorner(m, m).ldlt().solve(Hd.topRightCorner(m, k));
   const BlockScaling<Scalar> P =
       BlockScaling<Scalar>::fromHessian(H, Preconditioning::kBlockJacobi);
-  const SchurMarginalization<Scalar> sc = schurMarginalize<Scalar>(P.scaled(H), P.scaledGradient(b), m);
+  const SchurMarginalization<Scalar> sc =
+      schurMarginalize<Scalar>(P.scaled(H), P.scaledGradient(b), m);
   ASSERT_TRUE(sc.status.ok()) << sc.status.toString();
   EXPECT_EQ(sc.marg_rank, m);
   const BlockScaling<Scalar> P_kept = P.tail(m);

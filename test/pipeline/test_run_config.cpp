@@ -269,7 +269,8 @@ TEST(ConfigValidation, RelativeQrThresholdMustBeBelowOne) {
     EXPECT_EQ(e.line(), 3) << e.what();
     EXPECT_TRUE(contains(e.what(), "expected a relative threshold in [0, 1)")) << e.what();
   }
-  config.estimator.qr_threshold_mode = RankThresholdMode::kAbsolute;  // an absolute 1 is a valid threshold
+  config.estimator.qr_threshold_mode =
+      RankThresholdMode::kAbsolute;  // an absolute 1 is a valid threshold
   EXPECT_NO_THROW(config.validate());
 }
 

@@ -55,7 +55,8 @@ TEST(TrackingMonitor, FailsAfterTheConfiguredRunOfInconsistentFrames) {
   EXPECT_EQ(monitor.update(2, withChecked(200, 100, 31)), "");
   EXPECT_EQ(monitor.update(3, withChecked(200, 100, 30)), "");  // at the bound: consistent, resets
   EXPECT_EQ(monitor.update(4, withChecked(200, 100, 90)), "");
-  EXPECT_EQ(monitor.update(5, withChecked(5, 0, 0)), "");  // starved: the run of lost frames goes on
+  EXPECT_EQ(monitor.update(5, withChecked(5, 0, 0)),
+            "");  // starved: the run of lost frames goes on
   const std::string reason = monitor.update(6, withChecked(200, 120, 60));
   EXPECT_NE(reason.find("tracking lost: 3 frame(s) in a row in which more than 30 % of the "
                         "observations of the window's landmarks lie farther than 5 px"),

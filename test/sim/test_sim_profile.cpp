@@ -15,9 +15,9 @@
 
 #include "core/common/error.h"
 #include "core/data/sequence.h"
-#include "core/pipeline/run_config.h"
 #include "core/frontend/image_folder.h"
 #include "core/frontend/track_source.h"
+#include "core/pipeline/run_config.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/sim_profile.h"
 #include "sim_test_utils.h"

@@ -185,8 +185,8 @@ Blanket<double> posesWithLandmarks(std::mt19937_64& rng, const std::vector<Eigen
     BlanketVariable<double> pose;
     pose.kind = BlanketKind::kPose;
     pose.offset = offset;
-    pose.T_w_i = SE3d(expSO3<double>(phis[k]),
-                      Eigen::Vector3d(0.7 * double(k), -0.3, 0.2) + 0.1 * randomGaussian(rng, 3, 1));
+    pose.T_w_i = SE3d(expSO3<double>(phis[k]), Eigen::Vector3d(0.7 * double(k), -0.3, 0.2) +
+                                                   0.1 * randomGaussian(rng, 3, 1));
     x.push_back(pose);
     offset += 6;
   }
