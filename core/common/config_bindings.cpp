@@ -127,7 +127,8 @@ void setValue(const Binding& binding, const toml::node& node, Error error) {
   } else if (binding.list != nullptr) {
     *binding.list = numberList(binding, node, error);
   } else if (binding.b != nullptr) {
-    auto v = node.value<bool>();
+    // value<bool>() would also convert an integer (enabled = 1): only TOML's true and false count.
+    auto v = node.value_exact<bool>();
     if (!v) throw error(node, fmt::format("expected true or false for {}", binding.name()));
     *binding.b = *v;
   } else {

@@ -310,6 +310,26 @@ TEST(ConfigValidation, CheckValueTextForCommandLineOptions) {
   EXPECT_THROW(RunConfig::checkValueText("lm.no_such_key", "1"), std::logic_error);
 }
 
+// A flag takes TOML's true or false only: an integer (enabled = 1) is an input error naming the
+// key, never a silent conversion (issue #38).
+TEST(ConfigValidation, FlagsTakeTrueOrFalseNotIntegers) {
+  for (const char* text :
+       {"[diagnostics]\nenabled = 1\n", "[diagnostics]\nenabled = 0\n",
+        "[lm]\nlandmark_damping = 1.0\n", "[lm]\nlandmark_damping = \"true\"\n"}) {
+    RunConfig config;
+    try {
+      config.loadTomlString(text, "flags.toml");
+      FAIL() << "accepted " << text;
+    } catch (const InputError& e) {
+      EXPECT_TRUE(contains(e.what(), "flags.toml:2")) << e.what();
+      EXPECT_TRUE(contains(e.what(), "expected true or false")) << e.what();
+    }
+  }
+  RunConfig config;
+  config.loadTomlString("[diagnostics]\nenabled = false\n", "flags.toml");
+  EXPECT_FALSE(config.diagnostics.enabled);
+}
+
 // lm.stop_rule (issue #21): the two rule names parse and print back; anything else is an input
 // error naming the file, line, key and the accepted names.
 TEST(ConfigValidation, StopRuleIsMarglabOrBasalt) {
