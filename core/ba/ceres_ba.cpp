@@ -1,7 +1,6 @@
 #include "core/ba/ceres_ba.h"
 
 #include <ceres/ceres.h>
-#include <ceres/rotation.h>
 
 #include <chrono>
 #include <limits>
@@ -10,23 +9,6 @@
 
 namespace marglab {
 namespace {
-
-struct SnavelyResidual {
-  Vec<double, 2> z;
-  template <typename T>
-  bool operator()(const T* camera, const T* point, T* residual) const {
-    T P[3];
-    ceres::AngleAxisRotatePoint(camera, point, P);
-    for (int i = 0; i < 3; ++i) P[i] += camera[3 + i];
-    const T px = -P[0] / P[2];
-    const T py = -P[1] / P[2];
-    const T u = px * px + py * py;
-    const T d = T(1) + u * (camera[7] + u * camera[8]);
-    residual[0] = camera[6] * d * px - T(z.x());
-    residual[1] = camera[6] * d * py - T(z.y());
-    return true;
-  }
-};
 
 class Recorder : public ceres::IterationCallback {
  public:

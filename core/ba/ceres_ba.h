@@ -13,10 +13,32 @@
 // gradient and parameter tolerances 0, at most 500 CG iterations, η, Jacobi scaling, one thread
 // per --threads.
 
+#include <ceres/rotation.h>
+
 #include "core/ba/ba_options.h"
 #include "core/ba/bal_problem.h"
 
 namespace marglab {
+
+// The BAL residual as Ceres' bundle_adjuster writes it (SnavelyReprojectionError), on the stored
+// parameters: camera = (ω, t, f, k1, k2), point X; P = R(ω) X + t, p = −P_xy / P_z,
+// r = f (1 + k1‖p‖² + k2‖p‖⁴) p − z. For ceres::AutoDiffCostFunction<SnavelyResidual, 2, 9, 3>.
+struct SnavelyResidual {
+  Vec<double, 2> z;
+  template <typename T>
+  bool operator()(const T* camera, const T* point, T* residual) const {
+    T P[3];
+    ceres::AngleAxisRotatePoint(camera, point, P);
+    for (int i = 0; i < 3; ++i) P[i] += camera[3 + i];
+    const T px = -P[0] / P[2];
+    const T py = -P[1] / P[2];
+    const T u = px * px + py * py;
+    const T d = T(1) + u * (camera[7] + u * camera[8]);
+    residual[0] = camera[6] * d * px - T(z.x());
+    residual[1] = camera[6] * d * py - T(z.y());
+    return true;
+  }
+};
 
 BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options);
 

@@ -2,11 +2,11 @@
 // in float and double, rotations near zero and near π included, and against Ceres' automatic
 // differentiation of the same residual written with the stored angle-axis.
 #include <ceres/autodiff_cost_function.h>
-#include <ceres/rotation.h>
 #include <gtest/gtest.h>
 
 #include <random>
 
+#include "core/ba/ceres_ba.h"
 #include "core/ba/snavely_camera.h"
 #include "core/geometry/so3.h"
 #include "geometry/geometry_test_utils.h"
@@ -123,31 +123,12 @@ TYPED_TEST(SnavelyCameraTest, BalParametersRoundTrip) {
   }
 }
 
-// The BAL residual as Ceres' bundle_adjuster writes it (SnavelyReprojectionError), on the stored
-// parameters: camera = (ω, t, f, k1, k2), point X.
-struct CeresSnavelyResidual {
-  Eigen::Vector2d z;
-  template <typename T>
-  bool operator()(const T* camera, const T* point, T* residual) const {
-    T P[3];
-    ceres::AngleAxisRotatePoint(camera, point, P);
-    for (int i = 0; i < 3; ++i) P[i] += camera[3 + i];
-    const T px = -P[0] / P[2];
-    const T py = -P[1] / P[2];
-    const T u = px * px + py * py;
-    const T d = T(1) + u * (camera[7] + u * camera[8]);
-    residual[0] = camera[6] * d * px - z.x();
-    residual[1] = camera[6] * d * py - z.y();
-    return true;
-  }
-};
-
 TEST(SnavelyCameraCeres, AnalyticJacobiansMatchAutodiffOfTheStoredParameters) {
   std::mt19937 rng(14);
   for (const Eigen::Vector3d& omega : hardRotationVectors<double>()) {
     const CameraCase<double> s = makeSetup<double>(omega, rng);
     const Vec<double, 9> params = s.camera.toBal();
-    ceres::AutoDiffCostFunction<CeresSnavelyResidual, 2, 9, 3> cost(new CeresSnavelyResidual{s.z});
+    ceres::AutoDiffCostFunction<SnavelyResidual, 2, 9, 3> cost(new SnavelyResidual{s.z});
     Eigen::Vector2d r_ceres;
     Eigen::Matrix<double, 2, 9, Eigen::RowMajor> J_cam_ceres;
     Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J_pt_ceres;
