@@ -401,7 +401,10 @@ RunInputs loadRunInputs(const RunSpec& spec) {
   RunInputs inputs;
   inputs.dataset = loadImageSequence(spec.dataset);
   inputs.has_ground_truth = inputs.dataset.sequence.hasTrajectory();
-  if (!spec.tracks_file.empty()) inputs.tracks = readTrackFile(spec.tracks_file);
+  // --tracks with a --frontend is a usage error (runProblems), decided without reading the file.
+  if (!spec.tracks_file.empty() && spec.frontend == FrontendKind::kAuto) {
+    inputs.tracks = readTrackFile(spec.tracks_file);
+  }
   return inputs;
 }
 

@@ -141,6 +141,18 @@ TEST_F(RunInputs, TracksWithAFrontendIsAUsageError) {
   }
 }
 
+// Issue 38 (low): the pair was a usage error only once the track file had been read, so a bad
+// track file was reported instead (exit 1, "t_ns: expected an integer"). Decided before reading.
+TEST_F(RunInputs, TracksWithAFrontendIsAUsageErrorBeforeTheFileIsRead) {
+  std::ofstream(dir_ / "garbage.txt") << "# sequence: kitti/05\nnot a track line\n";
+  for (const char* frontend : {"images", "simulated"}) {
+    SCOPED_TRACE(frontend);
+    expectRefused("--tracks " + quote(dir_ / "garbage.txt") + " --frontend " + frontend +
+                      " --dataset kitti/05",
+                  2, {"--tracks FILE and --frontend"});
+  }
+}
+
 // Defect 8: an IMU recording that ends before the camera frames failed after the work with
 // "preintegrated covariance is not positive definite"; `datasets check` already knew.
 TEST_F(RunInputs, RealImuNotCoveringTheFramesIsRefusedFirst) {
