@@ -302,31 +302,23 @@ class Follower {
 // holds Slurm submissions (else it is a local sweep's, whose rows left were never run).
 int report(const std::string& name, const std::vector<IndexRow>& rows, const fs::path& out,
            double wall_s, int stop_signal, std::FILE* stream, bool slurm = true) {
-  int ok = 0, numerical = 0, process = 0, reused = 0, queued = 0, unsubmitted = 0;
-  std::map<std::string, int> kinds;
+  int ok = 0, reused = 0, queued = 0, unsubmitted = 0;
+  FailureCounts failed;
   for (const IndexRow& row : rows) {
     const std::string& status = row.get("status");
     reused += !row.get("reused").empty();
     if (status == "ok") {
       ++ok;
-    } else if (detail::isFailedResult(row)) {
-      ++numerical;
     } else if (status == "failed") {
-      ++process;
-      ++kinds[row.get("failure_kind")];
+      failed.add(row);
     } else if (isUnresolvedTask(row)) {
       ++queued;
     } else {
       ++unsubmitted;
     }
   }
-  std::string kind_text;
-  for (const auto& [kind, n] : kinds)
-    kind_text += fmt::format("{}{} {}", kind_text.empty() ? " (" : ", ", n, kind);
-  if (!kind_text.empty()) kind_text += ")";
   fmt::print(
-      stream, "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{}{}{} in {:.1f} s\n",
-      name, ok, numerical, process, kind_text,
+      stream, "sweep {}: {} ok, {}{}{}{} in {:.1f} s\n", name, ok, failed.text(),
       reused ? fmt::format(" ({} kept from an earlier invocation)", reused) : "",
       queued ? fmt::format(", {} still queued in Slurm", queued) : "",
       unsubmitted ? fmt::format(", {} not {}", unsubmitted, slurm ? "submitted" : "run") : "",
@@ -346,7 +338,7 @@ int report(const std::string& name, const std::vector<IndexRow>& rows, const fs:
                "--resume --out {}\n",
                (out / "sweep.toml").string(), out.string());
   }
-  return process > 0 || unsubmitted > 0 ? 1 : 0;
+  return failed.processFailures() > 0 || unsubmitted > 0 ? 1 : 0;
 }
 
 }  // namespace

@@ -261,6 +261,20 @@ class Parser {
                                   dataset));
   }
 
+  // The dataset's slug names its runs, logs and track file: two datasets with one slug (folders
+  // a/06 and a-06, or names differing only in characters the slug replaces) would share them.
+  void checkSlugIsItsOwn(const std::string& dataset, const toml::node& node) {
+    const auto [earlier, fresh] =
+        dataset_slugs_.emplace(slug(dataset), Listed{dataset, lineOf(node)});
+    if (fresh || earlier->second.dataset == dataset) return;
+    throw error(
+        node, fmt::format("datasets '{}' (line {}) and '{}' have the same slug '{}', which "
+                          "names their runs, logs and track files (characters other than "
+                          "letters, digits, '_', '.', '-' become '-'): rename or link "
+                          "one of the folders",
+                          earlier->second.dataset, earlier->second.line, dataset, earlier->first));
+  }
+
   // One [[group]]: its keys in the order they are checked, then its runs (datasets × variants ×
   // seeds × overrides) appended to the plan.
   void parseGroup(const toml::table& group, SweepPlan* plan) {
@@ -276,6 +290,7 @@ class Parser {
     }
     for (const toml::node* node : nonEmptyArray(group, "datasets", "a [[group]]", g.line)) {
       g.datasets.push_back(resolveDataset(*node));
+      checkSlugIsItsOwn(g.datasets.back(), *node);
     }
     g.variants = parseVariants(group, g.line);
     g.seeds = parseSeeds(group, g.line);
@@ -514,6 +529,11 @@ class Parser {
 
   std::string name_;
   std::map<std::string, int> planned_ids_;  // run id → line of its group
+  struct Listed {
+    std::string dataset;
+    int line = 0;
+  };
+  std::map<std::string, Listed> dataset_slugs_;  // slug → the dataset that has it, where listed
   std::string base_dir_;
   const ParseOptions& options_;
   std::vector<std::string> sequences_;

@@ -36,6 +36,33 @@ double IndexRow::number(const std::string& column) const {
   return v;
 }
 
+void FailureCounts::add(const IndexRow& row) {
+  const std::string& kind = row.get("failure_kind");
+  const std::string& code = row.get("exit_code");
+  if (kind == "numerical") {
+    ++numerical;
+  } else if (kind == "tracking") {
+    ++tracking;
+  } else if (kind == "error" || (kind == "exit" && (code == "1" || code == "2"))) {
+    ++error;
+  } else {
+    ++crashed;
+    ++crashed_kinds[kind.empty() ? "unknown" : kind];
+  }
+}
+
+std::string FailureCounts::text() const {
+  std::string out = fmt::format("{} failed numerically", numerical);
+  if (tracking > 0) out += fmt::format(", {} lost tracking", tracking);
+  if (error > 0) out += fmt::format(", {} ended with an error", error);
+  out += fmt::format(", {} crashed or killed", crashed);
+  std::string kinds;
+  for (const auto& [kind, n] : crashed_kinds) {
+    kinds += fmt::format("{}{} {}", kinds.empty() ? " (" : ", ", n, kind);
+  }
+  return out + (kinds.empty() ? "" : kinds + ")");
+}
+
 const std::vector<std::string>& indexColumns() {
   static const std::vector<std::string> columns = {"id",
                                                    "group",

@@ -7,6 +7,7 @@
 //   id, group, dataset, variant, method, precision, seed, frames (requested, 0: all), override,
 //   status        pending | running | ok | failed
 //   failure_kind  "" | numerical (the estimator failed: complete results file, status failed) |
+//                 tracking (the run lost the scene: complete results file, status failed) |
 //                 signal | exit (the process died / exited without a complete results file) |
 //                 timeout | interrupted (the sweep was stopped, or the Slurm task cancelled) |
 //                 error (could not start) | oom (Slurm: out of memory) | node (Slurm: node failure)
@@ -37,6 +38,27 @@ struct IndexRow {
   void setNumber(const std::string& column, double value);  // %.17g; "" for NaN
   // The cell as a number; NaN when empty or not a number.
   double number(const std::string& column) const;
+};
+
+// The failed runs of a sweep in the categories of its summary line, from their failure_kind:
+// results of the sweep — the estimator failed numerically (numerical) or lost the scene
+// (tracking) —; runs that ended with an error they reported (error: could not start, or the
+// images could not be tracked; exit with code 1 or 2: an input, usage or write error, the message
+// in reason); runs that crashed or were killed (signal, timeout, interrupted, oom, node, any other
+// exit), counted per kind.
+struct FailureCounts {
+  int numerical = 0;
+  int tracking = 0;
+  int error = 0;
+  int crashed = 0;
+  std::map<std::string, int> crashed_kinds;  // failure_kind → runs
+
+  void add(const IndexRow& row);  // a row with status failed
+  // Failures of the sweep's processes (its exit code 1), not results.
+  int processFailures() const { return error + crashed; }
+  // "M failed numerically[, L lost tracking][, E ended with an error], K crashed or killed
+  // [(n kind, …)]": the categories that no run is in are left out, but for the first and last.
+  std::string text() const;
 };
 
 // The column order of index.csv.

@@ -333,7 +333,7 @@ class Runner {
       if (status == "ok") {
         ++s.ok;
       } else if (status == "failed") {
-        (detail::isFailedResult(row) ? s.failed_numerical : s.failed_process)++;
+        s.failed.add(row);
       } else {
         ++s.not_run;
       }
@@ -432,9 +432,7 @@ int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& swee
              options.out_dir);
   std::fflush(options.out);
   const experiment::SweepSummary s = experiment::runSweep(plan, text, options);
-  fmt::print(options.out,
-             "sweep {}: {} ok, {} failed numerically, {} crashed or killed{}{} in {:.1f} s\n",
-             plan.name, s.ok, s.failed_numerical, s.failed_process,
+  fmt::print(options.out, "sweep {}: {} ok, {}{}{} in {:.1f} s\n", plan.name, s.ok, s.failed.text(),
              s.reused ? fmt::format(" ({} kept from an earlier invocation)", s.reused) : "",
              s.not_run ? fmt::format(", {} not run", s.not_run) : "", s.wall_s);
   if (s.redone_other_revision > 0) {
@@ -447,8 +445,9 @@ int runSweepAndReport(const experiment::SweepPlan& plan, const std::string& swee
                detail::signalName(s.stop_signal));
     return exitCodeForSignal(s.stop_signal);
   }
-  // Numerical failures are results (tables show them as x); a run that crashed is an error.
-  return s.failed_process > 0 ? 1 : 0;
+  // Numerical and tracking failures are results (tables show them as x); a run that ended with an
+  // error, crashed or was killed is a failure of the sweep.
+  return s.failed.processFailures() > 0 ? 1 : 0;
 }
 
 SweepSummary runSweep(const SweepPlan& plan, const std::string& sweep_file_text,

@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "core/experiment/sweep_def.h"
+#include "core/experiment/sweep_index.h"
 
 namespace marglab::experiment {
 
@@ -61,8 +62,7 @@ struct SweepOptions {
 struct SweepSummary {
   int planned = 0;
   int ok = 0;
-  int failed_numerical = 0;       // complete results file with status failed (numerical, tracking)
-  int failed_process = 0;         // signal / exit without results / timeout / could not start
+  FailureCounts failed;           // the failed runs by category (sweep_index.h)
   int reused = 0;                 // kept by --resume
   int not_run = 0;                // still pending after an interruption
   int redone_other_revision = 0;  // complete, but written by another git revision: run again

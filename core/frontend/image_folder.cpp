@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <map>
+#include <system_error>
 
 #include "core/common/error.h"
 #include "core/data/parsers.h"
@@ -92,9 +93,24 @@ std::optional<StereoImageList> aslImages(const fs::path& mav) {
   return list;
 }
 
+// A KITTI camera folder (or one of its images) that is there but cannot be read — a symbolic
+// link loop, no permission — is said to be so, not reported as an image missing.
+void checkReadable(const fs::path& path, bool folder) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (!ec && folder && fs::is_directory(status)) fs::directory_iterator(path, ec);
+  if (!ec || ec == std::errc::no_such_file_or_directory) return;
+  throw InputError(
+      path.string(), 0,
+      fmt::format("cannot read the {}: {}{}", folder ? "folder" : "image", ec.message(),
+                  ec == std::errc::too_many_symbolic_link_levels ? " (a symbolic link loop)" : ""));
+}
+
 std::optional<StereoImageList> kittiImages(const Sequence& seq) {
   const fs::path dir = seq.directory;
+  checkReadable(dir / "image_0", true);
   if (!isDir(dir / "image_0")) return std::nullopt;
+  checkReadable(dir / "image_1", true);
   StereoImageList list;
   list.source = (dir / "image_{0,1}").string();
   for (std::size_t i = 0; i < seq.cam_t_ns.size(); ++i) {
@@ -102,6 +118,7 @@ std::optional<StereoImageList> kittiImages(const Sequence& seq) {
     for (const char* cam : {"image_0", "image_1"}) {
       const fs::path image = dir / cam / name;
       if (!isFile(image)) {
+        checkReadable(image, false);
         throw InputError(image.string(), 0,
                          fmt::format("expected one image per line of {} ({} lines)", seq.cam_file,
                                      seq.cam_t_ns.size()));

@@ -53,6 +53,11 @@ struct RunMetadata {
   std::string marg_strategy = "discard";
   std::string frontend = "simulated";
   std::string isa;  // empty: the writer records the process's active ISA (core/linalg/isa.h)
+  // frontend "tracks": the --tracks file as given, the sequence it records, and whether
+  // --tracks-any-sequence was given ("true" | "false"); all empty for other front-ends.
+  std::string tracks_file;
+  std::string tracks_sequence;
+  std::string tracks_any_sequence;
   std::vector<std::pair<std::string, std::string>> extra;  // more root string attributes
 };
 

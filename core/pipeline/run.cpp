@@ -152,6 +152,11 @@ RunMetadata runMetadata(const RunSpec& spec, const TrackSource& source, const Ru
                                 : static_cast<double>(NumericTraits<Scalar>::sqrtEpsilon());
   }
   metadata.frontend = source.frontend;
+  if (source.frontend == "tracks") {
+    metadata.tracks_file = spec.tracks_file;
+    metadata.tracks_sequence = source.stream.sequence;
+    metadata.tracks_any_sequence = spec.tracks_any_sequence ? "true" : "false";
+  }
   metadata.extra = {{"dataset_path", sequence.directory},
                     {"gt_source", source.has_ground_truth ? sequence.gt_source : "none"},
                     {"run_spec", spec_toml}};
@@ -401,7 +406,10 @@ RunInputs loadRunInputs(const RunSpec& spec) {
   RunInputs inputs;
   inputs.dataset = loadImageSequence(spec.dataset);
   inputs.has_ground_truth = inputs.dataset.sequence.hasTrajectory();
-  if (!spec.tracks_file.empty()) inputs.tracks = readTrackFile(spec.tracks_file);
+  // --tracks with a --frontend is a usage error (runProblems), decided without reading the file.
+  if (!spec.tracks_file.empty() && spec.frontend == FrontendKind::kAuto) {
+    inputs.tracks = readTrackFile(spec.tracks_file);
+  }
   return inputs;
 }
 

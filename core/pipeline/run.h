@@ -58,10 +58,11 @@ struct RunOutcome {
 struct RunInputs {
   ImageSequence dataset;
   bool has_ground_truth = false;
-  std::optional<TrackStream> tracks;  // spec.tracks_file, read
+  std::optional<TrackStream> tracks;  // spec.tracks_file, read (not with a --frontend)
 };
 
-// Throws InputError: a dataset that does not load, a track file that cannot be read.
+// Throws InputError: a dataset that does not load, a track file that cannot be read. A track file
+// given with a --frontend is not read: runProblems reports the pair as a usage error.
 RunInputs loadRunInputs(const RunSpec& spec);
 
 // Every problem of a resolved spec (IsValid-style; empty: valid), in one list — the only place a

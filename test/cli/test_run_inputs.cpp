@@ -17,6 +17,7 @@
 #include "common/temp_dir.h"
 #include "core/data/sequence.h"
 #include "core/frontend/image_file.h"
+#include "core/io/results_file.h"
 
 namespace marglab {
 namespace {
@@ -83,6 +84,41 @@ TEST_F(RunInputs, TrackFileOfAnotherSequenceIsRefused) {
   EXPECT_NE(forced.output.find("status"), std::string::npos) << forced.output;
 }
 
+// Issue 38 (low): a --tracks-any-sequence run did not record the track file, the sequence it
+// records or the override. Root attributes tracks_file, tracks_sequence, tracks_any_sequence.
+TEST_F(RunInputs, ARunOnATrackFileRecordsTheFileItsSequenceAndTheOverride) {
+  const fs::path k10 = dir_ / "k10.h5";
+  ASSERT_EQ(runCli("datasets simulate --dataset kitti/10 --frames 10 -o " + quote(k10)).exit_code,
+            0);
+  const auto forced =
+      runCli("run --variant ns-qr-sqrt-f64 --frames 5 --tracks " + quote(k10) +
+             " --tracks-any-sequence --dataset kitti/05 -o " + quote(dir_ / "forced.h5"));
+  ASSERT_TRUE(fs::exists(dir_ / "forced.h5")) << forced.output;
+  const RunMetadata f = ResultsReader((dir_ / "forced.h5").string()).info().metadata;
+  EXPECT_EQ(f.frontend, "tracks");
+  EXPECT_EQ(f.tracks_file, k10.string());
+  EXPECT_EQ(f.tracks_sequence, "kitti/10");
+  EXPECT_EQ(f.tracks_any_sequence, "true");
+  EXPECT_EQ(f.sequence, "05");
+
+  ASSERT_EQ(runCli("run --variant ns-qr-sqrt-f64 --frames 5 --tracks " + quote(k10) +
+                   " --dataset kitti/10 -o " + quote(dir_ / "own.h5"))
+                .exit_code,
+            0);
+  const RunMetadata own = ResultsReader((dir_ / "own.h5").string()).info().metadata;
+  EXPECT_EQ(own.tracks_file, k10.string());
+  EXPECT_EQ(own.tracks_sequence, "kitti/10");
+  EXPECT_EQ(own.tracks_any_sequence, "false");
+
+  ASSERT_EQ(runCli("run --variant ns-qr-sqrt-f64 --frames 5 --dataset kitti/10 -o " +
+                   quote(dir_ / "sim.h5"))
+                .exit_code,
+            0);
+  const RunMetadata sim = ResultsReader((dir_ / "sim.h5").string()).info().metadata;
+  EXPECT_EQ(sim.tracks_file, "");
+  EXPECT_EQ(sim.tracks_any_sequence, "");
+}
+
 // Defect 5 and the catch-all "no camera frame lies inside the trajectory": a text track file
 // whose timestamps are 1 ns off, one without frames, an empty one.
 TEST_F(RunInputs, TrackFileOfOtherTimestampsOrWithoutFramesIsRefusedSayingWhich) {
@@ -138,6 +174,18 @@ TEST_F(RunInputs, TracksWithAFrontendIsAUsageError) {
     SCOPED_TRACE(frontend);
     expectRefused("--tracks " + quote(k05) + " --frontend " + frontend + " --dataset kitti/05", 2,
                   {"--tracks FILE and --frontend"});
+  }
+}
+
+// Issue 38 (low): the pair was a usage error only once the track file had been read, so a bad
+// track file was reported instead (exit 1, "t_ns: expected an integer"). Decided before reading.
+TEST_F(RunInputs, TracksWithAFrontendIsAUsageErrorBeforeTheFileIsRead) {
+  std::ofstream(dir_ / "garbage.txt") << "# sequence: kitti/05\nnot a track line\n";
+  for (const char* frontend : {"images", "simulated"}) {
+    SCOPED_TRACE(frontend);
+    expectRefused("--tracks " + quote(dir_ / "garbage.txt") + " --frontend " + frontend +
+                      " --dataset kitti/05",
+                  2, {"--tracks FILE and --frontend"});
   }
 }
 

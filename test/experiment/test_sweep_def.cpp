@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <algorithm>
 
 #include <filesystem>
@@ -163,6 +165,38 @@ INSTANTIATE_TEST_SUITE_P(
                   7, "must not hold --frontend"},
         Malformed{"TomlSyntax", "name = \"bad\"\n[[group]\n", 2, ""}),
     [](const auto& info) { return std::string(info.param.name); });
+
+// Issue 38 (low): user folders a/06 and a-06 have one slug (tmp-…-a-06); in one group they were
+// "planned twice" (as if listed twice), in two groups accepted, sharing logs and track files.
+// The error names both datasets and the slug.
+TEST(SweepDefinition, DatasetsWithTheSameSlugAreRefusedNamingBoth) {
+  const fs::path base = fs::temp_directory_path() / ("marglab_slug_" + std::to_string(::getpid()));
+  fs::create_directories(base / "a" / "06");
+  fs::create_directories(base / "a-06");
+  const std::string a = (base / "a" / "06").string(), b = (base / "a-06").string();
+  const std::string same_group =
+      "name = \"s\"\n[[group]]\nname = \"g\"\ndatasets = [\"a/06\",\n  \"a-06\"]\n"
+      "variants = [\"headline\"]\n";
+  const std::string two_groups =
+      "name = \"s\"\n[[group]]\nname = \"g\"\ndatasets = [\"a/06\"]\nvariants = [\"headline\"]\n"
+      "[[group]]\nname = \"h\"\ndatasets = [\"a-06\"]\nvariants = [\"headline\"]\n";
+  for (const auto& [text, line] : {std::pair{same_group, 5}, std::pair{two_groups, 8}}) {
+    SCOPED_TRACE(text);
+    try {
+      parseSweep(text, "sweep.toml", base.string());
+      ADD_FAILURE() << "accepted";
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      EXPECT_EQ(e.line(), line) << what;
+      EXPECT_NE(what.find("datasets '" + a + "' (line 4) and '" + b + "' have the same slug '" +
+                          slug(a) + "'"),
+                std::string::npos)
+          << what;
+      EXPECT_EQ(what.find("planned twice"), std::string::npos) << what;
+    }
+  }
+  fs::remove_all(base);
+}
 
 // frontend = "images": every run reads the track file the runner writes once per dataset.
 TEST(SweepDefinition, ImagesFrontendRunsReadOneTrackFilePerDataset) {

@@ -208,5 +208,25 @@ TEST_F(KittiMotion, ImagesGoingBlackFailAsTracking) {
                    [](const auto& kv) { return kv.first == "gt_source" && kv.second != "none"; }));
 }
 
+// Issue 38 (low): an image_1/ that is a symbolic link loop was reported as "expected one image per
+// line of times.txt"; the error names the folder and the loop. (An unreadable folder says "cannot
+// read the folder: Permission denied" the same way; not testable as root.)
+TEST_F(KittiMotion, ALoopingImageFolderIsReportedAsALoop) {
+  const fs::path folder = dir_ / "06_loop";
+  fs::create_directories(folder);
+  fs::create_directory_symlink(shipped() / "image_0", folder / "image_0");
+  fs::create_directory_symlink(folder / "image_1", folder / "image_1");  // points at itself
+  fs::copy_file(shipped() / "times.txt", folder / "times.txt");
+  fs::copy_file(shipped() / "calib.txt", folder / "calib.txt");
+  const auto result = runCli("run --dataset '" + folder.string() +
+                             "' --variant ns-qr-sqrt-f64 --frames 5 -o '" + path("loop.h5") + "'");
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find((folder / "image_1").string() + ": cannot read the folder: "),
+            std::string::npos)
+      << result.output;
+  EXPECT_NE(result.output.find("(a symbolic link loop)"), std::string::npos) << result.output;
+  EXPECT_EQ(result.output.find("expected one image per line"), std::string::npos) << result.output;
+}
+
 }  // namespace
 }  // namespace marglab

@@ -161,6 +161,8 @@ class Run:
             self.attrs.setdefault("marg_strategy", "discard")
             self.attrs.setdefault("frontend", "")
             self.attrs.setdefault("isa", "")
+            for name in ("tracks_file", "tracks_sequence", "tracks_any_sequence"):
+                self.attrs.setdefault(name, "")
             for group in ("frames", "marg", "summary"):
                 if group not in f:
                     raise SchemaError("%s: missing group /%s" % (path, group))
