@@ -35,6 +35,8 @@ MODULES="common;data;diagnostics;estimator;experiment;geometry;imu;io;linalg;pip
 LONG_TESTS="^([A-Za-z0-9]+/)?(SlurmSweep|SlurmOutcome|SweepEndToEnd|SweepKill|StrategyTables|NfrStrategy|DenseStrategyTest|Vio[A-Z][A-Za-z]*|Vo[A-Z][A-Za-z]*)\\."
 REPRESENTATIVE="^NfrStrategy\\.EveryKeyframeEventIsSparsifiedSchurF64$"
 
+# ccache keys on paths relative to the checkout, so a clean clone elsewhere (CI) hits the cache.
+export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$(pwd)}"
 # -O1: a usable speed with exact stack traces; asserts (Eigen's bounds checks) stay on.
 CC=clang CXX=clang++ cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -gline-tables-only" \

@@ -44,6 +44,8 @@ fi
 
 BUILD_DIR="${MARGLAB_BUILD_DIR:-build}"
 JOBS="${MARGLAB_JOBS:-$(nproc)}"
+# ccache keys on paths relative to the checkout, so a clean clone elsewhere (CI) hits the cache.
+export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$(pwd)}"
 cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release
 targets=()
 for t in ${MARGLAB_BUILD_TARGETS:-}; do targets+=(--target "$t"); done
