@@ -10,13 +10,11 @@
 #include <limits>
 
 #include "core/common/error.h"
+#include "core/common/text_limits.h"
 
 namespace marglab {
 
 namespace fs = std::filesystem;
-
-// As the whole-file text inputs (core/io/text_input.h): a line is never read without bound.
-constexpr std::size_t kMaxLineBytes = 1u << 20;
 
 TextFile::TextFile(std::string path) : path_(std::move(path)) {
   std::error_code ec;
@@ -42,7 +40,7 @@ bool TextFile::nextLine(std::string_view& line) {
     got_any = true;
     buffer_ += chunk;
     if (!buffer_.empty() && buffer_.back() == '\n') break;
-    if (buffer_.size() > kMaxLineBytes) {
+    if (buffer_.size() > kMaxTextLineBytes) {
       ++line_;
       fail("expected a text file with lines of at most 1 MiB (a longer line, or binary data)");
     }

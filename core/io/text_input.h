@@ -7,20 +7,11 @@
 // read like files, within the same bounds. The line-by-line dataset reader (core/data/
 // text_file.h) bounds its lines the same way.
 
-#include <cstddef>
 #include <string>
 
+#include "core/common/text_limits.h"
+
 namespace marglab {
-
-struct TextLimits {
-  std::size_t max_bytes;
-  std::size_t max_line;
-};
-
-// A config, a run spec, a sweep file: a few kB in practice.
-inline constexpr TextLimits kSettingsTextLimits{16u << 20, 1u << 20};
-// A text track file: tens of MB for a whole KITTI sequence.
-inline constexpr TextLimits kTrackTextLimits{1024u << 20, 1u << 20};
 
 // The file's text; `what` names it in the errors ("the config file"). Throws InputError.
 std::string readTextInput(const std::string& path, const char* what, TextLimits limits);
