@@ -441,10 +441,9 @@ void addTrackSourceProblems(const RunSpec& spec, const RunInputs& inputs,
   if (!spec.tracks_file.empty()) return;
   const bool images = inputs.dataset.images.has_value();
   if (spec.frontend == FrontendKind::kImages && !images) {
-    out->push_back({ProblemKind::kUsage, "", 0,
-                    fmt::format("--frontend images: {} has no images (expected mav0/cam0/data/ or "
-                                "image_0/ and image_1/)",
-                                sequence.directory)});
+    out->push_back({ProblemKind::kInput, sequence.directory, 0,
+                    "--frontend images: the sequence has no images (expected mav0/cam0/data/ or "
+                    "image_0/ and image_1/)"});
   }
   const bool simulate = spec.frontend == FrontendKind::kSimulated ||
                         (spec.frontend == FrontendKind::kAuto && !images);
@@ -487,7 +486,24 @@ void addCaptureProblems(const RunSpec& spec, const Sequence& sequence, std::vect
   std::filesystem::remove(dir, ec);
 }
 
-// The mode against the dataset: VIO needs ground truth and an IMU; a real IMU needs VIO.
+// What needs VIO, on a VO run: a problem of the options (usage, exit 2) where the user chose VO
+// on a dataset that can run VIO, else a problem of the dataset (input, exit 1, naming its folder),
+// so that one relation always exits the same way.
+void addNeedsVioProblem(const RunInputs& inputs, std::string message, std::vector<Problem>* out) {
+  const Sequence& sequence = inputs.dataset.sequence;
+  const bool dataset_can_vio = inputs.has_ground_truth && sequence.kind != DatasetKind::kKitti;
+  if (dataset_can_vio) {
+    out->push_back({ProblemKind::kUsage, "", 0, message + " (this run is --mode vo)"});
+  } else {
+    out->push_back({ProblemKind::kInput, sequence.directory, 0,
+                    fmt::format("{}: sequence {} runs VO only ({})", message, sequence.name,
+                                inputs.has_ground_truth ? "KITTI odometry has no IMU"
+                                                        : "it has no ground truth")});
+  }
+}
+
+// The mode against the dataset: VIO needs ground truth and an IMU; a real IMU, another IMU noise
+// profile and a marginalization strategy other than discard need VIO.
 void addModeProblems(const RunSpec& spec, const RunInputs& inputs, std::vector<Problem>* out) {
   const Sequence& sequence = inputs.dataset.sequence;
   const bool vio = spec.mode == RunMode::kVio;
@@ -501,7 +517,7 @@ void addModeProblems(const RunSpec& spec, const RunInputs& inputs, std::vector<P
                     "KITTI odometry has no IMU: VIO needs EuRoC or TUM-VI (use --mode vo)"});
   }
   if (spec.imu == ImuSource::kReal && !vio) {
-    out->push_back({ProblemKind::kUsage, "", 0, "--imu real needs VIO (--mode vio)"});
+    addNeedsVioProblem(inputs, "--imu real needs VIO", out);
   } else if (spec.imu == ImuSource::kReal && !sequence.imu) {
     out->push_back({ProblemKind::kInput, sequence.directory, 0,
                     fmt::format("--imu real: sequence {} has no real IMU recording (expected "
@@ -510,11 +526,25 @@ void addModeProblems(const RunSpec& spec, const RunInputs& inputs, std::vector<P
   } else if (spec.imu == ImuSource::kReal) {
     addInputProblem(out, [&] { checkImuCoverage(sequence); });
   }
-  const MargStrategy strategy = spec.config.estimator.marg_strategy;
-  if (strategy != MargStrategy::kDiscard && !vio) {
-    out->push_back({ProblemKind::kUsage, "", 0,
-                    fmt::format("marginalization strategy {} needs VIO (EuRoC or TUM-VI)",
-                                toString(strategy))});
+  if (vio) return;
+  const EstimatorSettings& estimator = spec.config.estimator;
+  if (estimator.marg_strategy != MargStrategy::kDiscard) {
+    addNeedsVioProblem(inputs,
+                       fmt::format("marginalization strategy {} needs VIO (EuRoC or TUM-VI)",
+                                   toString(estimator.marg_strategy)),
+                       out);
+  }
+  // A VO run has no IMU: another profile would be recorded in its config and used nowhere.
+  if (estimator.imu_noise_profile != EstimatorSettings().imu_noise_profile) {
+    const std::string key = "imu.noise_profile";
+    const Problem where =
+        spec.config.located({key, fmt::format("{} = {} weighs IMU factors, which only VIO has", key,
+                                              toString(estimator.imu_noise_profile))});
+    addNeedsVioProblem(inputs,
+                       where.line > 0
+                           ? fmt::format("{}:{}: {}", where.file, where.line, where.message)
+                           : where.message,
+                       out);
   }
 }
 
