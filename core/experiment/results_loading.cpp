@@ -74,19 +74,22 @@ std::size_t cameraFrames(const std::string& name_or_path,
   return it->second;
 }
 
-// A run on a user's folder that records a shipped sequence's name is over the whole sequence only
-// when the folder holds as many frames (a 51-frame clip of kitti/06 is not kitti/06).
-void markClips(ResultSet* set) {
+// A run covers the whole sequence it records only when its folder holds as many frames (a
+// 51-frame clip of kitti/06 is not kitti/06) and it was not cut short by `frames` = N.
+void markPartialRuns(ResultSet* set) {
   std::map<std::string, std::size_t> cache;
   const std::vector<std::string> shipped = listSequences();
   for (RunRecord& r : set->runs) {
     const std::string& key = r.row.get("dataset");
-    if (r.indexed_dataset == key ||
-        std::find(shipped.begin(), shipped.end(), key) == shipped.end()) {
-      continue;
-    }
+    const bool named_shipped = std::find(shipped.begin(), shipped.end(), key) != shipped.end();
+    const double requested = r.row.number("frames");
+    const bool cut = std::isfinite(requested) && requested > 0;
+    if (!named_shipped && !cut) continue;
     const std::size_t own = cameraFrames(r.indexed_dataset, &cache);
-    if (own > 0 && own != cameraFrames(key, &cache)) r.clip_frames = static_cast<long long>(own);
+    if (own == 0) continue;
+    const std::size_t whole = named_shipped ? cameraFrames(key, &cache) : own;
+    const std::size_t covered = cut ? std::min(own, static_cast<std::size_t>(requested)) : own;
+    if (covered < whole) r.partial_frames = static_cast<long long>(covered);
   }
 }
 
@@ -173,7 +176,7 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
           from_index));
     }
   }
-  markClips(&set);
+  markPartialRuns(&set);
   separateCollisions(&set);
   return set;
 }

@@ -282,8 +282,8 @@ class Builder {
       for (const RunRecord* r : select(dataset, c).runs) {
         double f = r->row.number("frames");
         if (!std::isfinite(f) || f <= 0) f = 0;
-        // A clip's frames, never "all" (issue 38 item 6).
-        if (r->clip_frames > 0) f = f > 0 ? std::min<double>(f, r->clip_frames) : r->clip_frames;
+        // A part's frames, never "all" (issue 38 item 6).
+        if (r->partial_frames > 0) f = r->partial_frames;
         if (f <= 0) return "all";
         most = std::max(most, f);
       }
@@ -291,12 +291,13 @@ class Builder {
     return most > 0 ? fmt::format("{:.0f}", most) : "";
   }
 
-  // Whether a run of the row is over a clip folder: the paper's whole-sequence values stay away.
-  bool clipRow(const std::string& dataset) const {
+  // Whether a run of the row covers part of its sequence: the paper's whole-sequence values stay
+  // away.
+  bool partialRow(const std::string& dataset) const {
     for (const auto& [key, sel] : by_cell_) {
       if (key.dataset != dataset) continue;
       for (const RunRecord* r : sel.runs) {
-        if (r->clip_frames > 0) return true;
+        if (r->partial_frames > 0) return true;
       }
     }
     return false;
@@ -360,14 +361,14 @@ class Builder {
         row.key = dataset;
         row.label = rowLabel(labels, dataset, &context->any_estimate);
         row.frames = framesLabel(dataset, defining);
-        const bool clip = clipRow(dataset);
+        const bool partial = partialRow(dataset);
         row.ours_decimals = spec.ours_decimals;
         row.paper_decimals = spec.paper_decimals;
         row.scientific = spec.scientific;
         for (const BuiltColumn& c : columns) {
           row.ours.push_back(cellOf(spec.cell, context->seed_stats,
                                     select(dataset, c.column.variant), valuesOf(spec, *c.spec)));
-          row.paper.push_back(c.spec->paper && !clip
+          row.paper.push_back(c.spec->paper && !partial
                                   ? paperCell(paper, dataset, c.column.variant, t->quantities)
                                   : TableCell{});
         }
@@ -399,7 +400,7 @@ class Builder {
           for (const BuiltColumn& c : columns) {
             row.ours.push_back(
                 cellOf(spec.cell, context->seed_stats, sel, valuesOf(spec, *c.spec)));
-            row.paper.push_back(key == spec.paper_row_key && !clipRow(dataset)
+            row.paper.push_back(key == spec.paper_row_key && !partialRow(dataset)
                                     ? paperCell(paper, dataset, c.column.variant, t->quantities)
                                     : TableCell{});
           }
@@ -467,7 +468,10 @@ class Builder {
     for (const BuiltColumn& c : columns) {
       by_column.push_back(averages(context->datasets, c.column.variant, spec.metrics));
     }
-    const PaperTable* paper = paperTable(spec.paper);
+    // The paper's averages are over whole sequences.
+    const bool partial = std::any_of(context->datasets.begin(), context->datasets.end(),
+                                     [this](const std::string& d) { return partialRow(d); });
+    const PaperTable* paper = partial ? nullptr : paperTable(spec.paper);
     for (std::size_t m = 0; m < spec.metrics.size(); ++m) {
       const MetricSpec& metric = spec.metrics[m];
       TableRow row{metric.key,

@@ -124,9 +124,10 @@ struct RunRecord {
   long long n_frames = 0;
   long long failure_frame = -1;
   std::string indexed_dataset;  // the index's "dataset" (row's "dataset" is the table's key)
-  // A user's folder that holds only part of the sequence it records (a clip): its camera frames.
-  // 0 for a whole sequence, or when the folder can no longer be read.
-  long long clip_frames = 0;
+  // A run over part of the sequence it records, the frames it covers: a user's folder that holds a
+  // clip of it, or `frames` = N below the sequence's length. 0 for a whole sequence, or when the
+  // sequence can no longer be read. The paper's whole-sequence values never stand beside it.
+  long long partial_frames = 0;
 };
 
 struct ResultSet {

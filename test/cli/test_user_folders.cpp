@@ -1,7 +1,8 @@
 // Sweeps over a user's dataset folders (issue 38 items 4-6): `tables` keys a run by the kind and
 // sequence its results file records, and keeps two folders recording one name apart (with a
 // warning) instead of collapsing them into one cell; a folder holding part of a sequence (a clip)
-// is labelled with its frame count, never "all", and shows no whole-sequence paper value;
+// is labelled with its frame count, never "all", and shows no whole-sequence paper value, nor does
+// a shipped sequence's run cut short by `frames`;
 // `plot` draws the figures of such a sweep (it knew only shipped names).
 
 #include <gtest/gtest.h>
@@ -75,6 +76,34 @@ TEST_F(UserFoldersTest, AClipIsLabelledWithItsFramesNotAsTheWholeSequence) {
   EXPECT_NE(tables.output.find("| kitti06 | 51 |"), std::string::npos) << tables.output;
   EXPECT_EQ(tables.output.find("| all |"), std::string::npos) << tables.output;
   EXPECT_EQ(tables.output.find("2.61"), std::string::npos) << tables.output;
+}
+
+// Issue 38 item 6, the strict reading: a run of a shipped sequence cut short by `frames` = N is a
+// part of it too. The paper's whole-sequence value (Table 2, kitti04: 1.22) stands beside the whole
+// 271 frames only, and a `frames` at or above the length is the whole sequence.
+TEST_F(UserFoldersTest, APaperValueStandsBesideAWholeSequenceRunOnly) {
+  const auto table2 = [this](const std::string& frames) {
+    std::ofstream(dir_ / "k.toml") << "name = \"k\"\n[[group]]\nname = \"g\"\n"
+                                   << "datasets = [\"kitti/04\"]\nvariants = [\"ns-qr-sqrt-f64\"]\n"
+                                   << frames;
+    fs::remove_all(dir_ / "k");
+    const auto r = runCli("sweep " + quote(dir_ / "k.toml") + " --out " + quote(dir_ / "k"));
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    const auto tables = runCli("tables " + quote(dir_ / "k") + " --print");
+    EXPECT_EQ(tables.exit_code, 0) << tables.output;
+    const std::string& out = tables.output;
+    const std::size_t at = out.find("| kitti04 |", out.find("Table 2"));
+    return at == std::string::npos ? out : out.substr(at, out.find('\n', at) - at);
+  };
+  const std::string part = table2("frames = 50\n");
+  EXPECT_EQ(part.rfind("| kitti04 | 50 |", 0), 0u) << part;
+  EXPECT_EQ(part.find("1.22"), std::string::npos) << part;
+  const std::string whole = table2("");
+  EXPECT_EQ(whole.rfind("| kitti04 | all |", 0), 0u) << whole;
+  EXPECT_NE(whole.find("1.22"), std::string::npos) << whole;
+  const std::string beyond = table2("frames = 300\n");
+  EXPECT_EQ(beyond.rfind("| kitti04 | 300 |", 0), 0u) << beyond;
+  EXPECT_NE(beyond.find("1.22"), std::string::npos) << beyond;
 }
 
 TEST_F(UserFoldersTest, PlotDrawsTheFiguresOfAUserFolderSweep) {
