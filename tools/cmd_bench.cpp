@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/bench/bench_report.h"
+#include "core/bench/isa_choice.h"
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/estimator/variant.h"
@@ -43,7 +44,7 @@ std::string selfExe() {
 }
 
 int runBenchCommand(const BenchArgs& a) {
-  setActiveIsa(resolveIsa(a.isa));
+  activateIsa(a.isa);
   BenchOptions o;
   o.rounds = a.quick ? 1 : a.rounds;
   o.batch_s = (a.quick ? 2 : a.batch_ms) * 1e-3;

@@ -12,11 +12,13 @@
 
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <filesystem>
 #include <memory>
 
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
+#include "core/common/subprocess.h"
 #include "core/experiment/plotting.h"
 #include "core/experiment/sweep_def.h"
 #include "core/experiment/sweep_runner.h"
@@ -69,8 +71,14 @@ std::string extractTable(const std::string& markdown, const std::string& title_p
   return out;
 }
 
-// Runs the sweeps (validated before any runs) and returns the worst exit code, 130 at once on an
-// interrupt; dirs gets each sweep's folder.
+// Whether a sweep's exit code says SIGINT or SIGTERM stopped it (128 + signal): then nothing
+// after it runs, neither the next sweep nor the tables, figures and notebooks of a part.
+bool interruptedExit(int code) {
+  return code == exitCodeForSignal(SIGINT) || code == exitCodeForSignal(SIGTERM);
+}
+
+// Runs the sweeps (validated before any runs) and returns the worst exit code, 128 + signal at
+// once on an interrupt; dirs gets each sweep's folder.
 int runSweeps(const ReproduceArgs& args, const std::vector<std::string>& files,
               std::vector<std::string>* dirs) {
   std::vector<experiment::SweepPlan> plans;
@@ -91,7 +99,7 @@ int runSweeps(const ReproduceArgs& args, const std::vector<std::string>& files,
     options.slurm.wait = true;  // the tables need the runs
     const int code = experiment::runSweepAndReport(
         plans[i], (fs::path(args.experiments) / files[i]).string(), options);
-    if (code == 130) return code;
+    if (interruptedExit(code)) return code;
     worst = std::max(worst, code);
     dirs->push_back(options.out_dir);
   }
@@ -140,7 +148,7 @@ int runReproduce(const ReproduceArgs& args) {
                  : std::vector<std::string>{"paper_vo.toml", "paper_vio.toml"};
   std::vector<std::string> dirs;
   const int worst = runSweeps(args, files, &dirs);
-  if (worst == 130) return worst;
+  if (interruptedExit(worst)) return worst;
 
   const std::string name = args.quick ? "quick" : "paper";
   experiment::TablesRequest tables;

@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 
+#include "core/bench/isa_choice.h"
 #include "core/common/error.h"
 #include "core/common/interrupt.h"
 #include "core/data/plausibility.h"
@@ -65,9 +66,10 @@ RunProgress progressLine(std::optional<InterruptPolling>* polling) {
 int runRun(const cli::RunArgs& args) {
   const RunSpec spec = cli::runSpecFrom(args);
   cli::checkDatasetArgument(spec.dataset);
-  setActiveIsa(resolveIsa(spec.isa));
+  resolveIsa(spec.isa);  // the name, before any work
   checkOutputs(spec, args);
   PreparedRun prepared = prepareRun(spec);
+  activateIsa(spec.isa);  // `auto` measures once per machine and build, after the checks
   if (const std::string note = pathLengthNote(prepared.inputs.dataset.sequence); !note.empty()) {
     fmt::print(stderr, "marglab run: note: {}: {}\n", prepared.inputs.dataset.sequence.gt_file,
                note);

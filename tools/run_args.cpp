@@ -54,8 +54,9 @@ void addRunSubject(CLI::App& app, RunArgs& args) {
                  "EuRoC/TUM-VI (mav0/) or KITTI layout");
   app.add_option("--variant", args.variant, variantSyntax());
   app.add_option("--isa", spec.isa,
-                 "Instruction set of the kernels (auto: the widest this CPU has); recorded in "
-                 "the results file's isa attribute")
+                 "Instruction set of the kernels (auto: the fastest on this machine, measured once "
+                 "per CPU and build and cached; docs/design.md §ISA dispatch); recorded in the "
+                 "results file's isa and isa_choice attributes")
       ->check(CLI::IsMember({"auto", "sse2", "avx2", "avx512"}))
       ->capture_default_str();
   addChoice(app, "--mode", &args.mode, kRunModeNames,

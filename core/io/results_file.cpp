@@ -186,6 +186,7 @@ ResultsWriter ResultsWriter::create(const std::string& path, const RunMetadata& 
   info.created_utc = utcNowIso8601();
   info.metadata = metadata;
   if (info.metadata.isa.empty()) info.metadata.isa = isaName(activeIsa());
+  if (info.metadata.isa_choice.empty()) info.metadata.isa_choice = activeIsaChoice();
   // Provisional outcome: replaced by finish(); only visible if someone inspects the temporary.
   info.status = "running";
   for (const Attribute& a : results_schema::rootAttributes()) writeAttribute(d->file, a, info);

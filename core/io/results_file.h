@@ -52,7 +52,8 @@ struct RunMetadata {
   double qr_threshold = std::numeric_limits<double>::quiet_NaN();
   std::string marg_strategy = "discard";
   std::string frontend = "simulated";
-  std::string isa;  // empty: the writer records the process's active ISA (core/linalg/isa.h)
+  std::string isa;         // empty: the writer records the process's active ISA (core/linalg/isa.h)
+  std::string isa_choice;  // empty: the writer records how the active ISA was chosen
   // frontend "tracks": the --tracks file as given, the sequence it records, and whether
   // --tracks-any-sequence was given ("true" | "false"); all empty for other front-ends.
   std::string tracks_file;

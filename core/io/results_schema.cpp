@@ -143,6 +143,12 @@ const std::vector<Attribute>& rootAttributes() {
        {"images", "simulated", "tracks"},
        kOptional},
       {"isa", "instruction set of the kernels", &M::isa, {"sse2", "avx2", "avx512"}, kOptional},
+      {"isa_choice",
+       "how the ISA was chosen: --isa NAME, or auto with the measured time per ISA (older files: "
+       "empty)",
+       &M::isa_choice,
+       {},
+       kOptional},
       {"tracks_file",
        "frontend tracks: the track file (--tracks, as given); empty otherwise",
        &M::tracks_file,

@@ -13,6 +13,10 @@ namespace marglab {
 namespace {
 
 std::atomic<int> g_active{-1};  // −1: not set, bestIsa()
+std::string& activeChoice() {   // set once at start-up, with the ISA
+  static std::string how = "widest available";
+  return how;
+}
 
 }  // namespace
 
@@ -64,6 +68,13 @@ Isa activeIsa() {
 }
 
 void setActiveIsa(Isa isa) { g_active.store(static_cast<int>(isa), std::memory_order_relaxed); }
+
+void setActiveIsa(Isa isa, const std::string& how) {
+  setActiveIsa(isa);
+  activeChoice() = how;
+}
+
+std::string activeIsaChoice() { return activeChoice(); }
 
 Isa resolveIsa(const std::string& name) {
   if (name == "auto") return bestIsa();

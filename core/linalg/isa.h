@@ -28,11 +28,16 @@ inline bool isaAvailable(Isa isa) { return isaBuilt(isa) && cpuSupports(isa); }
 Isa bestIsa();
 
 // The process-wide ISA: bestIsa() until set. Set it once at start-up, before any estimator object
-// is built: a linearization keeps the ISA it was made with.
+// is built: a linearization keeps the ISA it was made with. `how` says how it was chosen (the
+// results file's isa_choice; `--isa auto` measures, core/bench/isa_choice.h).
 Isa activeIsa();
 void setActiveIsa(Isa isa);
-// "auto" | "sse2" | "avx2" | "avx512" → the ISA to run; UsageError for another name, InputError
-// (exit 1) when the ISA asked for is not available (the CPU lacks it, or the build does).
+void setActiveIsa(Isa isa, const std::string& how);
+// How the active ISA was chosen: "widest available" until set with a reason.
+std::string activeIsaChoice();
+// "auto" | "sse2" | "avx2" | "avx512" → the ISA to run ("auto": the widest; the CLI's `--isa auto`
+// measures instead, core/bench/isa_choice.h); UsageError for another name, InputError (exit 1)
+// when the ISA asked for is not available (the CPU lacks it, or the build does).
 Isa resolveIsa(const std::string& name);
 
 }  // namespace marglab

@@ -234,6 +234,32 @@ TEST_F(AnalysisTest, NotebooksStopOnSigintAsOnSigterm) {
   }
 }
 
+// Issue 38 item 7: SIGTERM during `reproduce`'s sweep stopped the sweep (exit 143), and reproduce
+// went on to the tables, the figures and the notebooks of the part that had run (it stopped only
+// on the sweep's 130, SIGINT's code). Both signals stop it there, with the sweep's exit code.
+TEST_F(AnalysisTest, ReproduceStopsAfterAnInterruptedSweep) {
+  for (const int sig : {SIGTERM, SIGINT}) {
+    SCOPED_TRACE(sig);
+    const std::string name = "reproduce" + std::to_string(sig);
+    const fs::path results = dir_ / name, figures = dir_ / (name + "_figures"),
+                   log = dir_ / (name + ".log");
+    fs::remove_all(results);
+    fs::remove_all(figures);
+    const pid_t pid = startCliAndWaitFor({"reproduce", "--quick", "--jobs", "1", "--results",
+                                          results.string(), "--figures", figures.string()},
+                                         log, "sweep quick: 18 runs");
+    ASSERT_GT(pid, 0) << readFile(log);
+    ASSERT_EQ(kill(pid, sig), 0);
+    int status = 0;
+    ASSERT_EQ(waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(WIFEXITED(status)) << readFile(log);
+    EXPECT_EQ(WEXITSTATUS(status), 128 + sig) << readFile(log);
+    EXPECT_FALSE(fs::exists(results / "quick" / "tables")) << readFile(log);
+    EXPECT_FALSE(fs::exists(figures)) << readFile(log);
+    EXPECT_EQ(readFile(log).find("notebooks: executing"), std::string::npos) << readFile(log);
+  }
+}
+
 // Issue 38 item 8: `notebooks --out <unwritable>` ran 21 s and died with a Python traceback.
 TEST_F(AnalysisTest, UnwritableOutputsFailBeforeAnyWork) {
   const fs::path file = dir_ / "a_file";
