@@ -16,6 +16,7 @@
 #include "core/estimator/estimator.h"
 #include "core/estimator/window_io.h"
 #include "core/imu/noise_profile.h"
+#include "core/pipeline/motion_check.h"
 #include "core/pipeline/tracking_monitor.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/imu_synth.h"
@@ -313,8 +314,10 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
       source.images && config.frontend.prediction == MotionPredictionSource::kEstimator;
   const SE3<double> T_i_c0 = vio ? T_b_c0 : SE3<double>();
   TrackingMonitor monitor(config.failure);
+  MotionCheck motion(config.failure);
   // Simulated tracks cannot lose the scene: where they thin out (the simulated world ends a few
-  // metres past the trajectory's end) it is the simulation's edge, not a tracking failure.
+  // metres past the trajectory's end) it is the simulation's edge, not a tracking failure; nor
+  // can they come out of order.
   const bool watch_tracking = source.frontend != "simulated";
   RunTrace trace;
   const int total = static_cast<int>(source.n_frames);
@@ -344,6 +347,7 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
     failure_kind = "numerical";
     if (failure.empty() && result.status.ok() && watch_tracking) {
       failure = monitor.update(k, result);
+      if (failure.empty()) failure = motion.update(k, record.t_ns, record.p_est);
       failure_kind = "tracking";
     }
     if (!failure.empty()) {

@@ -44,6 +44,9 @@ void addFailureBindings(FailureSettings& f, Bindings* list) {
       integerKey(s, "max_tracking_loss_frames", &f.max_tracking_loss_frames, between(1, 1000000)));
   list->push_back(numberKey(s, "inconsistent_px", &f.inconsistent_px, above(0)));
   list->push_back(numberKey(s, "max_inconsistent_share", &f.max_inconsistent_share, between(0, 1)));
+  list->push_back(
+      numberKey(s, "max_motion_jump", &f.max_motion_jump, orSentinel(above(0), 0, "off")));
+  list->push_back(numberKey(s, "motion_floor_m", &f.motion_floor_m, above(0)));
 }
 
 void addDiagnosticsBindings(DiagnosticsSettings& d, Bindings* list) {

@@ -40,13 +40,18 @@ namespace marglab {
 // min_tracked_observations of the frame's observations continue landmarks of the window, or in
 // which more than max_inconsistent_share of the observations checked after the optimization
 // (FrameResult::n_checked) lie farther than inconsistent_px from their landmark's projection.
-// max_inconsistent_share = 1 turns the second cause off.
+// max_inconsistent_share = 1 turns the second cause off. And the motion-consistency check
+// (core/pipeline/motion_check.h): an estimate farther than max_motion_jump times the platform's
+// recent motion per frame (at least motion_floor_m) from the constant-velocity prediction; 0 turns
+// it off.
 struct FailureSettings {
   double max_position_error_m = -1;
   int min_tracked_observations = 10;
   int max_tracking_loss_frames = 3;
   double inconsistent_px = 5;
   double max_inconsistent_share = 0.3;
+  double max_motion_jump = 3;
+  double motion_floor_m = 0.05;
 };
 
 // The gauge diagnostics of each marginalization event (core/diagnostics): on or off, how often the
