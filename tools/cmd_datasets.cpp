@@ -277,7 +277,8 @@ CommandRun setupTrack(CLI::App& app) {
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   app.add_option("--config", options->config,
-                 "TOML config whose [frontend] section sets the front-end (other sections are "
+                 "TOML config whose [frontend] section sets the front-end and whose "
+                 "[calibration] corrects the camera it uses, as `run` does (other sections are "
                  "checked and ignored; prediction: the tracker's own, there is no estimator)");
   return [options] {
     checkDatasetArgument(options->dataset);
@@ -289,7 +290,8 @@ CommandRun setupTrack(CLI::App& app) {
     if (!options->config.empty()) config.loadToml(options->config);
     config.validate();          // the relations `run` refuses (lm.lambda_min > lm.lambda_init), too
     installInterruptCleanup();  // SIGINT / SIGTERM while tracking: says so, exits 128 + signal
-    const ImageSequence images = loadImageSequence(options->dataset);
+    ImageSequence images = loadImageSequence(options->dataset);
+    applyCalibration(config.calibration, &images.sequence.calib);
     ImageTracking tracking;
     double best_s = 0, best_cpu_s = 0;
     for (int pass = 0; pass < options->passes; ++pass) {
