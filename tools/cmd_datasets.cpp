@@ -16,7 +16,8 @@
 //                                           along SEQ's trajectory through its real camera
 //                                           model -> a dataset folder in SEQ's original layout
 //                                           (core/frontend/rendered_folder.h)
-//   marglab datasets stereo-bias --dataset DIR [--frames A:B] [--config F] -o BIAS.toml
+//   marglab datasets stereo-bias --dataset DIR [--frames A:B] [--config F] [--poses TUM]
+//                                -o BIAS.toml
 //                                           a KITTI folder's disparities against motion stereo
 //                                           (ground-truth poses) -> report + config fragment
 //                                           [calibration] right_cx_shift_px for `run --config`
@@ -35,6 +36,7 @@
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/common/interrupt.h"
+#include "core/data/parsers.h"
 #include "core/data/sequence.h"
 #include "core/frontend/image_check.h"
 #include "core/frontend/image_folder.h"
@@ -376,6 +378,7 @@ struct StereoBiasArgs {
   std::string dataset;
   std::string frames;
   std::string config;
+  std::string poses;
   std::string output;
 };
 
@@ -401,7 +404,38 @@ std::string stereoBiasCommandLine(const StereoBiasArgs& a) {
   std::string line = "marglab datasets stereo-bias --dataset " + a.dataset;
   if (!a.frames.empty()) line += " --frames " + a.frames;
   if (!a.config.empty()) line += " --config " + a.config;
+  if (!a.poses.empty()) line += " --poses " + a.poses;
   return line + " -o " + a.output;
+}
+
+int runStereoBias(const StereoBiasArgs& options) {
+  const auto [first, last] = parseFrameRange(options.frames);
+  checkDatasetArgument(options.dataset);
+  cli::checkOutputFile(options.output, "-o");
+  cli::CommandInputs inputs{{options.config, options.poses}, {}};
+  cli::addInputs(&inputs, cli::datasetInputs(options.dataset));
+  cli::refuseOverwritingInputs({options.output}, inputs);
+  RunConfig config;
+  if (!options.config.empty()) config.loadToml(options.config);
+  config.validate();
+  installInterruptCleanup();
+  ImageSequence images = loadImageSequence(options.dataset);
+  applyCalibration(config.calibration, &images.sequence.calib);
+  const int n = images.images ? static_cast<int>(images.images->t_ns.size()) : 0;
+  StereoBiasRequest request;
+  request.dataset = options.dataset;
+  request.frontend = config.frontend;
+  request.config_shift_px = config.calibration.right_cx_shift_px;
+  request.first = first < 0 ? 0 : first;
+  request.last = last < 0 ? n - 1 : last;
+  if (!options.poses.empty()) {
+    request.poses = readTumTrajectory(options.poses);
+    request.poses_file = options.poses;
+  }
+  const StereoBiasStudy study = measureStereoBias(images, request);
+  writeFileAtomically(options.output, stereoBiasToml(study, stereoBiasCommandLine(options)));
+  fmt::print("{}wrote {}\n", stereoBiasReport(study), options.output);
+  return 0;
 }
 
 CommandRun setupStereoBias(CLI::App& app) {
@@ -421,27 +455,11 @@ CommandRun setupStereoBias(CLI::App& app) {
                  "config fragment to write: the report as comments, [calibration] "
                  "right_cx_shift_px")
       ->required();
-  return [options] {
-    const auto [first, last] = parseFrameRange(options->frames);
-    checkDatasetArgument(options->dataset);
-    cli::checkOutputFile(options->output, "-o");
-    cli::CommandInputs inputs{{options->config}, {}};
-    cli::addInputs(&inputs, cli::datasetInputs(options->dataset));
-    cli::refuseOverwritingInputs({options->output}, inputs);
-    RunConfig config;
-    if (!options->config.empty()) config.loadToml(options->config);
-    config.validate();
-    installInterruptCleanup();
-    ImageSequence images = loadImageSequence(options->dataset);
-    applyCalibration(config.calibration, &images.sequence.calib);
-    const int n = images.images ? static_cast<int>(images.images->t_ns.size()) : 0;
-    const StereoBiasStudy study = measureStereoBias(images, options->dataset, config.frontend,
-                                                    config.calibration.right_cx_shift_px,
-                                                    first < 0 ? 0 : first, last < 0 ? n - 1 : last);
-    writeFileAtomically(options->output, stereoBiasToml(study, stereoBiasCommandLine(*options)));
-    fmt::print("{}wrote {}\n", stereoBiasReport(study), options->output);
-    return 0;
-  };
+  app.add_option("--poses", options->poses,
+                 "TUM trajectory of the left camera (t x y z qx qy qz qw, e.g. RUN.tum of `marglab "
+                 "run`) instead of the ground truth: the offset is then the fit's intercept c, "
+                 "which the trajectory's scale cannot absorb");
+  return [options] { return runStereoBias(*options); };
 }
 
 struct SubVerb {

@@ -213,28 +213,6 @@ double standardError(const std::vector<double>& v) {
   return std::sqrt(ss / static_cast<double>(v.size())) / std::sqrt(static_cast<double>(v.size()));
 }
 
-// Weighted least squares e = c + s d; the covariance from the residuals' scatter.
-void fitOffsetScale(const std::vector<DisparitySample>& samples, double min_noise,
-                    DisparityErrorSummary* out) {
-  const Eigen::Index n = static_cast<Eigen::Index>(samples.size());
-  Eigen::MatrixX2d A(n, 2);
-  Eigen::VectorXd y(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const DisparitySample& s = samples[static_cast<std::size_t>(i)];
-    const double w = std::sqrt(1.0 / (s.sigma * s.sigma + min_noise * min_noise));
-    A.row(i) << w, w * s.d_motion;
-    y(i) = w * s.error();
-  }
-  const Eigen::Vector2d sol = A.colPivHouseholderQr().solve(y);
-  const double s2 =
-      (A * sol - y).squaredNorm() / static_cast<double>(std::max<Eigen::Index>(n - 2, 1));
-  const Eigen::Matrix2d cov = s2 * (A.transpose() * A).inverse();
-  out->fit_c = sol(0);
-  out->fit_s = sol(1);
-  out->fit_c_se = std::sqrt(cov(0, 0));
-  out->fit_s_se = std::sqrt(cov(1, 1));
-}
-
 template <typename Key>
 std::vector<ErrorBin> binned(const std::vector<DisparitySample>& samples,
                              const std::vector<double>& edges, Key key) {
@@ -265,6 +243,23 @@ std::vector<double> asDoubles(const std::vector<int>& v) { return {v.begin(), v.
 
 }  // namespace
 
+OffsetScaleFit fitOffsetScale(const std::vector<DisparitySample>& samples, double min_noise) {
+  const Eigen::Index n = static_cast<Eigen::Index>(samples.size());
+  Eigen::MatrixX2d A(n, 2);
+  Eigen::VectorXd y(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const DisparitySample& s = samples[static_cast<std::size_t>(i)];
+    const double w = std::sqrt(1.0 / (s.sigma * s.sigma + min_noise * min_noise));
+    A.row(i) << w, w * s.d_motion;
+    y(i) = w * s.error();
+  }
+  const Eigen::Vector2d sol = A.colPivHouseholderQr().solve(y);
+  const double s2 =
+      (A * sol - y).squaredNorm() / static_cast<double>(std::max<Eigen::Index>(n - 2, 1));
+  const Eigen::Matrix2d cov = s2 * (A.transpose() * A).inverse();
+  return {sol(0), sol(1), std::sqrt(cov(0, 0)), std::sqrt(cov(1, 1))};
+}
+
 DisparityErrorSummary summarizeDisparityErrors(const std::vector<DisparitySample>& samples,
                                                double min_noise_px, int width, int height) {
   DisparityErrorSummary out;
@@ -283,7 +278,11 @@ DisparityErrorSummary summarizeDisparityErrors(const std::vector<DisparitySample
   out.spread = 1.4826 * medianValue(deviation);
   out.rel_depth_error = medianValue(rel);
   out.dv = medianValue(dv);
-  fitOffsetScale(samples, min_noise_px, &out);
+  const OffsetScaleFit fit = fitOffsetScale(samples, min_noise_px);
+  out.fit_c = fit.c;
+  out.fit_s = fit.s;
+  out.fit_c_se = fit.c_se;
+  out.fit_s_se = fit.s_se;
   const double inf = std::numeric_limits<double>::infinity();
   out.by_depth = binned(samples, {0, 8, 12, 16, 20, 30, 45, inf},
                         [](const DisparitySample& s) { return s.z; });

@@ -111,6 +111,13 @@ struct DisparityErrorSummary {
   std::vector<ErrorBin> by_depth, by_column, by_row;
 };
 
+// Weighted least squares e = c + s · d_motion (w = 1 / (σ² + min_noise²)), the standard errors
+// from the residuals' scatter.
+struct OffsetScaleFit {
+  double c = 0, s = 0, c_se = 0, s_se = 0;
+};
+OffsetScaleFit fitOffsetScale(const std::vector<DisparitySample>& samples, double min_noise_px);
+
 // Summary of `samples` (at least 3); bins with fewer than 5 samples are left out.
 DisparityErrorSummary summarizeDisparityErrors(const std::vector<DisparitySample>& samples,
                                                double min_noise_px, int width, int height);
@@ -126,16 +133,26 @@ struct VerticalField {
 VerticalField verticalMisalignment(const TrackStream& stream, int first, int last, int width,
                                    int height);
 
+// The offset statistic (OffsetStatistic below) of one half of the frames, applied to the other.
 struct HeldOutCheck {
   int measure_first = 0, measure_last = 0, test_first = 0, test_last = 0;
   int n_measure = 0, n_test = 0;
-  double offset = 0;       // median e on the measured frames
-  double test_before = 0;  // median e on the test frames, as shipped
-  double test_after = 0;   // median (e − offset) on the test frames: the residual
+  double offset = 0;       // the statistic on the measured frames
+  double test_before = 0;  // the statistic on the test frames, as given
+  double test_after = 0;   // the same after the correction: test_before − offset
 };
+
+// Which statistic is the offset: with ground-truth poses the median e (what the estimator's
+// depths inherit whole); with poses that are not ground truth (--poses, e.g. a run's own
+// estimate, whose scale comes from the biased disparities) the fit's intercept c: an additive
+// offset that a scale λ of the trajectory cannot absorb (λ moves d_motion to d / λ, i.e. into
+// s) — whether the offset is observable without ground truth.
+enum class OffsetStatistic { kMedian, kFitIntercept };
 
 struct StereoBiasStudy {
   std::string dataset, sequence;
+  std::string poses;  // where the poses came from
+  OffsetStatistic statistic = OffsetStatistic::kMedian;
   int first = 0, last = 0;  // frames measured
   RectifiedStereo stereo;
   double config_shift_px = 0;  // [calibration] right_cx_shift_px the front-end tracked with
@@ -145,18 +162,33 @@ struct StereoBiasStudy {
   VerticalField vertical;
   std::vector<HeldOutCheck> held_out;  // each half measured, the other tested (both ways)
   int width = 0, height = 0;
-  // The correction: the config's shift minus the measured offset.
-  double correctedShift() const { return config_shift_px - summary.median; }
+  // The measured offset (the statistic) and the correction: the config's shift minus it.
+  double offset() const {
+    return statistic == OffsetStatistic::kMedian ? summary.median : summary.fit_c;
+  }
+  double correctedShift() const { return config_shift_px - offset(); }
 };
 
-// The frames [first, last] of a KITTI-layout folder with ground-truth poses: tracked by the image
-// front-end (frames 0..last, `frontend` resolved for KITTI) on `images.sequence.calib` (with any
-// correction already applied, `config_shift_px` says which), then measured. Throws InputError
-// naming the folder for a folder that is not KITTI's rectified layout, has no poses, has no pose
-// at a measured frame, or gives fewer than 10 usable observations.
-StereoBiasStudy measureStereoBias(const ImageSequence& images, const std::string& dataset,
-                                  const FrontendOptions& frontend, double config_shift_px,
-                                  int first, int last, const MotionStereoSettings& settings = {});
+// What measureStereoBias measures: frames [first, last] of the folder, tracked with `frontend`
+// on the folder's calibration with `config_shift_px` already applied; poses from the ground truth
+// or, when `poses` is set, from that trajectory of the left camera (TUM file `poses_file`).
+struct StereoBiasRequest {
+  std::string dataset;
+  FrontendOptions frontend;
+  double config_shift_px = 0;
+  int first = 0, last = 0;
+  std::optional<Trajectory> poses;
+  std::string poses_file;
+  MotionStereoSettings settings;
+};
+
+// The frames [first, last] of a KITTI-layout folder: tracked by the image front-end (frames
+// 0..last, `frontend` resolved for KITTI) on `images.sequence.calib`, then measured against the
+// poses. Throws InputError naming the folder (or the poses file) for a folder that is not KITTI's
+// rectified layout, no poses (no ground truth and no --poses), a measured frame without a pose
+// (within 1 ms of its time), frames out of range or fewer than 2 · min_frames of them, or fewer
+// than 10 usable observations.
+StereoBiasStudy measureStereoBias(const ImageSequence& images, const StereoBiasRequest& request);
 
 // The report (lines of text, for stdout) and the config fragment: the report as TOML comments,
 // then [calibration] right_cx_shift_px = correctedShift() (`marglab run --config` reads it).
