@@ -20,8 +20,8 @@
 //   3. e = d_stereo − d_motion, with d_stereo = (u0 − u1) − (cx0 − cx1): the disparity the
 //      estimator's camera model explains as f b / z (cx0 = cx1 in KITTI's calib.txt; a
 //      [calibration] right_cx_shift_px moves cx1, core/pipeline/run_config.h).
-// The offset is δ = median e (robust; the estimator's depths inherit it whole; against poses that are
-// not ground truth the fit's intercept c, OffsetStatistic below); its correction is
+// The offset is δ = median e (robust; the estimator's depths inherit it whole; against poses
+// that are not ground truth the fit's intercept c, OffsetStatistic below); its correction is
 // right_cx_shift_px += −δ. Beside it: the spread (1.4826 · MAD), the s.e. of the mean, a weighted
 // fit e = c + s · d_motion (w = 1 / (σ² + min_noise²); c an additive offset, s a relative baseline
 // error b_true = b (1 + s)), e by depth, column and row, and the vertical misalignment v1 − v0 of
