@@ -16,6 +16,12 @@
 //                                           along SEQ's trajectory through its real camera
 //                                           model -> a dataset folder in SEQ's original layout
 //                                           (core/frontend/rendered_folder.h)
+//   marglab datasets stereo-bias --dataset DIR [--frames A:B] [--config F] [--poses TUM]
+//                                -o BIAS.toml
+//                                           a KITTI folder's disparities against motion stereo
+//                                           (ground-truth poses) -> report + config fragment
+//                                           [calibration] right_cx_shift_px for `run --config`
+//                                           (core/frontend/stereo_bias.h)
 //
 // Each sub-verb is one entry of kSubVerbs below: a name, a description and a setup function that
 // adds the sub-verb's options and returns its run function (as for top-level verbs).
@@ -27,12 +33,15 @@
 #include <string>
 #include <vector>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/common/interrupt.h"
+#include "core/data/parsers.h"
 #include "core/data/sequence.h"
 #include "core/frontend/image_check.h"
 #include "core/frontend/image_folder.h"
 #include "core/frontend/rendered_folder.h"
+#include "core/frontend/stereo_bias.h"
 #include "core/frontend/track_source.h"
 #include "core/pipeline/run_config.h"
 #include "core/sim/feature_tracker.h"
@@ -277,7 +286,8 @@ CommandRun setupTrack(CLI::App& app) {
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   app.add_option("--config", options->config,
-                 "TOML config whose [frontend] section sets the front-end (other sections are "
+                 "TOML config whose [frontend] section sets the front-end and whose "
+                 "[calibration] corrects the camera it uses, as `run` does (other sections are "
                  "checked and ignored; prediction: the tracker's own, there is no estimator)");
   return [options] {
     checkDatasetArgument(options->dataset);
@@ -289,7 +299,8 @@ CommandRun setupTrack(CLI::App& app) {
     if (!options->config.empty()) config.loadToml(options->config);
     config.validate();          // the relations `run` refuses (lm.lambda_min > lm.lambda_init), too
     installInterruptCleanup();  // SIGINT / SIGTERM while tracking: says so, exits 128 + signal
-    const ImageSequence images = loadImageSequence(options->dataset);
+    ImageSequence images = loadImageSequence(options->dataset);
+    applyCalibration(config.calibration, &images.sequence.calib);
     ImageTracking tracking;
     double best_s = 0, best_cpu_s = 0;
     for (int pass = 0; pass < options->passes; ++pass) {
@@ -363,6 +374,94 @@ CommandRun setupRender(CLI::App& app) {
   };
 }
 
+struct StereoBiasArgs {
+  std::string dataset;
+  std::string frames;
+  std::string config;
+  std::string poses;
+  std::string output;
+};
+
+// "A:B" → (A, B) with 0 <= A <= B; "" → the whole folder (−1, −1).
+std::pair<int, int> parseFrameRange(const std::string& text) {
+  if (text.empty()) return {-1, -1};
+  const std::size_t colon = text.find(':');
+  try {
+    std::size_t end_a = 0, end_b = 0;
+    const int a = std::stoi(text.substr(0, colon), &end_a);
+    const int b = std::stoi(text.substr(colon + 1), &end_b);
+    if (colon != std::string::npos && end_a == colon && end_b == text.size() - colon - 1 &&
+        a >= 0 && a <= b) {
+      return {a, b};
+    }
+  } catch (const std::exception&) {  // not a number, or out of int's range: the message below
+  }
+  throw UsageError("--frames " + text +
+                   ": expected FIRST:LAST, frame indices with 0 <= FIRST <= LAST (inclusive)");
+}
+
+std::string stereoBiasCommandLine(const StereoBiasArgs& a) {
+  std::string line = "marglab datasets stereo-bias --dataset " + a.dataset;
+  if (!a.frames.empty()) line += " --frames " + a.frames;
+  if (!a.config.empty()) line += " --config " + a.config;
+  if (!a.poses.empty()) line += " --poses " + a.poses;
+  return line + " -o " + a.output;
+}
+
+int runStereoBias(const StereoBiasArgs& options) {
+  const auto [first, last] = parseFrameRange(options.frames);
+  checkDatasetArgument(options.dataset);
+  cli::checkOutputFile(options.output, "-o");
+  cli::CommandInputs inputs{{options.config, options.poses}, {}};
+  cli::addInputs(&inputs, cli::datasetInputs(options.dataset));
+  cli::refuseOverwritingInputs({options.output}, inputs);
+  RunConfig config;
+  if (!options.config.empty()) config.loadToml(options.config);
+  config.validate();
+  installInterruptCleanup();
+  ImageSequence images = loadImageSequence(options.dataset);
+  applyCalibration(config.calibration, &images.sequence.calib);
+  const int n = images.images ? static_cast<int>(images.images->t_ns.size()) : 0;
+  StereoBiasRequest request;
+  request.dataset = options.dataset;
+  request.frontend = config.frontend;
+  request.config_shift_px = config.calibration.right_cx_shift_px;
+  request.first = first < 0 ? 0 : first;
+  request.last = last < 0 ? n - 1 : last;
+  if (!options.poses.empty()) {
+    request.poses = readTumTrajectory(options.poses);
+    request.poses_file = options.poses;
+  }
+  const StereoBiasStudy study = measureStereoBias(images, request);
+  writeFileAtomically(options.output, stereoBiasToml(study, stereoBiasCommandLine(options)));
+  fmt::print("{}wrote {}\n", stereoBiasReport(study), options.output);
+  return 0;
+}
+
+CommandRun setupStereoBias(CLI::App& app) {
+  auto options = std::make_shared<StereoBiasArgs>();
+  app.add_option("--dataset", options->dataset,
+                 "KITTI-layout folder with ground-truth poses (calib.txt, times.txt, poses.txt, "
+                 "image_0/, image_1/; or the download's sequences/NN), or a shipped name "
+                 "(kitti/06_images)")
+      ->required();
+  app.add_option("--frames", options->frames,
+                 "FIRST:LAST, the frames measured (0-based, inclusive; default: all); the images "
+                 "are tracked from frame 0 on");
+  app.add_option("--config", options->config,
+                 "TOML config whose [frontend] sets the front-end and whose [calibration] the "
+                 "camera it tracks with, as `run` does; the fragment then holds the total shift");
+  app.add_option("-o,--output", options->output,
+                 "config fragment to write: the report as comments, [calibration] "
+                 "right_cx_shift_px")
+      ->required();
+  app.add_option("--poses", options->poses,
+                 "TUM trajectory of the left camera (t x y z qx qy qz qw, e.g. RUN.tum of `marglab "
+                 "run`) instead of the ground truth: the offset is then the fit's intercept c, "
+                 "which the trajectory's scale cannot absorb");
+  return [options] { return runStereoBias(*options); };
+}
+
 struct SubVerb {
   const char* name;
   const char* description;
@@ -379,25 +478,28 @@ const SubVerb kSubVerbs[] = {
      "stereo images rendered along a sequence's trajectory through its real camera model -> a "
      "dataset folder in its original layout",
      setupRender},
+    {"stereo-bias",
+     "a KITTI folder's stereo disparities against motion stereo (ground-truth poses) -> report "
+     "+ config fragment [calibration] right_cx_shift_px",
+     setupStereoBias},
 };
 
-const bool kRegistered =
-    registerCommand({"datasets", "the real datasets: list, check, simulate, track, render", 60,
-                     [](CLI::App& app) -> CommandRun {
-                       app.require_subcommand(1);
-                       auto runs =
-                           std::make_shared<std::vector<std::pair<CLI::App*, CommandRun>>>();
-                       for (const SubVerb& verb : kSubVerbs) {
-                         CLI::App* sub = app.add_subcommand(verb.name, verb.description);
-                         runs->emplace_back(sub, verb.setup(*sub));
-                       }
-                       return [runs] {
-                         for (auto& [sub, run] : *runs) {
-                           if (sub->parsed()) return run();
-                         }
-                         return 2;
-                       };
-                     }});
+const bool kRegistered = registerCommand(
+    {"datasets", "the real datasets: list, check, simulate, track, render, stereo-bias", 60,
+     [](CLI::App& app) -> CommandRun {
+       app.require_subcommand(1);
+       auto runs = std::make_shared<std::vector<std::pair<CLI::App*, CommandRun>>>();
+       for (const SubVerb& verb : kSubVerbs) {
+         CLI::App* sub = app.add_subcommand(verb.name, verb.description);
+         runs->emplace_back(sub, verb.setup(*sub));
+       }
+       return [runs] {
+         for (auto& [sub, run] : *runs) {
+           if (sub->parsed()) return run();
+         }
+         return 2;
+       };
+     }});
 
 }  // namespace
 }  // namespace marglab::cli

@@ -580,6 +580,7 @@ PreparedRun prepareRun(const RunSpec& spec) {
 }
 
 RunOutcome runPrepared(PreparedRun run, const RunProgress& progress) {
+  applyCalibration(run.resolved.config.calibration, &run.inputs.dataset.sequence.calib);
   TrackSource source = obtainTracks(trackSourceOptions(run.resolved), run.inputs.dataset,
                                     std::move(run.inputs.tracks));
   const RunContext context{run.resolved, run.given.toToml(), progress};

@@ -34,6 +34,12 @@ void addFrontendBindings(FrontendOptions& f, Bindings* list) {
   list->push_back(choice(s, "prediction", &f.prediction, kMotionPredictionSourceNames));
 }
 
+// A shift of tens of pixels is no longer a calibration error but a different camera.
+void addCalibrationBindings(CalibrationSettings& c, Bindings* list) {
+  list->push_back(numberKey("calibration", "right_cx_shift_px", &c.right_cx_shift_px,
+                            between(-kMaxRightCxShiftPx, kMaxRightCxShiftPx)));
+}
+
 void addFailureBindings(FailureSettings& f, Bindings* list) {
   const char* s = "failure";
   list->push_back(numberKey(s, "max_position_error_m", &f.max_position_error_m,
@@ -60,9 +66,14 @@ void addDiagnosticsBindings(DiagnosticsSettings& d, Bindings* list) {
 
 }  // namespace
 
+void applyCalibration(const CalibrationSettings& settings, StereoCalib* calib) {
+  calib->cam1.cx += settings.right_cx_shift_px;
+}
+
 Bindings RunConfig::bindings() {
   Bindings list = estimator.bindings();
   addFrontendBindings(frontend, &list);
+  addCalibrationBindings(calibration, &list);
   addFailureBindings(failure, &list);
   list.push_back(choice("sim", "profile", &sim_profile, kSimProfileNames));
   addDiagnosticsBindings(diagnostics, &list);

@@ -12,6 +12,8 @@
 //                   epipolar_max, ncc_min, ransac_px, min_eigen, corner_block_px, border_px,
 //                   detect_margin_px (−1: dataset default), disparity_guesses_px (a list; []:
 //                   dataset default), prediction ("estimator"|"tracker"|"none")
+//   [calibration]   right_cx_shift_px: a correction of the dataset's stereo calibration
+//                   (applyCalibration below; measured by `marglab datasets stereo-bias`)
 //   [failure]       max_position_error_m (−1: dataset default), min_tracked_observations,
 //                   max_tracking_loss_frames, inconsistent_px, max_inconsistent_share (the
 //                   tracking-failure rule, core/pipeline/tracking_monitor.h)
@@ -62,9 +64,29 @@ struct DiagnosticsSettings {
   std::uint64_t seed = 7;
 };
 
+// A correction of the dataset's stereo calibration, applied where the calibration is loaded
+// (applyCalibration), so that everything that reads it — the image front-end, the simulator, the
+// estimator's rig — sees the corrected camera, as if the dataset's calibration file said so:
+//   right_cx_shift_px  added to the principal point cx of the right camera (cam1). On a rectified
+//                      pair (KITTI) every disparity u0 − u1 is read as f b / z + (cx0 − cx1), so
+//                      the shift adds to every disparity the estimator explains: the correction
+//                      of an additive disparity offset δ is −δ (core/frontend/stereo_bias.h
+//                      measures δ against motion stereo). 0: the calibration as shipped.
+// It is a config key (not a flag of the dataset) so that the results file records the correction
+// a run used (config_toml).
+inline constexpr double kMaxRightCxShiftPx = 50;  // the key's range: [−50, 50] px
+
+struct CalibrationSettings {
+  double right_cx_shift_px = 0;
+};
+
+// The calibration as the run uses it: `calib` with `settings` applied.
+void applyCalibration(const CalibrationSettings& settings, StereoCalib* calib);
+
 struct RunConfig {
   EstimatorSettings estimator;
   FrontendOptions frontend;
+  CalibrationSettings calibration;
   FailureSettings failure;
   SimProfile sim_profile = SimProfile::kIdeal;
   DiagnosticsSettings diagnostics;

@@ -185,6 +185,28 @@ TEST(ConfigValidation, FrontendKeysRoundTripAndResolvePerDataset) {
   EXPECT_EQ(resolveFrontendOptions(configured, DatasetKind::kKitti).pyramid_levels, 2);
 }
 
+TEST(ConfigValidation, CalibrationShiftRoundTripsAndIsRangeChecked) {
+  RunConfig config;
+  EXPECT_EQ(config.calibration.right_cx_shift_px, 0.0);  // the calibration as shipped
+  config.loadTomlString("[calibration]\nright_cx_shift_px = -0.3832\n", "bias.toml");
+  RunConfig round_trip;
+  round_trip.loadTomlString(config.toToml(), "again.toml");
+  EXPECT_EQ(round_trip.calibration.right_cx_shift_px, -0.3832);
+  round_trip.set("calibration.right_cx_shift_px=50");
+  EXPECT_EQ(round_trip.calibration.right_cx_shift_px, 50.0);
+  for (const char* bad : {"50.5", "-51", "nan", "inf"}) {
+    RunConfig c;
+    try {
+      c.loadTomlString(std::string("[calibration]\nright_cx_shift_px = ") + bad + "\n", "b.toml");
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.line(), 2) << e.what();
+      EXPECT_TRUE(contains(e.what(), "calibration.right_cx_shift_px")) << e.what();
+      EXPECT_TRUE(contains(e.what(), "[-50, 50]")) << e.what();
+    }
+  }
+}
+
 TEST(ConfigValidation, ValuesAtTheEdgesOfTheirRangesAreAccepted) {
   RunConfig config;
   config.loadTomlString(
