@@ -209,6 +209,37 @@ std::string frameFailure(const FrameResult& result, const FrameRecord& record,
   return "";
 }
 
+// Why a run fails at a frame, and the failure's kind: a failed step or the ground-truth bound
+// ("numerical"), else, on real measurements, the tracking monitor and the motion check
+// ("tracking"). Simulated tracks cannot lose the scene: where they thin out (the simulated world
+// ends a few metres past the trajectory's end) it is the simulation's edge, not a tracking
+// failure; nor can they come out of order.
+class FailureWatch {
+ public:
+  FailureWatch(const RunConfig& config, bool real_measurements)
+      : config_(config),
+        real_measurements_(real_measurements),
+        monitor_(config.failure),
+        motion_(config.failure) {}
+
+  // "" while the run goes on; else the reason, and *kind.
+  std::string update(int k, const FrameResult& result, const FrameRecord& record,
+                     std::string* kind) {
+    *kind = "numerical";
+    std::string failure = frameFailure(result, record, config_);
+    if (!failure.empty() || !real_measurements_) return failure;
+    *kind = "tracking";
+    failure = monitor_.update(k, result);
+    return failure.empty() ? motion_.update(k, record.t_ns, record.p_est) : failure;
+  }
+
+ private:
+  const RunConfig& config_;
+  bool real_measurements_;
+  TrackingMonitor monitor_;
+  MotionCheck motion_;
+};
+
 // The front-end's prediction of the frame at t_ns from the estimator (motion_prediction.h): the
 // predicted motion of cam0 since the newest frame, and the window's landmarks in that frame's
 // cam0. T_i_c0: body → cam0 (VO: the identity, the state is cam0).
@@ -313,15 +344,9 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
   const bool predict =
       source.images && config.frontend.prediction == MotionPredictionSource::kEstimator;
   const SE3<double> T_i_c0 = vio ? T_b_c0 : SE3<double>();
-  TrackingMonitor monitor(config.failure);
-  MotionCheck motion(config.failure);
-  // Simulated tracks cannot lose the scene: where they thin out (the simulated world ends a few
-  // metres past the trajectory's end) it is the simulation's edge, not a tracking failure; nor
-  // can they come out of order.
-  const bool watch_tracking = source.frontend != "simulated";
+  FailureWatch watch(config, source.frontend != "simulated");
   RunTrace trace;
   const int total = static_cast<int>(source.n_frames);
-  std::string failure_kind;
   for (int k = 0; k < total; ++k) {
     ++trace.processed;
     std::optional<FramePrediction> prediction;
@@ -343,13 +368,8 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
     recordFrame(k, frame, result, record, spec, config, writer, &trace, &outcome);
     if (context.progress) context.progress(k + 1, total);
 
-    std::string failure = frameFailure(result, record, config);
-    failure_kind = "numerical";
-    if (failure.empty() && result.status.ok() && watch_tracking) {
-      failure = monitor.update(k, result);
-      if (failure.empty()) failure = motion.update(k, record.t_ns, record.p_est);
-      failure_kind = "tracking";
-    }
+    std::string failure_kind;
+    const std::string failure = watch.update(k, result, record, &failure_kind);
     if (!failure.empty()) {
       outcome.status = RunStatus::kFailed;
       outcome.failure_frame = k;

@@ -173,7 +173,11 @@ TEST_F(FrontendCli, ImagesRequestedWhereThereAreNone) {
       "run --dataset euroc/V1_01_easy --frontend images --variant "
       "ns-qr-sqrt-f32 --frames 5 -o '" +
       path("x.h5") + "'");
-  EXPECT_EQ(result.exit_code, 2) << result.output;
+  // A problem of the dataset (exit 1, naming its folder), as sweeps report it (issue #38).
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find("V1_01_easy: --frontend images: the sequence has no images"),
+            std::string::npos)
+      << result.output;
   EXPECT_FALSE(fs::exists(path("x.h5")));
 }
 

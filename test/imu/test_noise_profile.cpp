@@ -2,6 +2,7 @@
 // the profile reaching both the synthetic IMU and the estimator's weights, and the config key.
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -88,7 +89,8 @@ TEST(NoiseProfile, KalibrIsTheSequencesOwnAndBasaltTheShippedJson) {
 
 // A Basalt-like file with `body` between the braces; its path.
 std::string writeJson(const std::string& name, const std::string& body) {
-  const fs::path dir = fs::temp_directory_path() / "marglab_test_noise_profile";
+  const fs::path dir =
+      fs::temp_directory_path() / ("marglab_test_noise_profile_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   const fs::path path = dir / name;
   std::ofstream(path) << "{\n  \"value0\": {\n" << body << "\n  }\n}\n";
@@ -182,7 +184,8 @@ TEST(NoiseProfile, VioImuSetupSynthesizesAndWeighsWithTheProfile) {
 // Through the CLI: the config key reaches the results file and the estimator's window (whose
 // ImuNoise weighs the preintegration and bias factors), and a bad value is an input error.
 TEST(NoiseProfile, ConfigKeyReachesTheEstimatorAndBadValuesExit1) {
-  const fs::path dir = fs::temp_directory_path() / "marglab_test_noise_profile_cli";
+  const fs::path dir =
+      fs::temp_directory_path() / ("marglab_test_noise_profile_cli_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
   std::ofstream(dir / "basalt.toml") << "[imu]\nnoise_profile = \"basalt\"\n";
