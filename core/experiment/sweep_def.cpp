@@ -572,9 +572,11 @@ class Parser {
                                    "most {} (split it into several sweeps)",
                                    name, planned, kMaxSweepRuns));
     }
+    // Seeds outside the solvers: the solvers of one problem and seed run one after the other (the
+    // local runner keeps the plan's order within a problem), under the same load of the machine.
     for (const std::string& problem : problems) {
-      for (const BaSolver solver : solvers) {
-        for (const std::uint64_t seed : seeds) {
+      for (const std::uint64_t seed : seeds) {
+        for (const BaSolver solver : solvers) {
           BaRunSpec spec{problem, options, ""};
           spec.options.solver = solver;
           spec.options.seed = seed;

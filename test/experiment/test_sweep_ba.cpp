@@ -1,0 +1,194 @@
+// Sweeps of `marglab ba` runs (a [[group]] of kind "ba", core/experiment/sweep_def.h): the plan of
+// problems × solvers × seeds with its typed specs, every mistake refused at its line before any run
+// (--dry-run too), and a tiny sweep on the shipped dubrovnik problem end to end: the index holds
+// each run's status and final cost as its results file does, --resume keeps them, a planned-
+// differently run is redone.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+#include "common/cli_runner.h"
+#include "common/temp_dir.h"
+#include "core/ba/ba_results.h"
+#include "core/common/error.h"
+#include "core/common/source_dir.h"
+#include "core/experiment/sweep_def.h"
+#include "core/experiment/sweep_index.h"
+
+namespace marglab::experiment {
+namespace {
+
+namespace fs = std::filesystem;
+using test::quote;
+using test::readText;
+using test::runCli;
+
+std::string balDir() { return std::string(sourceDir()) + "/datasets/bal"; }
+
+SweepPlan parseBa(const std::string& text) {
+  return parseSweep(text, "sweep.toml", balDir(), ParseOptions{{}, {}, {}, true});
+}
+
+const char* const kTiny = R"(
+name = "tiny"
+[[group]]
+name = "g"
+kind = "ba"
+problems = ["dubrovnik-3-7-pre.txt"]
+solvers = ["ns-f32", "ceres-sparse"]
+seeds = [38401, 2]
+iterations = 4
+huber_px = 1.0
+perturb_sigma = 0.01
+normalize_scale = 100
+)";
+
+TEST(SweepBa, PlansProblemsTimesSolversTimesSeedsWithTypedSpecs) {
+  const SweepPlan plan = parseBa(kTiny);
+  ASSERT_EQ(plan.runs.size(), 4u);
+  const PlannedRun& run = plan.runs[2];
+  EXPECT_EQ(run.id, "g__dubrovnik-3-7-pre__ns-f32__s2");
+  ASSERT_TRUE(run.ba.has_value());
+  EXPECT_EQ(run.ba->problem, balDir() + "/dubrovnik-3-7-pre.txt");
+  EXPECT_EQ(run.ba->options.solver, BaSolver::kNsF32);
+  EXPECT_EQ(run.ba->options.seed, 2u);
+  EXPECT_EQ(run.ba->options.iterations, 4);
+  EXPECT_EQ(run.ba->options.huber_px, 1.0);
+  EXPECT_EQ(run.ba->options.perturb_sigma, 0.01);
+  EXPECT_EQ(run.ba->options.normalize_scale, 100.0);
+  EXPECT_EQ(run.ba->output, "runs/" + run.id + ".h5");
+  EXPECT_EQ(run.variant, "ns-f32");
+  EXPECT_EQ(run.seed, 2u);
+  // The child runs the spec; the index's command is the same run as options.
+  EXPECT_EQ(BaRunSpec::fromTomlString(run.spec_toml, "spec").toToml(), run.spec_toml);
+  EXPECT_EQ(childArguments(run, "runs/x.h5", ""),
+            (std::vector<std::string>{"ba", "--spec", "runs/" + run.id + ".spec.toml"}));
+  const std::vector<std::string> args = runArguments(run, "runs/x.h5", "");
+  EXPECT_EQ(args.front(), "ba");
+  EXPECT_EQ(std::vector<std::string>(args.end() - 2, args.end()),
+            (std::vector<std::string>{"-o", "runs/x.h5"}));
+  EXPECT_EQ(plan.runs[1].id, "g__dubrovnik-3-7-pre__ceres-sparse__s38401");
+}
+
+TEST(SweepBa, DefaultsAreTheVerbsAndAllNamesEverySolver) {
+  const SweepPlan plan = parseBa(R"(
+name = "d"
+[[group]]
+name = "g"
+kind = "ba"
+problems = ["dubrovnik-3-7-pre.txt"]
+solvers = ["all", "ns-f32"]
+)");
+  ASSERT_EQ(plan.runs.size(), baSolverNames().size());
+  const BaOptions defaults;
+  EXPECT_EQ(plan.runs.front().ba->options.seed, defaults.seed);
+  EXPECT_EQ(plan.runs.front().ba->options.iterations, defaults.iterations);
+  EXPECT_EQ(plan.runs.back().variant, "ceres-sparse");
+}
+
+// Each mistake is an InputError naming the sweep file and the line of the key.
+void expectRefused(const std::string& from, const std::string& to, const std::string& where,
+                   const std::string& what) {
+  std::string text = kTiny;
+  const auto at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << from;
+  text.replace(at, from.size(), to);
+  try {
+    parseBa(text);
+    FAIL() << "accepted:\n" << text;
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find(where), std::string::npos) << message;
+    EXPECT_NE(message.find(what), std::string::npos) << message;
+  }
+}
+
+TEST(SweepBa, RefusesEachMistakeAtItsLine) {
+  expectRefused("\"ceres-sparse\"", "\"ceres-spars\"", "sweep.toml:7:", "ceres-spars");
+  expectRefused("huber_px = 1.0", "huber_px = -1.0", "sweep.toml:10:", "--huber -1");
+  expectRefused("huber_px = 1.0", "huber_px = \"1\"", "sweep.toml:10:", "must be a number");
+  expectRefused("iterations = 4", "iterations = -4", "sweep.toml:9:", "iterations");
+  expectRefused("normalize_scale = 100", "threads = 0", "sweep.toml:12:", "--threads 0");
+  expectRefused("dubrovnik-3-7-pre.txt", "dubrovnik-3-8-pre.txt",
+                "sweep.toml:6:", "no such problem file");
+  expectRefused("kind = \"ba\"", "kind = \"bal\"", "sweep.toml:5:", "kind must be");
+  expectRefused("seeds = [38401, 2]", "seeds = [2, 2]", "sweep.toml:8:", "listed twice");
+  expectRefused("seeds = [38401, 2]", "datasets = [\"kitti/10\"]",
+                "sweep.toml:8:", "unknown key 'datasets'");
+  expectRefused("problems = [\"dubrovnik-3-7-pre.txt\"]",
+                "problems = [\"dubrovnik-3-7-pre.txt\", \"./dubrovnik-3-7-pre.txt\"]",
+                "sweep.toml:4:", "planned twice");
+}
+
+class SweepBaFolder : public test::TempDirTest {};
+
+TEST_F(SweepBaFolder, AMalformedProblemIsNamedWithItsLineBeforeAnyRun) {
+  std::ofstream(dir_ / "bad.txt") << "1 1 2\n0 0 1 2\n0 x 3 4\n";
+  std::string text = kTiny;
+  text.replace(text.find("\"dubrovnik-3-7-pre.txt\""), 23, quote(dir_ / "bad.txt"));
+  std::replace(text.begin(), text.end(), '\'', '"');
+  std::ofstream(dir_ / "sweep.toml") << text;
+  const auto result =
+      runCli("sweep " + quote(dir_ / "sweep.toml") + " --dry-run -o " + quote(dir_ / "out"));
+  EXPECT_EQ(result.exit_code, 1) << result.output;
+  EXPECT_NE(result.output.find("sweep.toml:6:"), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("bad.txt:3:"), std::string::npos) << result.output;
+  EXPECT_FALSE(fs::exists(dir_ / "out"));
+}
+
+const IndexRow& rowOf(const std::vector<IndexRow>& rows, const std::string& id) {
+  for (const IndexRow& row : rows) {
+    if (row.get("id") == id) return row;
+  }
+  throw std::runtime_error("no row " + id);
+}
+
+TEST_F(SweepBaFolder, RunsIndexesAndResumes) {
+  std::string text = kTiny;
+  text.replace(text.find("\"dubrovnik-3-7-pre.txt\""), 23,
+               "\"" + balDir() + "/dubrovnik-3-7-pre.txt\"");
+  std::ofstream(dir_ / "sweep.toml") << text;
+  const std::string sweep =
+      "sweep " + quote(dir_ / "sweep.toml") + " -j 2 -o " + quote(dir_ / "out");
+  const auto first = runCli(sweep);
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  EXPECT_NE(first.output.find("4 ok"), std::string::npos) << first.output;
+  const std::vector<IndexRow> rows = readIndex((dir_ / "out" / "index.csv").string());
+  ASSERT_EQ(rows.size(), 4u);
+  for (const IndexRow& row : rows) {
+    SCOPED_TRACE(row.get("id"));
+    EXPECT_EQ(row.get("status"), "ok");
+    EXPECT_EQ(row.get("kind"), "ba");
+    EXPECT_EQ(row.get("ba_status"), "max_iterations");
+    const BaResultsFile file = readBaResults((dir_ / "out" / row.get("results")).string());
+    EXPECT_EQ(row.number("final_cost"), file.final_cost);  // %.17g: the same double
+    EXPECT_EQ(row.number("initial_cost"), file.initial_cost);
+    EXPECT_EQ(file.solver, row.get("variant"));
+    EXPECT_EQ(std::to_string(file.seed), row.get("seed"));
+    EXPECT_EQ(file.iterations.size(), 5u);
+    EXPECT_LT(file.final_cost, file.initial_cost);
+    EXPECT_NE(readText(dir_ / "out" / row.get("log")).find("marglab ba --spec runs/"),
+              std::string::npos);
+  }
+  EXPECT_EQ(rowOf(rows, "g__dubrovnik-3-7-pre__ns-f32__s2").get("precision"), "f32");
+  EXPECT_EQ(rowOf(rows, "g__dubrovnik-3-7-pre__ceres-sparse__s2").get("method"), "ceres");
+
+  // --resume keeps all four; a changed setting redoes them (the fingerprint is the command).
+  const auto resumed = runCli(sweep + " --resume");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
+  EXPECT_NE(resumed.output.find("4 kept"), std::string::npos) << resumed.output;
+  text.replace(text.find("iterations = 4"), 14, "iterations = 3");
+  std::ofstream(dir_ / "sweep.toml") << text;
+  const auto changed = runCli(sweep + " --resume");
+  ASSERT_EQ(changed.exit_code, 0) << changed.output;
+  EXPECT_EQ(changed.output.find("kept"), std::string::npos) << changed.output;
+  const std::vector<IndexRow> again = readIndex((dir_ / "out" / "index.csv").string());
+  const IndexRow& row = rowOf(again, "g__dubrovnik-3-7-pre__ns-f32__s2");
+  EXPECT_EQ(readBaResults((dir_ / "out" / row.get("results")).string()).iterations.size(), 4u);
+}
+
+}  // namespace
+}  // namespace marglab::experiment
