@@ -120,13 +120,13 @@ TEST(SweepBa, RefusesEachMistakeAtItsLine) {
                 "sweep.toml:8:", "unknown key 'datasets'");
   expectRefused("problems = [\"dubrovnik-3-7-pre.txt\"]",
                 "problems = [\"dubrovnik-3-7-pre.txt\", \"./dubrovnik-3-7-pre.txt\"]",
-                "sweep.toml:4:", "planned twice");
+                "sweep.toml:3:", "planned twice");
 }
 
 class SweepBaFolder : public test::TempDirTest {};
 
 TEST_F(SweepBaFolder, AMalformedProblemIsNamedWithItsLineBeforeAnyRun) {
-  std::ofstream(dir_ / "bad.txt") << "1 1 2\n0 0 1 2\n0 x 3 4\n";
+  std::ofstream(dir_ / "bad.txt") << "1 1 2\n0 0 1 2\n0 x 3 4\n0 0 0 0 0 0 500 0 0\n1 2 -5\n";
   std::string text = kTiny;
   text.replace(text.find("\"dubrovnik-3-7-pre.txt\""), 23, quote(dir_ / "bad.txt"));
   std::replace(text.begin(), text.end(), '\'', '"');
