@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <fmt/core.h>
+
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -188,6 +190,46 @@ TEST_F(SweepBaFolder, RunsIndexesAndResumes) {
   const std::vector<IndexRow> again = readIndex((dir_ / "out" / "index.csv").string());
   const IndexRow& row = rowOf(again, "g__dubrovnik-3-7-pre__ns-f32__s2");
   EXPECT_EQ(readBaResults((dir_ / "out" / row.get("results")).string()).iterations.size(), 4u);
+}
+
+// `marglab tables` and `marglab plot` on a folder of ba runs: the comparison tables (ba_tables.h)
+// and the two figures; the final-cost cell is the mean of the two seeds' results files.
+TEST_F(SweepBaFolder, TablesAndFigures) {
+  std::string text = kTiny;
+  text.replace(text.find("\"dubrovnik-3-7-pre.txt\""), 23,
+               "\"" + balDir() + "/dubrovnik-3-7-pre.txt\"");
+  std::ofstream(dir_ / "sweep.toml") << text;
+  const fs::path out = dir_ / "out";
+  const auto sweep = runCli("sweep " + quote(dir_ / "sweep.toml") + " -j 2 -o " + quote(out));
+  ASSERT_EQ(sweep.exit_code, 0) << sweep.output;
+  const auto tables = runCli("tables " + quote(out));
+  ASSERT_EQ(tables.exit_code, 0) << tables.output;
+  const std::string md = readText(out / "tables" / "ba_g_final.md");
+  ASSERT_FALSE(md.empty()) << tables.output;
+  double sum = 0;
+  for (const IndexRow& r : readIndex((out / "index.csv").string())) {
+    if (r.get("variant") == "ceres-sparse")
+      sum += readBaResults((out / r.get("results")).string()).final_cost;
+  }
+  const std::string expected = fmt::format("{:.6e}", sum / 2);
+  EXPECT_NE(md.find("| dubrovnik-3-7-pre | "), std::string::npos) << md;
+  EXPECT_NE(md.find(expected), std::string::npos) << expected << "\n" << md;
+  for (const char* id : {"ba_g_tau0.1", "ba_g_tau0.01", "ba_g_tau0.001", "ba_g_gap", "ba_g_steps",
+                         "ba_g_conditioning", "ba_g_memory"}) {
+    EXPECT_TRUE(fs::is_regular_file(out / "tables" / (std::string(id) + ".csv"))) << id;
+  }
+  const fs::path figures = dir_ / "figures";
+  const auto plot =
+      runCli("plot " + quote(out) + " --figure ba_convergence,ba_profile --out " + quote(figures));
+  if (plot.output.find("no Python with matplotlib") != std::string::npos) {
+    GTEST_SKIP() << "no Python with matplotlib, h5py and numpy: " << plot.output;
+  }
+  ASSERT_EQ(plot.exit_code, 0) << plot.output;
+  for (const char* name : {"ba_convergence_g_dubrovnik-3-7-pre", "ba_profile_g"}) {
+    const fs::path file = figures / (std::string(name) + ".png");
+    ASSERT_TRUE(fs::is_regular_file(file)) << file << "\n" << plot.output;
+    EXPECT_GT(fs::file_size(file), 5000u) << file;
+  }
 }
 
 }  // namespace
