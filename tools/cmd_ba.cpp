@@ -11,6 +11,7 @@
 #include "core/ba/ba_run_spec.h"
 #include "core/ba/ba_solver.h"
 #include "core/ba/bal_problem.h"
+#include "core/ba/ceres_ba.h"
 #include "core/common/error.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
@@ -101,6 +102,7 @@ int runBa(const BaArgs& a) {
   const BaOptions& o = spec.options;
   if (o.normalize_scale > 0) normalizeBalProblem(&problem, o.normalize_scale);
   if (o.perturb_sigma > 0) perturbBalProblem(&problem, o.perturb_sigma, o.seed);
+  keepCeresWarningsOffStderr();  // recorded per step in /iterations messages instead
   BaRunRecord run;
   run.problem_file = spec.problem;
   run.problem = &problem;

@@ -269,7 +269,9 @@ TableDef stepsTable(const Group& g) {
       "Per run, of its LM trials: failed — the step could not be computed or evaluated (a "
       "landmark's H_ll not positive definite in the precision, a CG breakdown, a non-finite "
       "cost; the reason is in /iterations messages) — and rejected — computed, but the cost did "
-      "not decrease; means over the seeds. Ceres counts both as unsuccessful steps (rejected)."};
+      "not decrease; means over the seeds. Ceres: failed is its invalid step (its linear solver "
+      "failed, e.g. CHOLMOD's \"Matrix not positive definite\" for ceres-sparse), rejected its "
+      "other unsuccessful steps."};
   return d;
 }
 
