@@ -27,6 +27,7 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kTaus[] = {0.1, 0.01, 0.001};
+constexpr double kSpeedupTau = 0.01;  // #39's speed target is at τ = 0.01
 
 // The runs of one problem and seed (one start), by solver, and the lowest final cost among them.
 struct Instance {
@@ -183,6 +184,44 @@ TableDef tauTable(const Group& g, double tau) {
       "seeds that reached it; `x k/n`: k of the n seeds never reached it. Times are wall-clock "
       "of the solve (after loading), on the machine and load of the sweep.",
       tauText(tau))};
+  return d;
+}
+
+// #39's speed target: each elimination solver against the fastest Ceres solver of the same
+// problem and seed, at τ = 0.01.
+TableDef speedupTable(const Group& g) {
+  TableDef d;
+  d.id = "ba_" + g.name + "_speedup";
+  d.title = fmt::format("Fastest Ceres time / own time to τ = {}, median / min, {} ({})",
+                        tauText(kSpeedupTau), g.name, g.protocol);
+  for (const std::string& solver : g.solvers) {
+    if (solver.rfind("ceres", 0) != 0) d.columns.push_back(solver);
+  }
+  d.sample = [](const Instance& instance, const BaRunData& run, bool* failed) {
+    if (!run.has_file) return std::vector<double>{};
+    const auto timeOf = [&](const BaRunData& r) {
+      return timeToCost(r.file,
+                        instance.best + kSpeedupTau * (r.file.initial_cost - instance.best));
+    };
+    double ceres = kInf;
+    for (const auto& [solver, other] : instance.by_solver) {
+      if (solver.rfind("ceres", 0) == 0 && other->has_file) ceres = std::min(ceres, timeOf(*other));
+    }
+    if (!std::isfinite(ceres)) return std::vector<double>{};
+    const double t = timeOf(run);
+    *failed = !std::isfinite(t);
+    return std::vector<double>(2, ceres / t);
+  };
+  d.reduce = {median, [](const std::vector<double>& v) {
+                return v.empty() ? kNaN : *std::min_element(v.begin(), v.end());
+              }};
+  d.decimals = 2;
+  d.notes = {
+      "Per problem and seed, the time of the fastest Ceres solver (implicit, explicit or sparse "
+      "Schur) to reach best + 0.01 (initial − best) over the solver's own (#39's target for "
+      "ns-f32: ≥ 2 on every problem); > 1: faster than every Ceres solver. Median / smallest "
+      "over the seeds; `x k/n`: the solver never reached the threshold on k seeds. Both on the "
+      "same machine under the same load, one after the other."};
   return d;
 }
 
@@ -429,6 +468,10 @@ std::vector<Table> buildBaTables(const std::vector<BaRunData>& runs,
   for (const Group& g : groupRuns(runs)) {
     std::vector<TableDef> defs;
     for (const double tau : kTaus) defs.push_back(tauTable(g, tau));
+    if (std::any_of(g.solvers.begin(), g.solvers.end(),
+                    [](const std::string& s) { return s.rfind("ceres", 0) == 0; })) {
+      defs.push_back(speedupTable(g));
+    }
     for (auto make :
          {finalTable, gapTable, precisionTable, stepsTable, conditioningTable, memoryTable}) {
       defs.push_back(make(g));

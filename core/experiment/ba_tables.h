@@ -11,6 +11,8 @@
 //                         the first iteration whose cost ≤ best + τ (initial − best), in seconds
 //                         and relative to the fastest solver of that problem and seed; medians over
 //                         the seeds that reached it, `x k/n` for the seeds that never did
+//   ba_<group>_speedup    the fastest Ceres solver's time to τ = 0.01 over each ns / sc solver's,
+//                         per problem and seed; median / min over the seeds (groups with Ceres)
 //   ba_<group>_final      final cost, mean ± sample std over the seeds
 //   ba_<group>_gap        (final − best) / best, mean / max over the seeds
 //   ba_<group>_precision  f32 against its f64 twin (ns-f32 vs ns-f64, sc-f32 vs sc-f64):

@@ -87,6 +87,16 @@ TEST(BaTables, ProfileThresholdsTimesAndRatiosByHand) {
   EXPECT_DOUBLE_EQ(cellOf(tau, "ceres-sparse").numbers[0], 2.5);
   EXPECT_DOUBLE_EQ(cellOf(tau, "ceres-sparse").numbers[1], 2.5);
 
+  // Against the fastest Ceres solver at τ = 0.01 (thresholds 10.9 and 20.8): ceres-sparse reaches
+  // them at 4 s on both seeds; ns-f32 never gets below 11 and 21 (x 2/2), ns-f64 at 3 s on seed 1
+  // (4/3) and never on seed 2.
+  const Table& speedup = tableOf(tables, "ba_g_speedup");
+  ASSERT_EQ(speedup.columns.size(), 2u);
+  EXPECT_EQ(cellOf(speedup, "ns-f32").state, TableCell::State::kFailed);
+  EXPECT_EQ(cellOf(speedup, "ns-f32").n_failed, 2);
+  EXPECT_DOUBLE_EQ(cellOf(speedup, "ns-f64").numbers[0], 4.0 / 3.0);
+  EXPECT_EQ(cellOf(speedup, "ns-f64").n_failed, 1);
+
   // Gap to best: ns-f32 (11 − 10)/10 and (21 − 20)/20.
   const TableCell& gap = cellOf(tableOf(tables, "ba_g_gap"), "ns-f32");
   EXPECT_DOUBLE_EQ(gap.numbers[0], 0.5 * (0.1 + 0.05));
