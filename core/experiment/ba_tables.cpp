@@ -92,6 +92,7 @@ struct TableDef {
   // The run of an instance a column reads (default: the column's solver).
   std::function<const BaRunData*(const Instance&, const std::string&)> run_of;
   Sample sample;
+  std::vector<std::string> quantities;  // the CSV's name of each number of a cell
   std::vector<Reduce> reduce;
   bool spread_first = false;
   bool scientific = false;
@@ -111,6 +112,7 @@ Table buildTable(const Group& g, const TableDef& def) {
   t.title = def.title;
   t.row_header = "problem";
   t.has_paper = false;
+  t.quantities = def.quantities;
   const std::vector<std::string> columns = def.columns.empty() ? g.solvers : def.columns;
   for (const std::string& c : columns) t.columns.push_back({c, c, c, -1, ""});
   const auto run_of = def.run_of ? def.run_of : solverRun;
@@ -174,6 +176,7 @@ TableDef tauTable(const Group& g, double tau) {
     *failed = !std::isfinite(t);
     return std::vector<double>{t, t / fastest};
   };
+  d.quantities = {"time_s", "over_fastest"};
   d.reduce = {median, median};
   d.ranked = true;
   d.notes = {fmt::format(
@@ -212,6 +215,7 @@ TableDef speedupTable(const Group& g) {
     *failed = !std::isfinite(t);
     return std::vector<double>(2, ceres / t);
   };
+  d.quantities = {"median", "min"};
   d.reduce = {median, [](const std::vector<double>& v) {
                 return v.empty() ? kNaN : *std::min_element(v.begin(), v.end());
               }};
@@ -233,6 +237,7 @@ TableDef finalTable(const Group& g) {
     *failed = run.failed;
     return std::vector<double>{run.file.final_cost};
   };
+  d.quantities = {"final_cost"};
   d.reduce = {mean};
   d.spread_first = true;
   d.scientific = true;
@@ -252,6 +257,7 @@ TableDef gapTable(const Group& g) {
     *failed = run.failed;
     return std::vector<double>(2, (run.file.final_cost - instance.best) / instance.best);
   };
+  d.quantities = {"mean", "max"};
   d.reduce = {mean, maximum};
   d.scientific = true;
   d.decimals = 1;
@@ -279,6 +285,7 @@ TableDef precisionTable(const Group& g) {
     const double r = (run.file.final_cost - twin->file.final_cost) / twin->file.final_cost;
     return std::vector<double>{r, std::abs(r)};
   };
+  d.quantities = {"mean", "max_abs"};
   d.reduce = {mean, maximum};
   d.scientific = true;
   d.decimals = 1;
@@ -302,6 +309,7 @@ TableDef stepsTable(const Group& g) {
     }
     return std::vector<double>{failed, rejected};
   };
+  d.quantities = {"failed", "rejected"};
   d.reduce = {mean, mean};
   d.decimals = 1;
   d.notes = {
@@ -332,6 +340,7 @@ TableDef conditioningTable(const Group& g) {
     if (kappa.empty()) return kappa;
     return std::vector<double>{median(kappa), maximum(kappa)};
   };
+  d.quantities = {"kappa_median", "kappa_max"};
   d.reduce = {median, median};
   d.scientific = true;
   d.decimals = 1;
@@ -349,6 +358,7 @@ TableDef memoryTable(const Group& g) {
   d.sample = [](const Instance&, const BaRunData& run, bool*) {
     return std::vector<double>{run.file.peak_rss_mb, run.file.total_time_s};
   };
+  d.quantities = {"peak_rss_mb", "total_time_s"};
   d.reduce = {median, median};
   d.decimals = 1;
   d.notes = {

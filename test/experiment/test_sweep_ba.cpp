@@ -11,10 +11,12 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <set>
 
 #include "common/cli_runner.h"
 #include "common/temp_dir.h"
 #include "core/ba/ba_results.h"
+#include "core/ba/bal_problem.h"
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
 #include "core/experiment/sweep_def.h"
@@ -89,6 +91,34 @@ solvers = ["all", "ns-f32"]
   EXPECT_EQ(plan.runs.front().ba->options.seed, defaults.seed);
   EXPECT_EQ(plan.runs.front().ba->options.iterations, defaults.iterations);
   EXPECT_EQ(plan.runs.back().variant, "ceres-sparse");
+}
+
+// The shipped sweep plans rootba's protocol on every shipped problem, solver and five seeds.
+TEST(SweepBa, TheShippedSweepIsRootbasProtocol) {
+  const SweepPlan plan =
+      loadSweepFile(std::string(sourceDir()) + "/experiments/bal.toml", ParseOptions{});
+  int protocol = 0;
+  std::set<std::uint64_t> seeds;
+  std::set<std::string> problems, solvers;
+  for (const PlannedRun& run : plan.runs) {
+    ASSERT_TRUE(run.ba.has_value()) << run.id;
+    if (run.group != "protocol") continue;
+    ++protocol;
+    const BaOptions& o = run.ba->options;
+    EXPECT_EQ(o.iterations, 50);
+    EXPECT_EQ(o.huber_px, 1.0);
+    EXPECT_EQ(o.perturb_sigma, 0.01);
+    EXPECT_EQ(o.normalize_scale, 100.0);
+    EXPECT_EQ(o.threads, 1);
+    seeds.insert(o.seed);
+    problems.insert(balProblemName(run.ba->problem));
+    solvers.insert(run.variant);
+  }
+  EXPECT_EQ(protocol, 4 * 7 * 5);
+  EXPECT_EQ(seeds.size(), 5u);
+  EXPECT_EQ(seeds.count(38401), 1u);
+  EXPECT_EQ(problems.size(), 4u);
+  EXPECT_EQ(solvers.size(), baSolverNames().size());
 }
 
 // Each mistake is an InputError naming the sweep file and the line of the key.
@@ -214,10 +244,16 @@ TEST_F(SweepBaFolder, TablesAndFigures) {
   const std::string expected = fmt::format("{:.6e}", sum / 2);
   EXPECT_NE(md.find("| dubrovnik-3-7-pre | "), std::string::npos) << md;
   EXPECT_NE(md.find(expected), std::string::npos) << expected << "\n" << md;
-  for (const char* id : {"ba_g_tau0.1", "ba_g_tau0.01", "ba_g_tau0.001", "ba_g_gap", "ba_g_steps",
-                         "ba_g_conditioning", "ba_g_memory"}) {
-    EXPECT_TRUE(fs::is_regular_file(out / "tables" / (std::string(id) + ".csv"))) << id;
+  for (const char* id : {"ba_g_tau0.1", "ba_g_tau0.01", "ba_g_tau0.001", "ba_g_speedup", "ba_g_gap",
+                         "ba_g_steps", "ba_g_conditioning", "ba_g_memory"}) {
+    SCOPED_TRACE(id);
+    const std::string csv = readText(out / "tables" / (std::string(id) + ".csv"));
+    EXPECT_NE(csv.find(std::string(id) + ",,dubrovnik-3-7-pre,"), std::string::npos) << csv;
   }
+  // The final cost in the CSV is the mean of the two seeds to the last bit (%.17g).
+  EXPECT_NE(readText(out / "tables" / "ba_g_final.csv")
+                .find(fmt::format(",ceres-sparse,final_cost,{:.17g},ok,", sum / 2)),
+            std::string::npos);
   const fs::path figures = dir_ / "figures";
   const auto plot =
       runCli("plot " + quote(out) + " --figure ba_convergence,ba_profile --out " + quote(figures));
