@@ -8,8 +8,10 @@
 #include <memory>
 
 #include "core/ba/ba_results.h"
+#include "core/ba/ba_run_spec.h"
 #include "core/ba/ba_solver.h"
 #include "core/ba/bal_problem.h"
+#include "core/ba/ceres_ba.h"
 #include "core/common/error.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
@@ -19,30 +21,62 @@ namespace marglab {
 namespace {
 
 struct BaArgs {
-  std::string problem;
+  std::string spec_file;
   std::string solver;
-  std::string output;
   bool json = false;
-  BaOptions options;
+  BaRunSpec spec;  // the options bound directly (problem, settings, output)
 };
 
 void addOptions(CLI::App& sub, BaArgs& a) {
-  sub.add_option("--problem", a.problem, "a BAL problem file, plain or .bz2 (datasets/bal/)")
-      ->required()
+  BaOptions& o = a.spec.options;
+  sub.add_option("--spec", a.spec_file,
+                 "run this ba spec file (core/ba/ba_run_spec.h; a sweep writes one per run); only "
+                 "-o and --json beside it")
+      ->check(cli::existingPath("--spec", cli::PathKind::kFile));
+  sub.add_option("--problem", a.spec.problem, "a BAL problem file, plain or .bz2 (datasets/bal/)")
       ->check(cli::existingPath("--problem", cli::PathKind::kFile));
-  sub.add_option("--solver", a.solver, fmt::format("{}", fmt::join(baSolverNames(), " | ")))
-      ->required();
-  sub.add_option("--iterations", a.options.iterations,
+  sub.add_option("--solver", a.solver, fmt::format("{}", fmt::join(baSolverNames(), " | ")));
+  sub.add_option("--iterations", o.iterations,
                  "LM iterations, every trial counted (rootba's default 20)");
-  sub.add_option("--huber", a.options.huber_px, "Huber threshold in pixels (0: no robust loss)");
-  sub.add_option("--perturb", a.options.perturb_sigma,
+  sub.add_option("--huber", o.huber_px, "Huber threshold in pixels (0: no robust loss)");
+  sub.add_option("--perturb", o.perturb_sigma,
                  "σ of the perturbation of camera centres and points (after --normalize)");
-  sub.add_option("--seed", a.options.seed, "seed of the perturbation (rootba's 38401)");
-  sub.add_option("--normalize", a.options.normalize_scale,
+  sub.add_option("--seed", o.seed, "seed of the perturbation (rootba's 38401)");
+  sub.add_option("--normalize", o.normalize_scale,
                  "normalize the scene to this median absolute deviation (rootba: 100; 0: off)");
-  sub.add_option("--threads", a.options.threads, "threads (Ceres; ns / sc run on one)");
+  sub.add_option("--threads", o.threads, "threads (Ceres; ns / sc run on one)");
   sub.add_flag("--json", a.json, "print the result as one JSON object");
-  sub.add_option("-o,--output", a.output, "the HDF5 results file to write")->required();
+  sub.add_option("-o,--output", a.spec.output, "the HDF5 results file to write");
+  sub.final_callback([&sub, &a] {
+    if (a.spec_file.empty()) return;
+    for (const CLI::Option* option : sub.get_options()) {
+      const std::string name = option->get_name();
+      if (option->count() == 0 || name == "--spec" || name == "--output" || name == "--json" ||
+          name == "--help") {
+        continue;
+      }
+      // Thrown while parsing: a CLI11 error, reported like any other bad option (exit 2).
+      throw CLI::ValidationError(
+          "--spec",
+          fmt::format("FILE gives the whole run: {} cannot be given beside it (only -o, --json)",
+                      name));
+    }
+  });
+}
+
+// The run's spec: from --spec FILE (a -o beside it replaces its output), or from the options.
+BaRunSpec specOf(const BaArgs& a) {
+  if (!a.spec_file.empty()) {
+    BaRunSpec spec = BaRunSpec::fromTomlFile(a.spec_file);
+    if (!a.spec.output.empty()) spec.output = a.spec.output;
+    return spec;
+  }
+  if (a.spec.problem.empty()) throw UsageError("--problem is required (or --spec FILE)");
+  if (a.solver.empty()) throw UsageError("--solver is required (or --spec FILE)");
+  if (a.spec.output.empty()) throw UsageError("-o is required: the results file to write");
+  BaRunSpec spec = a.spec;
+  spec.options.solver = parseBaSolver(a.solver);
+  return spec;
 }
 
 void printSummary(const BaRunRecord& run) {
@@ -58,24 +92,24 @@ void printSummary(const BaRunRecord& run) {
   fmt::print("  peak RSS   {:.1f} MB\n", run.peak_rss_mb);
 }
 
-int runBa(BaArgs& a) {
-  a.options.solver = parseBaSolver(a.solver);
-  const std::vector<Problem> problems = validate(a.options);
+int runBa(const BaArgs& a) {
+  const BaRunSpec spec = specOf(a);
+  const std::vector<Problem> problems = baRunProblems(spec);
   if (!problems.empty()) throwProblems(problems);
-  cli::checkOutputFile(a.output, "-o");
-  cli::refuseOverwritingInputs({a.output}, {{a.problem}, {}});
-  BalProblem problem = loadBalProblem(a.problem);
-  if (a.options.normalize_scale > 0) normalizeBalProblem(&problem, a.options.normalize_scale);
-  if (a.options.perturb_sigma > 0) {
-    perturbBalProblem(&problem, a.options.perturb_sigma, a.options.seed);
-  }
+  cli::checkOutputFile(spec.output, "-o");
+  cli::refuseOverwritingInputs({spec.output}, {{spec.problem, a.spec_file}, {}});
+  BalProblem problem = loadBalProblem(spec.problem);
+  const BaOptions& o = spec.options;
+  if (o.normalize_scale > 0) normalizeBalProblem(&problem, o.normalize_scale);
+  if (o.perturb_sigma > 0) perturbBalProblem(&problem, o.perturb_sigma, o.seed);
+  keepCeresWarningsOffStderr();  // recorded per step in /iterations messages instead
   BaRunRecord run;
-  run.problem_file = a.problem;
+  run.problem_file = spec.problem;
   run.problem = &problem;
-  run.options = a.options;
-  run.result = solveBundleAdjustment(problem, a.options);
+  run.options = o;
+  run.result = solveBundleAdjustment(problem, o);
   run.peak_rss_mb = peakResidentMb();
-  writeBaResults(a.output, run);
+  writeBaResults(spec.output, run);
   if (a.json) {
     fmt::print("{}\n", baResultJson(run).dump());
   } else {

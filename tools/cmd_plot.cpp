@@ -28,7 +28,8 @@ const bool kRegistered = cli::registerCommand(
                       "VIO), fig5 (dEm, VO), fig6 (sigma_min, VO), fig7 (trajectories, VO), "
                       "sparsify (Hsiung et al. Fig. 6a/6b and KLD of nfr runs), noise_sigma "
                       "(prior sigma_max / sigma_min at the first 20 marginalizations per IMU "
-                      "noise profile, VIO); tracks (one "
+                      "noise profile, VIO); ba_convergence, ba_profile (`marglab ba` runs: cost "
+                      "- best against time per problem, rootba's performance profile); tracks (one "
                       "stereo frame with its feature tracks, needs --dataset, no folders)")
            ->capture_default_str();
        sub.add_option("-o,--out", request->out,

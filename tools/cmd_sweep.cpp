@@ -141,7 +141,7 @@ void refuseOverwritingInputs(const experiment::SweepPlan& plan, const std::strin
                              const std::filesystem::path& out) {
   std::vector<std::string> inputs{file};
   for (const auto& run : plan.runs) {
-    if (std::filesystem::is_directory(run.dataset)) inputs.push_back(run.dataset);
+    if (run.ba || std::filesystem::is_directory(run.dataset)) inputs.push_back(run.dataset);
   }
   for (const std::string& input : inputs) {
     for (const char* sub : {"runs", "logs", "configs", "slurm", "tracks"}) {
@@ -157,7 +157,9 @@ void refuseOverwritingInputs(const experiment::SweepPlan& plan, const std::strin
   cli::CommandInputs read{{file}, {}};
   std::set<std::string> datasets;
   for (const auto& run : plan.runs) {
-    if (datasets.insert(run.dataset).second) cli::addInputs(&read, cli::datasetInputs(run.dataset));
+    if (!datasets.insert(run.dataset).second) continue;
+    cli::addInputs(
+        &read, run.ba ? cli::CommandInputs{{run.dataset}, {}} : cli::datasetInputs(run.dataset));
   }
   cli::refuseOverwritingInputs({(out / "index.csv").string(), (out / ".lock").string()}, read);
 }

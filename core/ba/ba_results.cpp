@@ -2,10 +2,13 @@
 
 #include <sys/resource.h>
 
+#include <utility>
 #include <vector>
 
+#include "core/common/error.h"
 #include "core/common/utc_time.h"
 #include "core/io/hdf5.h"
+#include "core/io/hdf5_trust.h"
 #include "marglab/version.h"
 
 namespace marglab {
@@ -108,6 +111,70 @@ Json baResultJson(const BaRunRecord& run) {
   }
   j["iterations"] = std::move(iterations);
   return j;
+}
+
+namespace {
+
+BaResultsFile readBaResultsUntrusted(const std::string& path) {
+  const h5::File file = h5::File::openReadOnly(path);
+  if (!file.hasAttr("kind") || file.attr<std::string>("kind") != "ba") {
+    throw InputError(path, 0, "not a `marglab ba` results file (no root attribute kind = \"ba\")");
+  }
+  BaResultsFile r;
+  for (auto [name, value] : {std::pair{"git_sha", &r.git_sha},
+                             {"problem", &r.problem},
+                             {"problem_file", &r.problem_file},
+                             {"solver", &r.solver},
+                             {"precision", &r.precision},
+                             {"status", &r.status},
+                             {"status_reason", &r.status_reason}}) {
+    *value = file.attr<std::string>(name);
+  }
+  for (auto [name, value] : {std::pair{"num_cameras", &r.num_cameras},
+                             {"num_points", &r.num_points},
+                             {"num_observations", &r.num_observations},
+                             {"iterations", &r.max_iterations},
+                             {"threads", &r.threads}}) {
+    *value = static_cast<int>(file.attr<std::int64_t>(name));
+  }
+  r.seed = static_cast<std::uint64_t>(file.attr<std::int64_t>("seed"));
+  for (auto [name, value] : {std::pair{"huber_px", &r.huber_px},
+                             {"perturb_sigma", &r.perturb_sigma},
+                             {"normalize_scale", &r.normalize_scale},
+                             {"initial_cost", &r.initial_cost},
+                             {"final_cost", &r.final_cost},
+                             {"total_time_s", &r.total_time_s},
+                             {"peak_rss_mb", &r.peak_rss_mb}}) {
+    *value = file.attr<double>(name);
+  }
+  const h5::Group g = file.openGroup("iterations");
+  const auto iteration = g.readVector<std::int64_t>("iteration");
+  const auto cg = g.readVector<std::int64_t>("cg_iterations");
+  const auto accepted = g.readVector<std::uint8_t>("accepted");
+  const auto cost = g.readVector<double>("cost"), time_s = g.readVector<double>("time_s");
+  const auto lambda = g.readVector<double>("lambda");
+  const auto ritz_min = g.readVector<double>("ritz_min"),
+             ritz_max = g.readVector<double>("ritz_max");
+  const auto messages = g.attr<std::vector<std::string>>("messages");
+  const std::size_t n = iteration.size();
+  for (const std::size_t size :
+       {cg.size(), accepted.size(), cost.size(), time_s.size(), lambda.size(), ritz_min.size(),
+        ritz_max.size(), messages.size()}) {
+    if (size != n) throw InputError(path, 0, "/iterations: columns of different lengths");
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    r.iterations.push_back({static_cast<int>(iteration[i]), cost[i], time_s[i], lambda[i],
+                            static_cast<int>(cg[i]), accepted[i] != 0, ritz_min[i], ritz_max[i],
+                            messages[i]});
+  }
+  return r;
+}
+
+}  // namespace
+
+BaResultsFile readBaResults(const std::string& path) {
+  h5::checkReadableInChild(path, [&path] { readBaResultsUntrusted(path); });
+  return readBaResultsUntrusted(path);
 }
 
 double peakResidentMb() {

@@ -36,6 +36,20 @@ struct BaRunRecord {
 void writeBaResults(const std::string& path, const BaRunRecord& run);
 Json baResultJson(const BaRunRecord& run);
 
+// A ba results file as read back (by the sweep's index and resume, and by `marglab tables`).
+struct BaResultsFile {
+  std::string git_sha, problem, problem_file, solver, precision, status, status_reason;
+  int num_cameras = 0, num_points = 0, num_observations = 0;
+  int max_iterations = 0, threads = 1;
+  std::uint64_t seed = 0;
+  double huber_px = 0, perturb_sigma = 0, normalize_scale = 0;
+  double initial_cost = 0, final_cost = 0, total_time_s = 0, peak_rss_mb = 0;
+  std::vector<BaIteration> iterations;  // /iterations, row 0 the initial cost
+};
+// Reads one through the trust boundary (core/io/hdf5_trust.h); InputError naming the file when it
+// is not a complete ba results file.
+BaResultsFile readBaResults(const std::string& path);
+
 // Peak resident set size of this process so far (getrusage), in MB.
 double peakResidentMb();
 

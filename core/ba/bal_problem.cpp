@@ -118,7 +118,9 @@ int readCount(FieldReader& fields, std::string_view what) {
   return count;
 }
 
-std::string problemName(const std::string& path) {
+}  // namespace
+
+std::string balProblemName(const std::string& path) {
   std::string name = std::filesystem::path(path).filename().string();
   for (std::string_view suffix : {".bz2", ".txt"}) {
     if (name.size() > suffix.size() &&
@@ -128,8 +130,6 @@ std::string problemName(const std::string& path) {
   }
   return name;
 }
-
-}  // namespace
 
 std::string readPlainOrBzip2(const std::string& path) {
   std::string bytes = readFile(path);
@@ -141,7 +141,7 @@ BalProblem loadBalProblem(const std::string& path) {
   const std::string text = readPlainOrBzip2(path);
   FieldReader fields(path, text);
   BalProblem problem;
-  problem.name = problemName(path);
+  problem.name = balProblemName(path);
   const int num_cameras = readCount(fields, "the number of cameras");
   const int num_points = readCount(fields, "the number of points");
   const int num_observations = readCount(fields, "the number of observations");

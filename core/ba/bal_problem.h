@@ -40,6 +40,10 @@ struct BalProblem {
 
 BalProblem loadBalProblem(const std::string& path);
 
+// The name of the problem of a file: its name without folders and .txt / .bz2
+// ("ladybug-problem-49-7776-pre").
+std::string balProblemName(const std::string& path);
+
 // The file's bytes, bzip2-decompressed when they start with "BZh"; InputError(path, 0, …) when the
 // file cannot be read or the bzip2 stream is corrupt.
 std::string readPlainOrBzip2(const std::string& path);

@@ -1,18 +1,46 @@
 #include "core/ba/ceres_ba.h"
 
 #include <ceres/ceres.h>
+#include <glog/logging.h>
 
 #include <chrono>
 #include <limits>
+#include <mutex>
+#include <string>
+#include <utility>
 
 #include "core/ba/ba_state.h"
 
 namespace marglab {
 namespace {
 
+// The latest glog warning while it lives (Ceres logs a failed linear solve only so).
+class WarningSink : public google::LogSink {
+ public:
+  WarningSink() { google::AddLogSink(this); }
+  ~WarningSink() override { google::RemoveLogSink(this); }
+  WarningSink(const WarningSink&) = delete;
+  WarningSink& operator=(const WarningSink&) = delete;
+
+  void send(google::LogSeverity severity, const char*, const char*, int, const struct ::tm*,
+            const char* message, size_t length) override {
+    if (severity != google::GLOG_WARNING) return;
+    const std::lock_guard<std::mutex> lock(mutex_);
+    last_.assign(message, length);
+  }
+  std::string take() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return std::exchange(last_, {});
+  }
+
+ private:
+  std::mutex mutex_;
+  std::string last_;
+};
+
 class Recorder : public ceres::IterationCallback {
  public:
-  explicit Recorder(BaResult* result) : result_(result) {}
+  Recorder(BaResult* result, WarningSink* warnings) : result_(result), warnings_(warnings) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
     BaIteration row;
     row.iteration = s.iteration;
@@ -22,7 +50,9 @@ class Recorder : public ceres::IterationCallback {
     row.cg_iterations = s.linear_solver_iterations;
     row.accepted = s.step_is_successful;
     row.ritz_min = row.ritz_max = std::numeric_limits<double>::quiet_NaN();
-    if (!s.step_is_valid) row.message = "invalid step";
+    const std::string warning = warnings_->take();
+    if (!s.step_is_valid)
+      row.message = warning.empty() ? "invalid step" : "invalid step: " + warning;
     result_->iterations.push_back(row);
     return ceres::SOLVER_CONTINUE;
   }
@@ -32,6 +62,7 @@ class Recorder : public ceres::IterationCallback {
 
  private:
   BaResult* result_;
+  WarningSink* warnings_;
   std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
 
@@ -87,7 +118,8 @@ BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options) {
   ceres::Solver::Options solver_options = solverOptions(options);
   solver_options.linear_solver_ordering = ordering;
   BaResult result;
-  Recorder recorder(&result);
+  WarningSink warnings;
+  Recorder recorder(&result, &warnings);
   solver_options.callbacks.push_back(&recorder);
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &ceres_problem, &summary);
@@ -103,6 +135,19 @@ BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options) {
           .num_behind;
   result.total_time_s = recorder.seconds();
   return result;
+}
+
+void keepCeresWarningsOffStderr() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    if (google::IsGoogleLoggingInitialized()) return;
+    FLAGS_logtostderr = false;
+    FLAGS_stderrthreshold = google::GLOG_ERROR;
+    for (int severity = google::GLOG_INFO; severity < google::NUM_SEVERITIES; ++severity) {
+      google::SetLogDestination(severity, "");  // no log files
+    }
+    google::InitGoogleLogging("marglab");
+  });
 }
 
 }  // namespace marglab

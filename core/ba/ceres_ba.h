@@ -40,6 +40,13 @@ struct SnavelyResidual {
   }
 };
 
+// An invalid step (Ceres' linear solver failed: for ceres-sparse CHOLMOD's "Matrix not positive
+// definite") records Ceres' own warning as its message ("invalid step: ...").
 BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options);
+
+// Ceres writes those warnings through glog to stderr; a program that records them in its results
+// calls this once first: glog then writes no log files and only errors to stderr, and the
+// warnings reach the results only. Does nothing when glog is already initialized.
+void keepCeresWarningsOffStderr();
 
 }  // namespace marglab

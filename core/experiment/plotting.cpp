@@ -40,10 +40,10 @@ int runPlot(const PlotRequest& request) {
   std::stringstream list(request.figures);
   for (std::string f; std::getline(list, f, ',');) {
     if (f != "fig1" && f != "fig4" && f != "fig5" && f != "fig6" && f != "fig7" &&
-        f != "sparsify" && f != "noise_sigma") {
+        f != "sparsify" && f != "noise_sigma" && f != "ba_convergence" && f != "ba_profile") {
       throw UsageError(
-          "--figure takes fig1, fig4, fig5, fig6, fig7, sparsify, noise_sigma (comma-separated), "
-          "not '" +
+          "--figure takes fig1, fig4, fig5, fig6, fig7, sparsify, noise_sigma, ba_convergence, "
+          "ba_profile (comma-separated), not '" +
           f + "'");
     }
   }

@@ -120,6 +120,7 @@ ResultSet loadResults(const std::vector<std::string>& dirs) {
     const std::string index = (fs::path(dir) / "index.csv").string();
     int from_index = 0;
     for (const IndexRow& row : readIndex(index)) {
+      if (row.get("kind") == "ba") continue;  // `marglab ba` runs: ba_tables.h
       RunRecord r;
       r.row = row;
       r.indexed_dataset = row.get("dataset");

@@ -70,13 +70,6 @@ void explainTrackingFailure(const fs::path& out, IndexRow* row) {
                        exit.exit_code, detail::lastNonEmptyLine(log.string()), log.string()));
 }
 
-std::string describeRow(const IndexRow& row) {
-  if (row.get("status") == "ok") return fmt::format("ATE {:.4f} m", row.number("ate_rmse"));
-  const std::string& frame = row.get("failure_frame");
-  return row.get("failure_kind") + (frame.empty() ? "" : " at frame " + frame) + ": " +
-         row.get("reason");
-}
-
 // Submits queued rows as job arrays, one per distinct time limit, longest runs first.
 class Submitter {
  public:
@@ -258,7 +251,7 @@ class Follower {
     const std::string wall_text = std::isfinite(wall) ? fmt::format("{:.1f}", wall) : "-";
     fmt::print(options_.out, "[{:>{}}/{}] {:<6} {:>7} s  {}  {}\n", finished_,
                std::to_string(total_).size(), total_, row.get("status"), wall_text, row.get("id"),
-               describeRow(row));
+               detail::outcomeText(row));
     std::fflush(options_.out);
   }
 
@@ -505,14 +498,14 @@ int slurmSweepStatus(const std::string& dir, const SweepOptions& options) {
     for (std::size_t i : SlurmReconciler(out, binary.revision).update(&rows)) {
       explainTrackingFailure(out, &rows[i]);
       fmt::print(options.out, "  {:<6} {}  {}\n", rows[i].get("status"), rows[i].get("id"),
-                 describeRow(rows[i]));
+                 detail::outcomeText(rows[i]));
     }
     writeIndex(index_path, rows);
     if (options.slurm.wait) interrupted = Follower(name, out, binary.revision, options).run(&rows);
   }
   for (const IndexRow& row : rows) {
     if (row.get("status") == "failed" && !detail::isFailedResult(row)) {
-      fmt::print(options.out, "  failed {}  {}\n", row.get("id"), describeRow(row));
+      fmt::print(options.out, "  failed {}  {}\n", row.get("id"), detail::outcomeText(row));
     }
   }
   const double wall = std::chrono::duration<double>(Clock::now() - start).count();

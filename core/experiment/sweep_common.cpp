@@ -15,6 +15,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/ba/ba_results.h"
 #include "core/common/error.h"
 #include "core/common/utc_time.h"
 #include "core/data/sequence.h"
@@ -63,6 +64,13 @@ std::string formatDuration(double seconds) {
 }
 
 double FrameEstimator::operator()(const PlannedRun& run) {
+  if (run.ba) {
+    // A ba run's length: its iterations times the problem file's size (a proxy of its
+    // observations), for the order and the ETA only.
+    std::error_code ec;
+    const double kb = static_cast<double>(fs::file_size(run.ba->problem, ec)) / 1e3;
+    return std::max(1.0, (ec ? 1.0 : kb) * std::max(1, run.ba->options.iterations));
+  }
   double total = 0;
   auto it = cache_.find(run.dataset);
   if (it != cache_.end()) {
@@ -83,9 +91,41 @@ double FrameEstimator::operator()(const PlannedRun& run) {
   return std::max(total, 1.0);
 }
 
+namespace {
+
+// readCompleteResults of a ba run (core/ba/ba_results.h): its root attributes. Its status
+// "failed" (a linearization that cannot go on) is a numerical failure, a result; "converged",
+// "max_iterations" and "no_convergence" (λ above its maximum: no further progress) are ok, the
+// solver's word in ba_status.
+bool readCompleteBaResults(const std::string& path, IndexRow* row, const char* git_sha,
+                           bool* other_revision) {
+  try {
+    const BaResultsFile file = readBaResults(path);
+    if (git_sha != nullptr && file.git_sha != git_sha) {
+      if (other_revision != nullptr) *other_revision = true;
+      return false;
+    }
+    const bool failed = file.status == "failed";
+    row->set("status", failed ? "failed" : "ok");
+    row->set("ba_status", file.status);
+    row->set("failure_kind", failed ? "numerical" : "");
+    row->set("reason", failed ? file.status_reason : "");
+    row->setNumber("initial_cost", file.initial_cost);
+    row->setNumber("final_cost", file.final_cost);
+    row->setNumber("total_time_s", file.total_time_s);
+    row->setNumber("peak_rss_mb", file.peak_rss_mb);
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+}  // namespace
+
 bool readCompleteResults(const std::string& path, IndexRow* row, const char* git_sha,
                          bool* other_revision) {
   if (!fs::is_regular_file(path)) return false;
+  if (row->get("kind") == "ba") return readCompleteBaResults(path, row, git_sha, other_revision);
   try {
     const ResultsReader reader(path, ResultsReader::Scope::kSummary);
     if (git_sha != nullptr && reader.info().git_sha != git_sha) {
@@ -119,11 +159,25 @@ bool isFailedResult(const IndexRow& row) {
   return row.get("status") == "failed" && (kind == "numerical" || kind == "tracking");
 }
 
+std::string outcomeText(const IndexRow& row) {
+  if (row.get("status") == "ok") {
+    if (row.get("kind") == "ba") {
+      return fmt::format("cost {:.6e} ({})", row.number("final_cost"), row.get("ba_status"));
+    }
+    return fmt::format("ATE {:.4f} m", row.number("ate_rmse"));
+  }
+  const std::string& frame = row.get("failure_frame");
+  return row.get("failure_kind") + (frame.empty() ? "" : " at frame " + frame) + ": " +
+         row.get("reason");
+}
+
 void clearOutcome(IndexRow* row) {
   for (const char* column :
-       {"failure_kind", "failure_frame", "reason", "exit_code", "signal", "reused", "wall_s",
-        "n_frames", "ate_rmse", "duration_s", "t_opt_total_s", "t_marg_total_s", "wall_time_s",
-        "realtime_factor", "mode", "pid", "slurm_job", "started_utc"}) {
+       {"failure_kind",  "failure_frame",  "reason",      "exit_code",       "signal",
+        "reused",        "wall_s",         "n_frames",    "ate_rmse",        "duration_s",
+        "t_opt_total_s", "t_marg_total_s", "wall_time_s", "realtime_factor", "mode",
+        "pid",           "slurm_job",      "started_utc", "ba_status",       "initial_cost",
+        "final_cost",    "total_time_s",   "peak_rss_mb"}) {
     row->set(column, "");
   }
 }
@@ -264,9 +318,16 @@ IndexRow plannedRow(const PlannedRun& run) {
   row.set("group", run.group);
   row.set("dataset", run.dataset);
   row.set("variant", run.variant);
-  const Variant v = Variant::parse(run.variant);
-  row.set("method", v.method());
-  row.set("precision", v.precisionName());
+  if (run.ba) {
+    // method: the elimination (ns | sc) or ceres; precision f32 | f64.
+    row.set("kind", "ba");
+    row.set("method", run.variant.substr(0, run.variant.find('-')));
+    row.set("precision", precisionOf(run.ba->options.solver));
+  } else {
+    const Variant v = Variant::parse(run.variant);
+    row.set("method", v.method());
+    row.set("precision", v.precisionName());
+  }
   row.set("seed", std::to_string(run.seed));
   row.set("frames", std::to_string(run.frames));
   row.set("override", run.override_name);
@@ -309,7 +370,10 @@ void prepareRunFiles(const fs::path& out, const std::string& sweep_name, const P
   header << "# marglab sweep " << sweep_name << ": run " << run.id << "\n# started "
          << utcNowIso8601() << " in " << fs::absolute(out).string() << "\n# " << row->get("command")
          << "\n";
-  if (!run.spec_toml.empty()) header << "# run as: marglab run --spec " << runSpecFile(run) << "\n";
+  if (!run.spec_toml.empty()) {
+    header << "# run as: marglab " << (run.ba ? "ba" : "run") << " --spec " << runSpecFile(run)
+           << "\n";
+  }
 }
 
 }  // namespace marglab::experiment::detail

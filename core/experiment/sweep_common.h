@@ -26,6 +26,10 @@ std::string signalName(int signal);          // "SIGKILL (Killed)"
 bool readCompleteResults(const std::string& path, IndexRow* row, const char* git_sha = nullptr,
                          bool* other_revision = nullptr);
 
+// A finished row's outcome, as the per-run line prints it: "ATE 0.1234 m", a ba run's
+// "cost 7.648565e+03 (max_iterations)", or "<failure_kind>[ at frame N]: <reason>".
+std::string outcomeText(const IndexRow& row);
+
 // Empties the outcome columns of a row that is about to run (again).
 void clearOutcome(IndexRow* row);
 // A failed run whose results file is complete — the estimator failed numerically or lost the scene

@@ -12,6 +12,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/ba/bal_problem.h"
 #include "core/common/error.h"
 #include "core/data/sequence.h"
 #include "core/estimator/variant.h"
@@ -94,7 +95,11 @@ class Parser {
     std::set<std::string> group_names;
     for (const toml::node& node : *array) {
       const toml::table& group = *node.as_table();
-      parseGroup(group, &plan);
+      if (isBaGroup(group)) {
+        parseBaGroup(group, &plan);
+      } else {
+        parseGroup(group, &plan);
+      }
       if (!group_names.insert(plan.runs.empty() ? "" : plan.runs.back().group).second) {
         throw error(*group.get("name"), "duplicate group name '" + plan.runs.back().group + "'");
       }
@@ -281,8 +286,8 @@ class Parser {
     GroupSpec g;
     g.line = lineOf(group);
     checkKeys(group,
-              {"name", "datasets", "variants", "seeds", "frames", "timeout_s", "args", "set",
-               "frontend", "config_file", "config", "override"},
+              {"name", "kind", "datasets", "variants", "seeds", "frames", "timeout_s", "args",
+               "set", "frontend", "config_file", "config", "override"},
               "a [[group]]");
     g.name = requiredString(group, "name", "a [[group]]", g.line);
     if (!validName(g.name)) {
@@ -344,8 +349,9 @@ class Parser {
     return variants;
   }
 
-  std::vector<std::uint64_t> parseSeeds(const toml::table& group, int line) const {
-    if (group.get("seeds") == nullptr) return {1};
+  std::vector<std::uint64_t> parseSeeds(const toml::table& group, int line,
+                                        std::uint64_t default_seed = 1) const {
+    if (group.get("seeds") == nullptr) return {default_seed};
     std::vector<std::uint64_t> seeds;
     std::set<std::int64_t> listed;  // linear in the number of seeds, not quadratic
     for (const toml::node* node : nonEmptyArray(group, "seeds", "a [[group]]", line)) {
@@ -527,8 +533,173 @@ class Parser {
     return run;
   }
 
+  // ---- groups of `marglab ba` runs (kind = "ba", sweep_def.h) ----
+
+  // The group's kind: "run" (default) or "ba"; anything else is refused at its line.
+  bool isBaGroup(const toml::table& group) const {
+    const toml::node* node = group.get("kind");
+    if (node == nullptr) return false;
+    const auto kind = node->value_exact<std::string>();
+    if (!kind || (*kind != "run" && *kind != "ba")) {
+      throw error(*node, "kind must be \"run\" (marglab run, the default) or \"ba\" (marglab ba)");
+    }
+    return *kind == "ba";
+  }
+
+  void parseBaGroup(const toml::table& group, SweepPlan* plan) {
+    const int line = lineOf(group);
+    checkKeys(group,
+              {"name", "kind", "problems", "solvers", "seeds", "iterations", "huber_px",
+               "perturb_sigma", "normalize_scale", "threads", "timeout_s"},
+              "a [[group]] of kind \"ba\"");
+    const std::string name = requiredString(group, "name", "a [[group]]", line);
+    if (!validName(name)) {
+      throw error(*group.get("name"), "group name must use only letters, digits, '_', '-', '.'");
+    }
+    std::vector<std::string> problems;
+    for (const toml::node* node : nonEmptyArray(group, "problems", "a [[group]]", line)) {
+      problems.push_back(resolveProblem(*node));
+    }
+    const std::vector<BaSolver> solvers = parseSolvers(group, line);
+    const std::vector<std::uint64_t> seeds = parseSeeds(group, line, BaOptions{}.seed);
+    const BaOptions options = parseBaSettings(group, name, line);
+    const double timeout_s = parseTimeout(group);
+    const double planned = static_cast<double>(plan->runs.size()) +
+                           static_cast<double>(problems.size()) * solvers.size() * seeds.size();
+    if (planned > kMaxSweepRuns) {
+      throw InputError(name_, line,
+                       fmt::format("group '{}' brings the sweep to {:.0f} runs; a sweep holds at "
+                                   "most {} (split it into several sweeps)",
+                                   name, planned, kMaxSweepRuns));
+    }
+    // Seeds outside the solvers: the solvers of one problem and seed run one after the other (the
+    // local runner keeps the plan's order within a problem), under the same load of the machine.
+    for (const std::string& problem : problems) {
+      for (const std::uint64_t seed : seeds) {
+        for (const BaSolver solver : solvers) {
+          BaRunSpec spec{problem, options, ""};
+          spec.options.solver = solver;
+          spec.options.seed = seed;
+          plan->runs.push_back(plannedBaRun(name, line, std::move(spec), timeout_s));
+        }
+      }
+    }
+  }
+
+  // A problem file, relative to the sweep file, read and parsed once per sweep (a malformed file
+  // is named with its line before any run starts); its absolute path.
+  std::string resolveProblem(const toml::node& node) {
+    if (!node.is_string()) throw error(node, "problems must hold strings (BAL files)");
+    fs::path path(**node.as_string());
+    if (path.is_relative()) path = fs::path(base_dir_) / path;
+    const std::string file = fs::absolute(path).lexically_normal().string();
+    BaRunSpec probe{file, BaOptions{}, "x.h5"};
+    for (const Problem& p : baRunProblems(probe)) {
+      throw error(node, fmt::format("problem {}: {}", file, p.message));
+    }
+    if (checked_problems_.insert(file).second) {
+      try {
+        loadBalProblem(file);
+      } catch (const InputError& e) {
+        throw error(node, fmt::format("problem: {}", e.what()));
+      }
+    }
+    return file;
+  }
+
+  std::vector<BaSolver> parseSolvers(const toml::table& group, int line) const {
+    std::vector<BaSolver> solvers;
+    for (const toml::node* node : nonEmptyArray(group, "solvers", "a [[group]]", line)) {
+      const auto name = node->value_exact<std::string>();
+      if (!name) throw error(*node, "solvers must hold strings");
+      std::vector<BaSolver> named;
+      try {
+        if (*name == "all") {
+          for (const std::string& s : baSolverNames()) named.push_back(parseBaSolver(s));
+        } else {
+          named.push_back(parseBaSolver(*name));
+        }
+      } catch (const UsageError& e) {
+        throw error(*node, fmt::format("solvers: {} (or all)", e.what()));
+      }
+      for (const BaSolver s : named) {
+        if (std::find(solvers.begin(), solvers.end(), s) == solvers.end()) solvers.push_back(s);
+      }
+    }
+    return solvers;
+  }
+
+  // The settings of the group's runs, each checked in its range at its key's line (as `marglab
+  // ba` checks its option), then together at the group's line.
+  BaOptions parseBaSettings(const toml::table& group, const std::string& name, int line) const {
+    BaOptions options;
+    const auto number = [&](const char* key, double* value) {
+      const toml::node* node = group.get(key);
+      if (node == nullptr) return;
+      if (!node->is_floating_point() && !node->is_integer()) {
+        throw error(*node, fmt::format("{} must be a number", key));
+      }
+      *value = *node->value<double>();
+      checkBaSetting(options, *node, key);
+    };
+    const auto integer = [&](const char* key, int* value) {
+      const toml::node* node = group.get(key);
+      if (node == nullptr) return;
+      const auto v = node->value_exact<std::int64_t>();
+      if (!v || *v < 0 || *v > 1000000) {
+        throw error(*node, fmt::format("{} must be an integer in [0, 1000000]", key));
+      }
+      *value = static_cast<int>(*v);
+      checkBaSetting(options, *node, key);
+    };
+    integer("iterations", &options.iterations);
+    number("huber_px", &options.huber_px);
+    number("perturb_sigma", &options.perturb_sigma);
+    number("normalize_scale", &options.normalize_scale);
+    integer("threads", &options.threads);
+    const std::vector<Problem> problems = validate(options);
+    if (!problems.empty()) {
+      throw InputError(name_, line, fmt::format("group '{}': {}", name, problems.front().message));
+    }
+    return options;
+  }
+
+  void checkBaSetting(const BaOptions& options, const toml::node& node, const char* key) const {
+    const std::vector<Problem> problems = validate(options);
+    if (!problems.empty()) throw error(node, fmt::format("{}: {}", key, problems.front().message));
+  }
+
+  PlannedRun plannedBaRun(const std::string& group, int line, BaRunSpec spec, double timeout_s) {
+    PlannedRun run;
+    run.group = group;
+    run.dataset = spec.problem;
+    run.variant = toString(spec.options.solver);
+    run.seed = spec.options.seed;
+    run.timeout_s = timeout_s;
+    run.line = line;
+    run.id = fmt::format("{}__{}__{}__s{}", group, slug(balProblemName(spec.problem)), run.variant,
+                         run.seed);
+    spec.output = "runs/" + run.id + ".h5";
+    const std::vector<Problem> problems = baRunProblems(spec);
+    if (!problems.empty()) {
+      throw InputError(name_, line, fmt::format("run {}: {}", run.id, problems.front().message));
+    }
+    run.spec_toml = spec.toToml();
+    run.ba = std::move(spec);
+    const auto [earlier, fresh] = planned_ids_.emplace(run.id, line);
+    if (!fresh) {
+      throw InputError(name_, line,
+                       fmt::format("run {} is planned twice (lines {} and {}): a problem (or two "
+                                   "files of one name), solver or seed is listed twice",
+                                   run.id, earlier->second, line));
+    }
+    return run;
+  }
+
   std::string name_;
-  std::map<std::string, int> planned_ids_;  // run id → line of its group
+  std::map<std::string, int> planned_ids_;
+  std::set<std::string>
+      checked_problems_;  // problem files parsed once  // run id → line of its group
   struct Listed {
     std::string dataset;
     int line = 0;
@@ -597,11 +768,18 @@ std::string runSpecFile(const PlannedRun& run) { return "runs/" + run.id + ".spe
 std::vector<std::string> childArguments(const PlannedRun& run, const std::string& results_path,
                                         const std::string& config_path) {
   if (run.spec_toml.empty()) return runArguments(run, results_path, config_path);
-  return {"run", "--spec", runSpecFile(run)};
+  return {run.ba ? "ba" : "run", "--spec", runSpecFile(run)};
 }
 
 std::vector<std::string> runArguments(const PlannedRun& run, const std::string& results_path,
                                       const std::string& config_path) {
+  if (run.ba) {
+    BaRunSpec spec = *run.ba;
+    spec.output = results_path;
+    std::vector<std::string> args = spec.arguments();
+    args.insert(args.begin(), "ba");
+    return args;
+  }
   std::vector<std::string> args = {"run",
                                    "--dataset",
                                    run.dataset,

@@ -44,6 +44,27 @@
 // validates) every planned run with its dataset — and each error is an InputError naming the file
 // and line, so that no run starts from a broken sweep and no run is started that would be refused. Config layers merge as: config_file < group config < override config
 // (tables merged key by key) and reach the run as one --config file.
+//
+// A group of `marglab ba` runs (bundle adjustment of BAL problems, docs/bundle_adjustment.md) is
+// the cross product problems × solvers × seeds, with the settings of every run:
+//   [[group]]
+//   name            = "protocol"
+//   kind            = "ba"                      # "run" (default): the keys above
+//   problems        = ["../datasets/bal/ladybug-problem-49-7776-pre.txt.bz2"]  # BAL files
+//                                               # (relative to the sweep file)
+//   solvers         = ["ns-f32", "ceres-sparse"] # or "all" (the seven of `marglab ba`)
+//   seeds           = [38401]                   # perturbation seeds, default [38401]
+//   iterations      = 50                        # optional, as `marglab ba` (default 20)
+//   huber_px        = 1.0                       # optional (default 0: no robust loss)
+//   perturb_sigma   = 0.01                      # optional (default 0: no perturbation)
+//   normalize_scale = 100.0                     # optional (default 0: no normalization)
+//   threads         = 1                         # optional
+//   timeout_s       = 0                         # optional
+// Run ids: <group>__<problem name>__<solver>__s<seed> (problem name: the file name without .txt
+// and .bz2). Each run is a typed BaRunSpec (core/ba/ba_run_spec.h), validated at plan time — every
+// setting in its range at its key's line, every problem file read and parsed once (a malformed
+// file names its line), a solver name known — and its child runs `marglab ba --spec
+// runs/<id>.spec.toml`.
 
 #include <cstdint>
 #include <functional>
@@ -51,6 +72,7 @@
 #include <string>
 #include <vector>
 
+#include "core/ba/ba_run_spec.h"
 #include "core/frontend/track_source.h"
 
 namespace marglab::experiment {
@@ -71,6 +93,10 @@ struct PlannedRun {
   // as the checker built and validated it; "" without a checker: the child gets runArguments.
   std::string spec_toml;
   int line = 0;  // line of the group in the sweep file (for messages)
+  // A `marglab ba` run (group kind "ba"): its spec, output runs/<id>.h5. Then dataset is its
+  // problem file (absolute), variant its solver, seed its perturbation seed; frames, override,
+  // frontend, extra_args and config_toml are unused.
+  std::optional<BaRunSpec> ba;
 };
 
 struct SweepPlan {
@@ -116,15 +142,16 @@ std::string slug(const std::string& text);
 std::string sweepTrackFile(const PlannedRun& run);
 
 // The `marglab run` arguments of a planned run (without the program name), with the results file
-// and, when config_toml is non-empty, the config file it was written to.
+// and, when config_toml is non-empty, the config file it was written to; of a ba run, the
+// `marglab ba` arguments with every setting.
 std::vector<std::string> runArguments(const PlannedRun& run, const std::string& results_path,
                                       const std::string& config_path);
 
 // The spec file of a run, relative to the sweep folder: "runs/<id>.spec.toml".
 std::string runSpecFile(const PlannedRun& run);
 
-// What the child of a run is given: `run --spec runs/<id>.spec.toml` where the plan holds its
-// spec, else runArguments(run, results_path, config_path).
+// What the child of a run is given: `run --spec runs/<id>.spec.toml` (a ba run: `ba --spec ...`)
+// where the plan holds its spec, else runArguments(run, results_path, config_path).
 std::vector<std::string> childArguments(const PlannedRun& run, const std::string& results_path,
                                         const std::string& config_path);
 

@@ -163,9 +163,19 @@ std::vector<std::vector<std::string>> parseCsv(const std::string& text, const st
   return rows;
 }
 
+const std::vector<std::string>& baIndexColumns() {
+  static const std::vector<std::string> columns = {"kind",       "ba_status",    "initial_cost",
+                                                   "final_cost", "total_time_s", "peak_rss_mb"};
+  return columns;
+}
+
 void writeIndex(const std::string& path, const std::vector<IndexRow>& rows) {
   std::string text;
-  const auto& columns = indexColumns();
+  std::vector<std::string> columns = indexColumns();
+  if (std::any_of(rows.begin(), rows.end(),
+                  [](const IndexRow& r) { return r.get("kind") == "ba"; })) {
+    columns.insert(columns.end(), baIndexColumns().begin(), baIndexColumns().end());
+  }
   for (std::size_t c = 0; c < columns.size(); ++c) {
     text += (c ? "," : "") + columns[c];
   }

@@ -20,6 +20,11 @@
 //   mode          the results file's estimator mode (vo | vio), copied with the summary
 //   results, log, config, command (the exact `marglab run` command line), pid,
 //   slurm_job     JOBID_TASK of the run's Slurm array task (backend slurm), started_utc
+// and, only in the index of a sweep with `marglab ba` runs (a group of kind "ba"), after those:
+//   kind          "ba" for a ba run ("" for a `marglab run` run)
+//   ba_status     the solver's status: converged | max_iterations | no_convergence | failed
+//                 (status ok for the first three; failed is failure_kind numerical)
+//   initial_cost, final_cost, total_time_s, peak_rss_mb   copied from the ba results file
 
 #include <cstdint>
 #include <map>
@@ -61,8 +66,9 @@ struct FailureCounts {
   std::string text() const;
 };
 
-// The column order of index.csv.
+// The column order of index.csv; the ba columns follow when some row is a ba run.
 const std::vector<std::string>& indexColumns();
+const std::vector<std::string>& baIndexColumns();
 
 // Writes the rows as CSV (RFC 4180 quoting) through `path`.tmp + rename.
 void writeIndex(const std::string& path, const std::vector<IndexRow>& rows);

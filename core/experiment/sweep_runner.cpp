@@ -232,14 +232,7 @@ class Runner {
   void announce(std::size_t index, double wall) {
     const IndexRow& row = rows_[index];
     ++finished_;
-    std::string detail;
-    if (row.get("status") == "ok") {
-      detail = fmt::format("ATE {:.4f} m", row.number("ate_rmse"));
-    } else {
-      const std::string& frame = row.get("failure_frame");
-      detail = row.get("failure_kind") + (frame.empty() ? "" : " at frame " + frame) + ": " +
-               row.get("reason");
-    }
+    const std::string detail = detail::outcomeText(row);
     const std::string line =
         fmt::format("[{:>{}}/{}] {:<6} {:>7.1f} s  {}  {}", finished_, digits(), queue_total_,
                     row.get("status"), wall, row.get("id"), detail);

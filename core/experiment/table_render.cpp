@@ -18,10 +18,13 @@ int decimalsOf(const TableRow& row, const TableColumn& column, bool ours) {
   return ours ? row.ours_decimals : row.paper_decimals;
 }
 
-// Seed statistics after a cell's value: " ± std" (with two or more ok seeds) per quantity.
-std::string spreadText(const TableCell& cell, std::size_t q, int decimals, const char* pm) {
+// Seed statistics after a cell's value: " ± std" (with two or more ok seeds) per quantity, in
+// the row's notation.
+std::string spreadText(const TableCell& cell, std::size_t q, int decimals, bool scientific,
+                       const char* pm) {
   if (!cell.seed_stats || q >= cell.spread.size() || !std::isfinite(cell.spread[q])) return "";
-  return fmt::format("{}{:.{}f}", pm, cell.spread[q], decimals);
+  return scientific ? fmt::format("{}{:.{}e}", pm, cell.spread[q], std::min(decimals, 1))
+                    : fmt::format("{}{:.{}f}", pm, cell.spread[q], decimals);
 }
 
 // The failure count of a seed-statistics cell: "x k/n" ("" when none failed).
@@ -41,7 +44,7 @@ std::string cellMarkdown(const TableCell& cell, const TableRow& row, const Table
   for (std::size_t q = 0; q < cell.numbers.size(); ++q) {
     const std::string text = formatCell(cell, q, decimals, row.suffix, row.scientific);
     parts.push_back((cell.best.size() > q && cell.best[q] ? "**" + text + "**" : text) +
-                    spreadText(cell, q, decimals, " ± "));
+                    spreadText(cell, q, decimals, row.scientific, " ± "));
   }
   const std::string failed = failedText(cell, " ");
   return fmt::format("{}", fmt::join(parts, " / ")) + (failed.empty() ? "" : " " + failed);
@@ -58,7 +61,7 @@ std::string cellLatex(const TableCell& cell, const TableRow& row, const TableCol
   for (std::size_t q = 0; q < cell.numbers.size(); ++q) {
     const std::string text = formatCell(cell, q, decimals, row.suffix, row.scientific);
     parts.push_back((cell.best.size() > q && cell.best[q] ? "\\textbf{" + text + "}" : text) +
-                    spreadText(cell, q, decimals, " $\\pm$ "));
+                    spreadText(cell, q, decimals, row.scientific, " $\\pm$ "));
   }
   const std::string failed = failedText(cell, "~");
   return fmt::format("{}", fmt::join(parts, " / ")) + (failed.empty() ? "" : " " + failed);

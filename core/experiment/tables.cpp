@@ -5,12 +5,14 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <set>
 #include <sstream>
 
 #include "core/common/atomic_file.h"
 #include "core/common/error.h"
+#include "core/experiment/ba_tables.h"
 
 namespace marglab::experiment {
 
@@ -90,6 +92,14 @@ std::vector<std::string> writeSet(const TableSet& set, const std::string& out,
   return written;
 }
 
+// The tables of `marglab ba` runs (ba_tables.h) go into the set without override.
+void addBaTables(const std::vector<BaRunData>& runs, std::vector<TableSet>* sets) {
+  auto set = std::find_if(sets->begin(), sets->end(),
+                          [](const TableSet& s) { return s.override_name.empty(); });
+  if (set == sets->end()) set = sets->insert(sets->begin(), TableSet{});
+  for (Table& t : buildBaTables(runs, &set->skipped)) set->tables.push_back(std::move(t));
+}
+
 }  // namespace
 
 // Writes the tables; returns the combined files written (tables[__override].md|tex|csv). Shared
@@ -106,9 +116,15 @@ std::vector<std::string> writeTables(const TablesRequest& request, std::string* 
                                                                          : request.paper_values);
   const ResultSet results = loadResults(request.dirs);
   for (const std::string& w : results.warnings) fmt::print(stderr, "warning: {}\n", w);
+  std::vector<std::string> ba_warnings;
+  const std::vector<BaRunData> ba_runs = loadBaRuns(request.dirs, &ba_warnings);
+  for (const std::string& w : ba_warnings) fmt::print(stderr, "warning: {}\n", w);
   const std::string out =
       request.out.empty() ? (fs::path(request.dirs.front()) / "tables").string() : request.out;
-  const std::vector<TableSet> sets = buildTables(results, paper, request.seeds);
+  std::vector<TableSet> sets = results.runs.empty() && !ba_runs.empty()
+                                   ? std::vector<TableSet>{TableSet{}}
+                                   : buildTables(results, paper, request.seeds);
+  if (!ba_runs.empty()) addBaTables(ba_runs, &sets);
   if (request.require_tables) requireSomeTable(sets, request.dirs);
   prepareOutputFolder(out, "--out");
   std::vector<std::string> written;

@@ -19,11 +19,13 @@
 #include <thread>
 
 #include "common/cli_runner.h"
+#include "core/common/source_dir.h"
 #include "core/data/sequence.h"
 #include "core/experiment/slurm_backend.h"
 #include "core/experiment/slurm_client.h"
 #include "core/experiment/sweep_common.h"
 #include "core/experiment/sweep_index.h"
+#include "core/io/hdf5.h"
 #include "core/io/results_file.h"
 #include "test_paths.h"
 
@@ -187,6 +189,47 @@ args = ["--inject-nan-frame", "12"]
 
 // Issue #29: a `frontend = "images"` sweep tracks each dataset once, as the local backend does —
 // here in a tracking job the run arrays depend on (before, the runs found no track file).
+// A sweep of `marglab ba` runs (group kind "ba") on Slurm: each task runs `marglab ba --spec`, and
+// the index (status, final cost) and the cost series equal the local backend's (ns-f64 and
+// ceres-sparse on one thread are deterministic).
+TEST(SlurmSweep, BaRunsEqualTheLocalBackend) {
+  REQUIRE_SLURM();
+  const fs::path dir = freshDir("ba");
+  std::ofstream(dir / "ba.toml") << "name = \"ba\"\n[[group]]\nname = \"g\"\nkind = \"ba\"\n"
+                                 << "problems = [\""
+                                 << std::string(sourceDir()) + "/datasets/bal/dubrovnik-3-7-pre.txt"
+                                 << "\"]\nsolvers = [\"ns-f64\", \"ceres-sparse\"]\n"
+                                 << "seeds = [1, 2]\niterations = 5\nperturb_sigma = 0.01\n";
+  const auto local =
+      runCli("sweep " + quote(dir / "ba.toml") + " --jobs 2 --out " + quote(dir / "local"));
+  ASSERT_EQ(local.exit_code, 0) << local.output;
+  const auto slurm = runCli("sweep " + quote(dir / "ba.toml") +
+                            " --backend slurm --wait --jobs 2 --out " + quote(dir / "slurm"));
+  ASSERT_EQ(slurm.exit_code, 0) << slurm.output;
+  EXPECT_NE(slurm.output.find("4 ok"), std::string::npos) << slurm.output;
+  const auto a = readIndex((dir / "local" / "index.csv").string());
+  const auto b = readIndex((dir / "slurm" / "index.csv").string());
+  ASSERT_EQ(a.size(), b.size());
+  for (const IndexRow& row : a) {
+    SCOPED_TRACE(row.get("id"));
+    const IndexRow* other = findRow(b, row.get("id"));
+    ASSERT_NE(other, nullptr);
+    for (const char* column :
+         {"status", "kind", "ba_status", "final_cost", "initial_cost", "command", "exit_code"}) {
+      EXPECT_EQ(row.get(column), other->get(column)) << column;
+    }
+    EXPECT_NE(other->get("slurm_job"), "");
+    EXPECT_NE(readText(dir / "slurm" / "slurm" / "array-1.sbatch").find("ba --spec runs/"),
+              std::string::npos);
+    const auto x = h5::File::openReadOnly((dir / "local" / row.get("results")).string())
+                       .readVector<double>("iterations/cost");
+    const auto y = h5::File::openReadOnly((dir / "slurm" / other->get("results")).string())
+                       .readVector<double>("iterations/cost");
+    EXPECT_EQ(x, y);
+  }
+  fs::remove_all(dir);
+}
+
 TEST(SlurmSweep, ImagesAreTrackedOncePerDatasetInAJobTheRunsDependOn) {
   REQUIRE_SLURM();
   const fs::path dir = freshDir("images");

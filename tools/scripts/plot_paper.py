@@ -2,7 +2,8 @@
 """Figures of Demmel et al. (ICCV 2021) from marglab sweep results (HDF5 files listed in index.csv).
 
 Usage: plot_paper.py --out DIR [--vio-dataset euroc/MH_01_easy] [--vo-dataset kitti/10]
-                     [--figures fig1,fig4,fig5,fig6,fig7,sparsify] SWEEP_DIR [SWEEP_DIR ...]
+                     [--figures fig1,fig4,fig5,fig6,fig7,sparsify,ba_convergence,ba_profile]
+                     SWEEP_DIR [SWEEP_DIR ...]
 
 Writes PNG and PDF into DIR (slug = dataset with '/' -> '-'):
   fig1_<slug>            Fig. 1 analog on the VIO dataset: top-down trajectories of the four headline
@@ -25,6 +26,9 @@ and, from runs whose results attribute marg_strategy is nfr (Hsiung et al., IROS
                          t_recovery_s, t_insert_s of the events whose factors were recovered
   sparsify_kld           D_KL (eq. 10, /sparsify kld) of every recovered event over time, every nfr
                          run (lowest seed, most frames per sequence)
+and, from `marglab ba` runs (index column kind = "ba"; ba_figures.py), figures `ba_convergence`
+(cost − best against time per group and problem) and `ba_profile` (rootba's performance profile
+per group);
 and, from VIO runs of the IMU noise profiles (results attribute config_toml, [imu]
 noise_profile; issue #19), figure `noise_sigma`:
   noise_sigma            sigma_max and sigma_min (/marg) of the prior at the first 20
@@ -48,6 +52,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import atomic_save  # noqa: E402
+import ba_figures  # noqa: E402
 import marglab_results as mr  # noqa: E402  (the results schema on the Python side)
 from marglab_results import HEADLINE, slug  # noqa: E402
 
@@ -398,7 +403,8 @@ def main():
     parser.add_argument("--out", required=True)
     parser.add_argument("--vio-dataset", default="euroc/MH_01_easy")
     parser.add_argument("--vo-dataset", default="kitti/10")
-    parser.add_argument("--figures", default="fig1,fig4,fig5,fig6,fig7,sparsify")
+    parser.add_argument("--figures",
+                        default="fig1,fig4,fig5,fig6,fig7,sparsify,ba_convergence,ba_profile")
     args = parser.parse_args()
     figures = set(args.figures.split(","))
     try:
@@ -408,6 +414,10 @@ def main():
         return 1
     os.makedirs(args.out, exist_ok=True)
     written = []
+    # `marglab ba` runs (index column kind = "ba") have figures of their own (ba_figures.py).
+    ba_figures.plot(plt, [r for r in rows if r.get("kind") == "ba"], figures, args.out, save,
+                    written)
+    rows = [r for r in rows if r.get("kind") != "ba"]
 
     vio = pick_dataset(rows, args.vio_dataset, ("euroc/", "tumvi/"))
     vio_runs = select(rows, vio) if vio else []
@@ -467,7 +477,8 @@ def main():
     for path in written:
         print("wrote", path)
     if not written:
-        print("no figure written: the sweep has no headline runs (%s)" % ", ".join(HEADLINE))
+        print("no figure written: the sweep has no headline runs (%s) and no ba runs"
+              % ", ".join(HEADLINE))
         return 1
     return 0
 
