@@ -3,8 +3,8 @@
 #include <ceres/ceres.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
+#include <ctime>
 #include <limits>
 #include <memory>
 #include <random>
@@ -14,11 +14,16 @@
 namespace marglab::massspring {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+// The solving thread's CPU time, ms. The solves are single-threaded (Ceres num_threads = 1, serial
+// CHOLMOD), and on a shared machine wall time also counts the other processes: a 20×20 single
+// stage took 82 ms in one run and 5.2 ms in the next (issue #40).
+double threadCpuMs() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
 }
+
+double msSince(double start_ms) { return threadCpuMs() - start_ms; }
 
 using Mat22 = Eigen::Matrix<double, 2, 2, Eigen::RowMajor>;
 
@@ -130,6 +135,28 @@ ceres::Solver::Options gaussNewtonOptions(int iterations, ceres::LinearSolverTyp
   return options;
 }
 
+CeresSplit splitOf(const ceres::Solver::Summary& summary) {
+  CeresSplit split;
+  split.total_ms = 1e3 * summary.total_time_in_seconds;
+  split.preprocess_ms = 1e3 * summary.preprocessor_time_in_seconds;
+  split.evaluate_ms = 1e3 * (summary.residual_evaluation_time_in_seconds +
+                             summary.jacobian_evaluation_time_in_seconds);
+  split.linear_solve_ms = 1e3 * summary.linear_solver_time_in_seconds;
+  return split;
+}
+
+ceres::LinearSolverType ceresSolver(SingleSolver solver) {
+  switch (solver) {
+    case SingleSolver::kDenseCholesky:
+      return ceres::DENSE_NORMAL_CHOLESKY;
+    case SingleSolver::kDenseQr:
+      return ceres::DENSE_QR;
+    case SingleSolver::kSparseCholesky:
+      break;
+  }
+  return ceres::SPARSE_NORMAL_CHOLESKY;
+}
+
 }  // namespace
 
 MassSpringSystem MassSpringSystem::grid(const GridSpec& spec) {
@@ -209,17 +236,18 @@ double MassSpringSystem::energy(const std::vector<double>& x) const {
   return total;
 }
 
-SingleStageResult solveSingleStage(const MassSpringSystem& system, int iterations) {
+SingleStageResult solveSingleStage(const MassSpringSystem& system, int iterations,
+                                   SingleSolver solver) {
   SingleStageResult result;
   result.x = system.initial;
   ceres::Problem problem;
   buildProblem(system, &result.x, &problem);
-  const ceres::Solver::Options options =
-      gaussNewtonOptions(iterations, ceres::SPARSE_NORMAL_CHOLESKY);
+  const ceres::Solver::Options options = gaussNewtonOptions(iterations, ceresSolver(solver));
   ceres::Solver::Summary summary;
-  const Clock::time_point start = Clock::now();
+  const double start = threadCpuMs();
   ceres::Solve(options, &problem, &summary);
   result.solve_ms = msSince(start);
+  result.split = splitOf(summary);
   result.iterations = static_cast<int>(summary.iterations.size()) - 1;
   result.final_cost = summary.final_cost;
   result.termination = ceres::TerminationTypeToString(summary.termination_type);
@@ -244,7 +272,7 @@ TwoStageResult solveTwoStage(const MassSpringSystem& system, int iterations,
   }
 
   // Stage 0: marginalize every mass outside 𝒩.
-  const Clock::time_point start = Clock::now();
+  const double start = threadCpuMs();
   ceres_marg::MarginalizationOptions marg_options;
   marg_options.method = method;
   marg_options.keep_factor = true;  // stage 2 solves with Λ_mm = J_mᵀJ_m, already factorized
@@ -256,17 +284,18 @@ TwoStageResult solveTwoStage(const MassSpringSystem& system, int iterations,
   }
 
   // Stage 1: Gauss–Newton on 𝒩.
-  const Clock::time_point stage1_start = Clock::now();
+  const double stage1_start = threadCpuMs();
   const ceres::Solver::Options options =
       gaussNewtonOptions(iterations, ceres::DENSE_NORMAL_CHOLESKY);
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
   result.stage1_ms = msSince(stage1_start);
+  result.stage1_split = splitOf(summary);
   result.stage1_iterations = static_cast<int>(summary.iterations.size()) - 1;
   result.stage1_rejected_steps = rejectedSteps(summary);
 
   // Stage 2: with 𝒩 fixed the eliminated residuals are linear in x_m: one sparse solve.
-  const Clock::time_point stage2_start = Clock::now();
+  const double stage2_start = threadCpuMs();
   const int n_m = 2 * static_cast<int>(marg_blocks.size());
   std::vector<Eigen::Triplet<double, int>> triplets;
   std::vector<double> f_values;
