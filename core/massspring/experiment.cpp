@@ -112,7 +112,8 @@ std::vector<ScalingRow> measureScaling(const ExperimentSettings& settings, const
     s.n = n;
     const MassSpringSystem system = MassSpringSystem::grid(s);
     GridTimes g = measureGrid(system, settings, {settings.method});
-    scaling.push_back({n, system.num_masses, g.reps, g.single, g.twos.front()});
+    scaling.push_back(
+        {n, system.num_masses, system.nonlinearMasses(), g.reps, g.single, g.twos.front()});
   }
   return scaling;
 }

@@ -90,6 +90,7 @@ struct GridTimes {
 struct ScalingRow {
   int n = 0;
   int masses = 0;
+  int nonlinear = 0;  // masses in N
   int reps = 0;
   SingleRow single;
   TwoRow two;

@@ -2,7 +2,8 @@
 """tools/scripts/plot_paper.py's Fig. 4 yaw measure (issue #40 §3; used by
 test/cli/test_analysis.cpp) on constructed ΔE_m series with known answers: rho is |yaw| over the
 smaller of |roll|, |pitch| and absent where roll and pitch are not observable; the onset is where
-the running median settles above YAW_ONSET for good — a spike, or a rise that falls back, is none.
+the running median reaches YAW_ONSET (the rise) and where it stays above it for good (settled) — a
+spike is no rise, a rise that falls back does not settle.
 
 Usage: fig4_yaw_agrees.py   → "AGREE …", exit 0; else what differs and exit 1.
 """
@@ -33,14 +34,17 @@ def main():
     frames, rho = pp.yaw_ratio(FakeRun(yaw))
     if not np.allclose(rho[:rise][np.arange(rise) != 500], 1e-3) or not np.allclose(rho[rise:], 0.1):
         problems.append("rho is not |yaw| / min(|roll|, |pitch|)")
-    onset = pp.yaw_onset(rho)
+    onset, settled = pp.yaw_onset(rho)
     # The running median crosses at the rise: its window is centred there.
-    if onset is None or frames[onset] != frames[rise]:
-        problems.append("onset %s, expected frame %d" % (onset and frames[onset], frames[rise]))
+    if onset != rise or settled != rise:
+        problems.append("rise %s, settled %s, expected event %d" % (onset, settled, rise))
     falls = yaw.copy()
     falls[2500:] = 1e-3 * 1e5
-    if pp.yaw_onset(pp.yaw_ratio(FakeRun(falls))[1]) is not None:
-        problems.append("a rise that falls back has an onset")
+    if pp.yaw_onset(pp.yaw_ratio(FakeRun(falls))[1]) != (rise, None):
+        problems.append("a rise that falls back: %s, expected (%d, None)"
+                        % (pp.yaw_onset(pp.yaw_ratio(FakeRun(falls))[1]), rise))
+    if pp.yaw_onset(pp.yaw_ratio(FakeRun(np.full(n, 1e-3 * 1e5)))[1]) != (None, None):
+        problems.append("a flat run has a rise")
     _, early = pp.yaw_ratio(FakeRun(np.full(10, 1.0), roll=0.5))
     if not np.all(np.isnan(early)):
         problems.append("rho where roll is not observable (< YAW_MIN_LEVEL)")

@@ -322,17 +322,18 @@ def plot_dEm(fig, runs, title):
 
 # Fig. 4's finding: yaw "as observable as roll and pitch" when rho = |dEm_yaw| / min(|dEm_roll|,
 # |dEm_pitch|) comes within a decade of 1 (YAW_LEVEL); a gauge direction has rho ~ 1e-14 in f64.
-# The onset is the first event from which the running median of rho over YAW_WINDOW events (5 s
-# at 20 Hz; a spike does not count) stays >= YAW_ONSET to the end of the run: on MH_01 VIO-32
-# sits near 1e-3 before it and near 0.1 after. Events where roll and pitch are not observable yet
-# (min ΔE_m < YAW_MIN_LEVEL: the first marginalization) have no rho.
+# The running median of rho over YAW_WINDOW events (5 s at 20 Hz; a spike does not count) gives
+# the rise — the first event where it reaches YAW_ONSET — and the settling — the first event from
+# which it stays >= YAW_ONSET to the end of the run: on MH_01 VIO-32 sits near 1e-3 before and
+# near 0.05 after. Events where roll and pitch are not observable yet (min ΔE_m < YAW_MIN_LEVEL:
+# the first marginalization) have no rho.
 YAW_LEVEL = 0.1
 YAW_ONSET = 0.01
 YAW_WINDOW = 101
 YAW_MIN_LEVEL = 1.0
 YAW_CSV_COLUMNS = ["dataset", "variant", "seed", "status", "failure_frame", "events",
-                   "first_frame_rho_0.1", "onset_frame", "rho_median_before_onset",
-                   "rho_median_after_onset", "rho_median_from_2000"]
+                   "rise_frame", "settled_frame", "first_frame_rho_0.1", "rho_median_before_rise",
+                   "rho_median_after_rise", "share_after_rise_rho_0.01", "rho_median_from_2000"]
 
 
 def yaw_ratio(run):
@@ -345,27 +346,32 @@ def yaw_ratio(run):
 
 
 def yaw_onset(rho):
-    """Index of the first event from which the running median of rho stays >= YAW_ONSET (the
-    window's centre), or None."""
+    """(rise, settled): indices of the first event where the running median of rho (centred
+    window) reaches YAW_ONSET and of the first from which it stays there; None where none."""
     if np.count_nonzero(np.isfinite(rho)) < YAW_WINDOW:
-        return None
+        return None, None
     windows = np.lib.stride_tricks.sliding_window_view(np.nan_to_num(rho, nan=0.0), YAW_WINDOW)
-    running = np.median(windows, axis=1)
-    below = np.flatnonzero(running < YAW_ONSET)
-    start = 0 if len(below) == 0 else below[-1] + 1
-    return start + YAW_WINDOW // 2 if start < len(running) else None
+    above = np.median(windows, axis=1) >= YAW_ONSET
+    if not above.any():
+        return None, None
+    rise = int(np.argmax(above))
+    below = np.flatnonzero(~above)
+    settled = 0 if len(below) == 0 else below[-1] + 1
+    half = YAW_WINDOW // 2
+    return rise + half, (settled + half if settled < len(above) else None)
 
 
 def yaw_row(dataset, run, frames, rho):
     """One line of fig4_yaw_<slug>.csv (YAW_CSV_COLUMNS)."""
     touched = np.flatnonzero(rho >= YAW_LEVEL)
-    onset = yaw_onset(rho)
-    before = rho[:onset] if onset is not None else rho
-    after = rho[onset:] if onset is not None else rho[:0]
+    rise, settled = yaw_onset(rho)
+    frame = lambda i: None if i is None else int(frames[i])
+    after = rho[rise:] if rise is not None else rho[:0]
+    share = float(np.mean(after[np.isfinite(after)] >= YAW_ONSET)) if len(after) else float("nan")
     return [dataset, run.variant, int(run.row["seed"]), run.status, run.failure_frame, len(rho),
-            int(frames[touched[0]]) if len(touched) else None,
-            int(frames[onset]) if onset is not None else None, median_or_nan(before),
-            median_or_nan(after), median_or_nan(rho[frames >= 2000])]
+            frame(rise), frame(settled), frame(touched[0]) if len(touched) else None,
+            median_or_nan(rho[:rise] if rise is not None else rho), median_or_nan(after), share,
+            median_or_nan(rho[frames >= 2000])]
 
 
 def seed_runs(rows, dataset):
