@@ -157,6 +157,32 @@ ceres::LinearSolverType ceresSolver(SingleSolver solver) {
   return ceres::SPARSE_NORMAL_CHOLESKY;
 }
 
+// The residuals f of the springs that touch an eliminated mass at x, and their (constant) Jacobian
+// J_m with respect to the eliminated masses (column marg_col[i] of mass i; -1: not eliminated).
+void eliminatedResiduals(const MassSpringSystem& system, const std::vector<double>& x,
+                         const std::vector<int>& marg_col, int n_m,
+                         ceres_marg::SparseRowMatrix* J_m, VecXd* f) {
+  std::vector<Eigen::Triplet<double, int>> triplets;
+  std::vector<double> f_values;
+  int row = 0;
+  for (const Spring& s : system.springs) {
+    if (marg_col[s.i] < 0 && marg_col[s.j] < 0) continue;
+    const double sqrt_k = std::sqrt(s.k);
+    const Eigen::Vector2d e = s.z - Eigen::Vector2d(x[2 * s.i], x[2 * s.i + 1]) +
+                              Eigen::Vector2d(x[2 * s.j], x[2 * s.j + 1]);
+    for (int d = 0; d < 2; ++d) {
+      f_values.push_back(sqrt_k * e[d]);
+      if (marg_col[s.i] >= 0) triplets.emplace_back(row + d, marg_col[s.i] + d, -sqrt_k);
+      if (marg_col[s.j] >= 0) triplets.emplace_back(row + d, marg_col[s.j] + d, sqrt_k);
+    }
+    row += 2;
+  }
+  J_m->resize(row, n_m);
+  J_m->setFromTriplets(triplets.begin(), triplets.end());
+  J_m->makeCompressed();
+  *f = Eigen::Map<const VecXd>(f_values.data(), row);
+}
+
 }  // namespace
 
 MassSpringSystem MassSpringSystem::grid(const GridSpec& spec) {
@@ -296,26 +322,10 @@ TwoStageResult solveTwoStage(const MassSpringSystem& system, int iterations,
 
   // Stage 2: with 𝒩 fixed the eliminated residuals are linear in x_m: one sparse solve.
   const double stage2_start = threadCpuMs();
-  const int n_m = 2 * static_cast<int>(marg_blocks.size());
-  std::vector<Eigen::Triplet<double, int>> triplets;
-  std::vector<double> f_values;
-  int row = 0;
-  for (const Spring& s : system.springs) {
-    if (marg_col[s.i] < 0 && marg_col[s.j] < 0) continue;
-    const double sqrt_k = std::sqrt(s.k);
-    const Eigen::Vector2d e = s.z - Eigen::Vector2d(result.x[2 * s.i], result.x[2 * s.i + 1]) +
-                              Eigen::Vector2d(result.x[2 * s.j], result.x[2 * s.j + 1]);
-    for (int d = 0; d < 2; ++d) {
-      f_values.push_back(sqrt_k * e[d]);
-      if (marg_col[s.i] >= 0) triplets.emplace_back(row + d, marg_col[s.i] + d, -sqrt_k);
-      if (marg_col[s.j] >= 0) triplets.emplace_back(row + d, marg_col[s.j] + d, sqrt_k);
-    }
-    row += 2;
-  }
-  ceres_marg::SparseRowMatrix J_m(row, n_m);
-  J_m.setFromTriplets(triplets.begin(), triplets.end());
-  J_m.makeCompressed();
-  const Eigen::Map<const VecXd> f(f_values.data(), row);
+  ceres_marg::SparseRowMatrix J_m;
+  VecXd f;
+  eliminatedResiduals(system, result.x, marg_col, 2 * static_cast<int>(marg_blocks.size()), &J_m,
+                      &f);
   // J_m is constant (linear springs): the marginalization's factor of J_mᵀJ_m serves here
   // (sparse-schur); the dense methods keep none, so factorize.
   std::shared_ptr<const ceres_marg::SparseNormalCholesky> factor = result.marginalization.factor;
