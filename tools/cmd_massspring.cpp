@@ -33,7 +33,9 @@ struct Options {
   std::string sizes = "5,10,20,50,100";
   int iterations = 10;
   std::string method = "sparse-schur";
+  std::string single_solver = "sparse-cholesky";
   int reps = 0;  // 0: automatic
+  double budget_s = 1.0;
   std::string output;
   bool json = false;
   bool no_plot = false;
@@ -86,11 +88,16 @@ massspring::ExperimentSettings settingsOf(const Options& opt, bool sizes_given, 
   if (!ceres_marg::parseMethod(opt.method, &settings.method)) {
     throw UsageError("--method must be qr, schur or sparse-schur, not '" + opt.method + "'");
   }
+  if (!massspring::parseSingleSolver(opt.single_solver, &settings.single_solver)) {
+    throw UsageError("--single-solver must be sparse-cholesky, dense-cholesky or dense-qr, not '" +
+                     opt.single_solver + "'");
+  }
   settings.grid = opt.grid;
   settings.iterations = opt.iterations;
   settings.reps = opt.reps;
-  massspring::checkSettings(settings);
+  settings.budget_s = opt.budget_s;
   if (sizes_given || !grid_given) settings.sizes = massspring::parseSizes(opt.sizes);
+  massspring::checkSettings(settings);
   return settings;
 }
 
@@ -138,8 +145,18 @@ const bool kRegistered = cli::registerCommand(
            ->capture_default_str();
        sub.add_option("--method", opt->method, "Marginalization: qr, schur or sparse-schur")
            ->capture_default_str();
-       sub.add_option("--reps", opt->reps, "Timing repetitions (0: automatic, median reported)")
+       sub.add_option("--single-solver", opt->single_solver,
+                      "Linear solver of the single stage: sparse-cholesky, dense-cholesky or "
+                      "dense-qr (dense: grids up to 30x30)")
+           ->capture_default_str();
+       sub.add_option("--reps", opt->reps,
+                      "Timing repetitions per grid (0: automatic, to --budget; median and IQR "
+                      "reported)")
            ->check(cli::intRange("a repetition count", 0, massspring::kMaxReps))
+           ->capture_default_str();
+       sub.add_option("--budget", opt->budget_s,
+                      "Automatic repetitions: seconds of solves per grid (at least 11 "
+                      "repetitions, at most 1000)")
            ->capture_default_str();
        sub.add_option("-o,--output", opt->output, "Write the states and timings to FILE.h5");
        sub.add_flag("--json", opt->json, "Print one JSON object instead of tables");

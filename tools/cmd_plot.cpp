@@ -25,7 +25,8 @@ const bool kRegistered = cli::registerCommand(
            ->check(cli::existingPath("sweep folder", cli::PathKind::kFolder));
        sub.add_option("--figure", request->figures,
                       "Figures, comma-separated: fig1 (trajectories + sigma_min, VIO), fig4 (dEm, "
-                      "VIO), fig5 (dEm, VO), fig6 (sigma_min, VO), fig7 (trajectories, VO), "
+                      "VIO), fig4_yaw (yaw against roll/pitch in dEm, every seed, VIO; + .csv), "
+                      "fig5 (dEm, VO), fig6 (sigma_min, VO), fig7 (trajectories, VO), "
                       "sparsify (Hsiung et al. Fig. 6a/6b and KLD of nfr runs), noise_sigma "
                       "(prior sigma_max / sigma_min at the first 20 marginalizations per IMU "
                       "noise profile, VIO); ba_convergence, ba_profile (`marglab ba` runs: cost "

@@ -6,6 +6,7 @@
 #include <unistd.h>
 #include <cstdlib>
 #include <filesystem>
+#include <set>
 #include <sstream>
 
 #include "core/common/atomic_file.h"
@@ -39,11 +40,13 @@ int runPlot(const PlotRequest& request) {
   }
   std::stringstream list(request.figures);
   for (std::string f; std::getline(list, f, ',');) {
-    if (f != "fig1" && f != "fig4" && f != "fig5" && f != "fig6" && f != "fig7" &&
-        f != "sparsify" && f != "noise_sigma" && f != "ba_convergence" && f != "ba_profile") {
+    static const std::set<std::string> kFigures = {
+        "fig1", "fig4",     "fig4_yaw",    "fig5",           "fig6",
+        "fig7", "sparsify", "noise_sigma", "ba_convergence", "ba_profile"};
+    if (kFigures.count(f) == 0) {
       throw UsageError(
-          "--figure takes fig1, fig4, fig5, fig6, fig7, sparsify, noise_sigma, ba_convergence, "
-          "ba_profile (comma-separated), not '" +
+          "--figure takes fig1, fig4, fig4_yaw, fig5, fig6, fig7, sparsify, noise_sigma, "
+          "ba_convergence, ba_profile (comma-separated), not '" +
           f + "'");
     }
   }

@@ -11,7 +11,7 @@ namespace marglab::experiment {
 struct PlotRequest {
   std::vector<std::string> dirs;
   std::string out;  // default notebooks-out/<name of the first folder>
-  std::string figures = "fig1,fig4,fig5,fig6,fig7,sparsify,ba_convergence,ba_profile";
+  std::string figures = "fig1,fig4,fig4_yaw,fig5,fig6,fig7,sparsify,ba_convergence,ba_profile";
   std::string vio_dataset = "euroc/MH_01_easy";
   std::string vo_dataset = "kitti/10";
 };

@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
@@ -14,11 +15,9 @@ namespace {
 
 using ceres_marg::Method;
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n == 0 ? 0.0 : (n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
-}
+using Clock = std::chrono::steady_clock;
+
+double median(std::vector<double> v) { return summarize(std::move(v)).median; }
 
 double maxAbsDiff(const std::vector<double>& a, const std::vector<double>& b) {
   double d = 0;
@@ -26,40 +25,82 @@ double maxAbsDiff(const std::vector<double>& a, const std::vector<double>& b) {
   return d;
 }
 
-SingleRow runSingle(const MassSpringSystem& system, int iterations, int reps) {
-  SingleRow row;
-  std::vector<double> ms;
-  for (int r = 0; r < reps; ++r) {
-    row.last = solveSingleStage(system, iterations);
-    ms.push_back(row.last.solve_ms);
+// One method's Ceres split over the repetitions.
+struct SplitSamples {
+  std::vector<double> total, preprocess, evaluate, linear_solve;
+  void push(const CeresSplit& s) {
+    total.push_back(s.total_ms);
+    preprocess.push_back(s.preprocess_ms);
+    evaluate.push_back(s.evaluate_ms);
+    linear_solve.push_back(s.linear_solve_ms);
   }
-  row.ms = median(ms);
-  return row;
+  CeresSplit medians() const {
+    return {median(total), median(preprocess), median(evaluate), median(linear_solve)};
+  }
+};
+
+// One two-stage method's timed quantities over the repetitions.
+struct TwoSamples {
+  std::vector<double> marg, stage1, stage2, total;
+  SplitSamples stage1_split;
+};
+
+void pushTwo(const TwoStageResult& r, Method method, TwoSamples* samples) {
+  if (!r.status.ok()) {
+    throw InputError("massspring", 0,
+                     fmt::format("two-stage ({}) failed: {}", ceres_marg::toString(method),
+                                 r.status.toString()));
+  }
+  samples->marg.push_back(r.marginalize_ms);
+  samples->stage1.push_back(r.stage1_ms);
+  samples->stage2.push_back(r.stage2_ms);
+  samples->total.push_back(r.total_ms);
+  samples->stage1_split.push(r.stage1_split);
 }
 
-TwoRow runTwo(const MassSpringSystem& system, int iterations, int reps, Method method,
-              const SingleRow& single) {
-  TwoRow row;
-  row.method = method;
-  std::vector<double> marg, s1, s2, total;
-  for (int r = 0; r < reps; ++r) {
-    row.last = solveTwoStage(system, iterations, method);
-    if (!row.last.status.ok()) {
-      throw InputError("massspring", 0,
-                       fmt::format("two-stage ({}) failed: {}", ceres_marg::toString(method),
-                                   row.last.status.toString()));
+bool enoughReps(const ExperimentSettings& settings, int reps, Clock::time_point start) {
+  if (settings.reps > 0) return reps >= settings.reps;
+  const double elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
+  return reps >= kMaxReps || (reps >= kMinAutoReps && elapsed_s >= settings.budget_s);
+}
+
+// Every solve of one grid, interleaved per repetition after an uncounted warm-up repetition.
+GridTimes measureGrid(const MassSpringSystem& system, const ExperimentSettings& settings,
+                      const std::vector<Method>& methods) {
+  GridTimes g;
+  g.twos.resize(methods.size());
+  std::vector<double> single_ms;
+  SplitSamples single_split;
+  std::vector<TwoSamples> two(methods.size());
+  const auto pass = [&](bool counted) {
+    g.single.last = solveSingleStage(system, settings.iterations, settings.single_solver);
+    if (counted) single_ms.push_back(g.single.last.solve_ms);
+    if (counted) single_split.push(g.single.last.split);
+    for (std::size_t i = 0; i < methods.size(); ++i) {
+      g.twos[i].method = methods[i];
+      g.twos[i].last = solveTwoStage(system, settings.iterations, methods[i]);
+      TwoSamples scratch;
+      pushTwo(g.twos[i].last, methods[i], counted ? &two[i] : &scratch);
     }
-    marg.push_back(row.last.marginalize_ms);
-    s1.push_back(row.last.stage1_ms);
-    s2.push_back(row.last.stage2_ms);
-    total.push_back(row.last.total_ms);
+  };
+  pass(false);  // first-touch allocations and cold caches are not what the table compares
+  const Clock::time_point start = Clock::now();
+  for (; !enoughReps(settings, g.reps, start); ++g.reps) pass(true);
+  g.single.time = summarize(single_ms);
+  g.single.split = single_split.medians();
+  for (std::size_t i = 0; i < methods.size(); ++i) {
+    TwoRow& t = g.twos[i];
+    t.marg = summarize(two[i].marg);
+    t.stage1 = summarize(two[i].stage1);
+    t.stage2 = summarize(two[i].stage2);
+    t.total = summarize(two[i].total);
+    std::vector<double> ratio;
+    for (int r = 0; r < g.reps; ++r) ratio.push_back(single_ms[r] / two[i].total[r]);
+    t.speedup = summarize(ratio);
+    t.stage1_split = two[i].stage1_split.medians();
+    t.max_abs_diff = maxAbsDiff(t.last.x, g.single.last.x);
   }
-  row.marg_ms = median(marg);
-  row.stage1_ms = median(s1);
-  row.stage2_ms = median(s2);
-  row.total_ms = median(total);
-  row.max_abs_diff = maxAbsDiff(row.last.x, single.last.x);
-  return row;
+  return g;
 }
 
 std::vector<ScalingRow> measureScaling(const ExperimentSettings& settings, const GridSpec& spec,
@@ -70,13 +111,9 @@ std::vector<ScalingRow> measureScaling(const ExperimentSettings& settings, const
     GridSpec s = spec;
     s.n = n;
     const MassSpringSystem system = MassSpringSystem::grid(s);
-    ScalingRow row;
-    row.n = n;
-    row.masses = system.num_masses;
-    row.reps = settings.reps > 0 ? settings.reps : autoReps(n);
-    row.single = runSingle(system, settings.iterations, row.reps);
-    row.two = runTwo(system, settings.iterations, row.reps, settings.method, row.single);
-    scaling.push_back(row);
+    GridTimes g = measureGrid(system, settings, {settings.method});
+    scaling.push_back(
+        {n, system.num_masses, system.nonlinearMasses(), g.reps, g.single, g.twos.front()});
   }
   return scaling;
 }
@@ -125,19 +162,68 @@ void checkSettings(const ExperimentSettings& settings) {
     throw UsageError(fmt::format("--reps {}: expected an integer in [0, {}] (0: automatic)",
                                  settings.reps, kMaxReps));
   }
+  if (!(settings.budget_s > 0 && settings.budget_s <= kMaxBudgetS)) {
+    throw UsageError(
+        fmt::format("--budget {}: expected seconds in (0, {}]", settings.budget_s, kMaxBudgetS));
+  }
   for (int n : settings.sizes) checkGridSize("--sizes", n);
   if (!denseFeasible(settings.grid) && settings.method != Method::kSparseSchur) {
     throw UsageError(
         fmt::format("--method {} builds a dense Jacobian; use sparse-schur above {}x{}",
                     ceres_marg::toString(settings.method), kMaxDenseGrid, kMaxDenseGrid));
   }
+  if (settings.single_solver == SingleSolver::kSparseCholesky) return;
+  std::vector<int> grids = settings.sizes;
+  grids.push_back(settings.grid);
+  for (int n : grids) {
+    if (!denseFeasible(n)) {
+      throw UsageError(fmt::format(
+          "--single-solver {} builds a dense matrix of all masses: {}x{} is above {}x{}",
+          toString(settings.single_solver), n, n, kMaxDenseGrid, kMaxDenseGrid));
+    }
+  }
 }
 
-int autoReps(int n) { return std::clamp(2500 / (n * n), 1, 20); }
+Timing summarize(std::vector<double> v) {
+  if (v.empty()) return {};
+  std::sort(v.begin(), v.end());
+  // The q-quantile, linear between order statistics (numpy's default).
+  const auto quantile = [&v](double q) {
+    const double pos = q * static_cast<double>(v.size() - 1);
+    const std::size_t lo = static_cast<std::size_t>(pos);
+    const std::size_t hi = std::min(lo + 1, v.size() - 1);
+    return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
+  };
+  return {quantile(0.5), quantile(0.25), quantile(0.75), v.front(), v.back()};
+}
+
+bool parseSingleSolver(const std::string& name, SingleSolver* solver) {
+  for (SingleSolver s :
+       {SingleSolver::kSparseCholesky, SingleSolver::kDenseCholesky, SingleSolver::kDenseQr}) {
+    if (name == toString(s)) {
+      *solver = s;
+      return true;
+    }
+  }
+  return false;
+}
+
+const char* toString(SingleSolver solver) {
+  switch (solver) {
+    case SingleSolver::kDenseCholesky:
+      return "dense-cholesky";
+    case SingleSolver::kDenseQr:
+      return "dense-qr";
+    case SingleSolver::kSparseCholesky:
+      break;
+  }
+  return "sparse-cholesky";
+}
 
 bool denseFeasible(int n) { return n <= kMaxDenseGrid; }
 
 const TwoRow& Measurements::main() const {
+  const std::vector<TwoRow>& twos = compared.twos;
   return *std::find_if(twos.begin(), twos.end(),
                        [&](const TwoRow& t) { return t.method == settings.method; });
 }
@@ -146,13 +232,12 @@ Measurements measure(const ExperimentSettings& settings,
                      const std::function<void(int n)>& on_scaling_grid) {
   GridSpec spec;
   spec.n = settings.grid;
-  Measurements m{settings, MassSpringSystem::grid(spec), 0, {}, {}, {}};
-  m.reps = settings.reps > 0 ? settings.reps : autoReps(settings.grid);
-  m.single = runSingle(m.system, settings.iterations, m.reps);
+  Measurements m{settings, MassSpringSystem::grid(spec), {}, {}};
+  std::vector<Method> methods;
   for (Method two : {Method::kQr, Method::kSchur, Method::kSparseSchur}) {
-    if (two != settings.method && !denseFeasible(settings.grid)) continue;
-    m.twos.push_back(runTwo(m.system, settings.iterations, m.reps, two, m.single));
+    if (two == settings.method || denseFeasible(settings.grid)) methods.push_back(two);
   }
+  m.compared = measureGrid(m.system, settings, methods);
   m.scaling = measureScaling(settings, spec, on_scaling_grid);
   return m;
 }

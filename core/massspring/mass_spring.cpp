@@ -3,8 +3,8 @@
 #include <ceres/ceres.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
+#include <ctime>
 #include <limits>
 #include <memory>
 #include <random>
@@ -14,11 +14,16 @@
 namespace marglab::massspring {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+// The solving thread's CPU time, ms. The solves are single-threaded (Ceres num_threads = 1, serial
+// CHOLMOD), and on a shared machine wall time also counts the other processes: a 20×20 single
+// stage took 82 ms in one run and 5.2 ms in the next (issue #40).
+double threadCpuMs() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
 }
+
+double msSince(double start_ms) { return threadCpuMs() - start_ms; }
 
 using Mat22 = Eigen::Matrix<double, 2, 2, Eigen::RowMajor>;
 
@@ -130,6 +135,54 @@ ceres::Solver::Options gaussNewtonOptions(int iterations, ceres::LinearSolverTyp
   return options;
 }
 
+CeresSplit splitOf(const ceres::Solver::Summary& summary) {
+  CeresSplit split;
+  split.total_ms = 1e3 * summary.total_time_in_seconds;
+  split.preprocess_ms = 1e3 * summary.preprocessor_time_in_seconds;
+  split.evaluate_ms = 1e3 * (summary.residual_evaluation_time_in_seconds +
+                             summary.jacobian_evaluation_time_in_seconds);
+  split.linear_solve_ms = 1e3 * summary.linear_solver_time_in_seconds;
+  return split;
+}
+
+ceres::LinearSolverType ceresSolver(SingleSolver solver) {
+  switch (solver) {
+    case SingleSolver::kDenseCholesky:
+      return ceres::DENSE_NORMAL_CHOLESKY;
+    case SingleSolver::kDenseQr:
+      return ceres::DENSE_QR;
+    case SingleSolver::kSparseCholesky:
+      break;
+  }
+  return ceres::SPARSE_NORMAL_CHOLESKY;
+}
+
+// The residuals f of the springs that touch an eliminated mass at x, and their (constant) Jacobian
+// J_m with respect to the eliminated masses (column marg_col[i] of mass i; -1: not eliminated).
+void eliminatedResiduals(const MassSpringSystem& system, const std::vector<double>& x,
+                         const std::vector<int>& marg_col, int n_m,
+                         ceres_marg::SparseRowMatrix* J_m, VecXd* f) {
+  std::vector<Eigen::Triplet<double, int>> triplets;
+  std::vector<double> f_values;
+  int row = 0;
+  for (const Spring& s : system.springs) {
+    if (marg_col[s.i] < 0 && marg_col[s.j] < 0) continue;
+    const double sqrt_k = std::sqrt(s.k);
+    const Eigen::Vector2d e = s.z - Eigen::Vector2d(x[2 * s.i], x[2 * s.i + 1]) +
+                              Eigen::Vector2d(x[2 * s.j], x[2 * s.j + 1]);
+    for (int d = 0; d < 2; ++d) {
+      f_values.push_back(sqrt_k * e[d]);
+      if (marg_col[s.i] >= 0) triplets.emplace_back(row + d, marg_col[s.i] + d, -sqrt_k);
+      if (marg_col[s.j] >= 0) triplets.emplace_back(row + d, marg_col[s.j] + d, sqrt_k);
+    }
+    row += 2;
+  }
+  J_m->resize(row, n_m);
+  J_m->setFromTriplets(triplets.begin(), triplets.end());
+  J_m->makeCompressed();
+  *f = Eigen::Map<const VecXd>(f_values.data(), row);
+}
+
 }  // namespace
 
 MassSpringSystem MassSpringSystem::grid(const GridSpec& spec) {
@@ -209,17 +262,18 @@ double MassSpringSystem::energy(const std::vector<double>& x) const {
   return total;
 }
 
-SingleStageResult solveSingleStage(const MassSpringSystem& system, int iterations) {
+SingleStageResult solveSingleStage(const MassSpringSystem& system, int iterations,
+                                   SingleSolver solver) {
   SingleStageResult result;
   result.x = system.initial;
   ceres::Problem problem;
   buildProblem(system, &result.x, &problem);
-  const ceres::Solver::Options options =
-      gaussNewtonOptions(iterations, ceres::SPARSE_NORMAL_CHOLESKY);
+  const ceres::Solver::Options options = gaussNewtonOptions(iterations, ceresSolver(solver));
   ceres::Solver::Summary summary;
-  const Clock::time_point start = Clock::now();
+  const double start = threadCpuMs();
   ceres::Solve(options, &problem, &summary);
   result.solve_ms = msSince(start);
+  result.split = splitOf(summary);
   result.iterations = static_cast<int>(summary.iterations.size()) - 1;
   result.final_cost = summary.final_cost;
   result.termination = ceres::TerminationTypeToString(summary.termination_type);
@@ -244,7 +298,7 @@ TwoStageResult solveTwoStage(const MassSpringSystem& system, int iterations,
   }
 
   // Stage 0: marginalize every mass outside 𝒩.
-  const Clock::time_point start = Clock::now();
+  const double start = threadCpuMs();
   ceres_marg::MarginalizationOptions marg_options;
   marg_options.method = method;
   marg_options.keep_factor = true;  // stage 2 solves with Λ_mm = J_mᵀJ_m, already factorized
@@ -256,37 +310,22 @@ TwoStageResult solveTwoStage(const MassSpringSystem& system, int iterations,
   }
 
   // Stage 1: Gauss–Newton on 𝒩.
-  const Clock::time_point stage1_start = Clock::now();
+  const double stage1_start = threadCpuMs();
   const ceres::Solver::Options options =
       gaussNewtonOptions(iterations, ceres::DENSE_NORMAL_CHOLESKY);
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
   result.stage1_ms = msSince(stage1_start);
+  result.stage1_split = splitOf(summary);
   result.stage1_iterations = static_cast<int>(summary.iterations.size()) - 1;
   result.stage1_rejected_steps = rejectedSteps(summary);
 
   // Stage 2: with 𝒩 fixed the eliminated residuals are linear in x_m: one sparse solve.
-  const Clock::time_point stage2_start = Clock::now();
-  const int n_m = 2 * static_cast<int>(marg_blocks.size());
-  std::vector<Eigen::Triplet<double, int>> triplets;
-  std::vector<double> f_values;
-  int row = 0;
-  for (const Spring& s : system.springs) {
-    if (marg_col[s.i] < 0 && marg_col[s.j] < 0) continue;
-    const double sqrt_k = std::sqrt(s.k);
-    const Eigen::Vector2d e = s.z - Eigen::Vector2d(result.x[2 * s.i], result.x[2 * s.i + 1]) +
-                              Eigen::Vector2d(result.x[2 * s.j], result.x[2 * s.j + 1]);
-    for (int d = 0; d < 2; ++d) {
-      f_values.push_back(sqrt_k * e[d]);
-      if (marg_col[s.i] >= 0) triplets.emplace_back(row + d, marg_col[s.i] + d, -sqrt_k);
-      if (marg_col[s.j] >= 0) triplets.emplace_back(row + d, marg_col[s.j] + d, sqrt_k);
-    }
-    row += 2;
-  }
-  ceres_marg::SparseRowMatrix J_m(row, n_m);
-  J_m.setFromTriplets(triplets.begin(), triplets.end());
-  J_m.makeCompressed();
-  const Eigen::Map<const VecXd> f(f_values.data(), row);
+  const double stage2_start = threadCpuMs();
+  ceres_marg::SparseRowMatrix J_m;
+  VecXd f;
+  eliminatedResiduals(system, result.x, marg_col, 2 * static_cast<int>(marg_blocks.size()), &J_m,
+                      &f);
   // J_m is constant (linear springs): the marginalization's factor of J_mᵀJ_m serves here
   // (sparse-schur); the dense methods keep none, so factorize.
   std::shared_ptr<const ceres_marg::SparseNormalCholesky> factor = result.marginalization.factor;

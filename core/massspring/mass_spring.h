@@ -14,7 +14,8 @@
 // The initial state is the rest grid with uniform noise (seeded).
 //
 // Single stage: Gauss–Newton (Ceres Levenberg–Marquardt with a 1e16 trust region, i.e. μ = 1e-16)
-// on all masses for a fixed number of iterations, sparse normal Cholesky.
+// on all masses for a fixed number of iterations, sparse normal Cholesky (or a dense solver,
+// SingleSolver).
 // Two stage (primer §6): (1) marginalize every mass outside 𝒩 (ceres_marg::marginalize); the
 // prior is exact because the eliminated residuals are linear; (2) Gauss–Newton on the 12 masses of
 // 𝒩 (prior + nonlinear springs + anchors) for the same number of iterations, dense normal
@@ -73,9 +74,22 @@ struct MassSpringSystem {
   double energy(const std::vector<double>& x) const;
 };
 
+// Ceres' own split of one Solve (Solver::Summary; wall time), ms: what is not evaluation or linear solving is
+// the per-call overhead (preprocessing — program and ordering —, the minimizer's bookkeeping,
+// postprocessing).
+struct CeresSplit {
+  double total_ms = 0, preprocess_ms = 0, evaluate_ms = 0, linear_solve_ms = 0;
+  double overheadMs() const { return total_ms - evaluate_ms - linear_solve_ms; }
+};
+
+// The single stage's linear solver (primer §6: "Cholesky factorization"; the others measure what
+// the choice does to the comparison). The dense ones build an N × N matrix: small grids only.
+enum class SingleSolver { kSparseCholesky, kDenseCholesky, kDenseQr };
+
 struct SingleStageResult {
   std::vector<double> x;
   double solve_ms = 0;
+  CeresSplit split;
   int iterations = 0;
   int rejected_steps = 0;  // Gauss–Newton steps Ceres did not take (cost increase)
   double final_cost = 0;
@@ -87,7 +101,8 @@ struct TwoStageResult {
   ceres_marg::MarginalizationSummary marginalization;
   double marginalize_ms = 0;  // stage 0: the marginalization call
   double stage1_ms = 0;       // Gauss–Newton on 𝒩
-  double stage2_ms = 0;       // CHOLMOD recovery of the rest
+  CeresSplit stage1_split;
+  double stage2_ms = 0;  // CHOLMOD recovery of the rest
   double total_ms = 0;
   int stage1_iterations = 0;
   int stage1_rejected_steps = 0;
@@ -95,8 +110,10 @@ struct TwoStageResult {
   Status status;
 };
 
-// Problem construction is not timed; the times are those of the solves.
-SingleStageResult solveSingleStage(const MassSpringSystem& system, int iterations);
+// Problem construction is not timed; the times are those of the solves, in CPU time of the calling
+// thread (the solves are single-threaded; on an idle machine it equals wall time).
+SingleStageResult solveSingleStage(const MassSpringSystem& system, int iterations,
+                                   SingleSolver solver = SingleSolver::kSparseCholesky);
 TwoStageResult solveTwoStage(const MassSpringSystem& system, int iterations,
                              ceres_marg::Method method);
 

@@ -338,6 +338,16 @@ TEST(AnalysisCli, NfrLengthTablePrefixIsTheShortRun) {
   EXPECT_NE(other.output.find("p_est of SHORT differs"), std::string::npos) << other.output;
 }
 
+// Issue #40 §3: Fig. 4's yaw measure (plot_paper.py fig4_yaw) on series with known onsets.
+TEST(AnalysisCli, Fig4YawOnsetOnConstructedSeries) {
+  const std::string python = pythonWith("matplotlib, h5py, numpy");
+  if (python.empty()) GTEST_SKIP() << "no python3 with matplotlib, h5py and numpy";
+  const auto agree = runShell(python + " '" + sourceDir() + "/test/cli/fig4_yaw_agrees.py'");
+  EXPECT_EQ(agree.exit_code, 0) << agree.output;
+  EXPECT_NE(agree.output.find("AGREE onset at frame 1202 of 3000"), std::string::npos)
+      << agree.output;
+}
+
 // Issue #30: the table scripts publish "mean ± std" with the sample std of `marglab tables`,
 // align with the project's ATE (not the independent checker's) and write their files atomically.
 TEST(AnalysisCli, TableScriptsShareTheSeedStatisticsAndAlignment) {

@@ -39,6 +39,9 @@ CAPTIONS = [
                    "symlog, linear within ±1e-8)."),
     (r"fig4_dEm_(.*)", "Fig. 4 analog ({}): ΔE_m (eq. 27) along x, y, z, roll, pitch, yaw and a "
                        "random direction, one panel per variant."),
+    (r"fig4_yaw_(.*)", "Fig. 4's finding ({}): |ΔE_m(yaw)| / min(|ΔE_m(roll)|, |ΔE_m(pitch)|) at "
+                       "every marginalization, every seed, one panel per variant; near 1 = yaw "
+                       "as observable as roll and pitch (onset frames in fig4_yaw_*.csv)."),
     (r"fig5_dEm_(.*)", "Fig. 5 analog ({}): ΔE_m along the seven directions, VO."),
     (r"fig6_sigma_min_(.*)", "Fig. 6 analog ({}): σ_min of the gauge-free prior over time."),
     (r"fig7_trajectory_(.*)", "Fig. 7 analog ({}): trajectories, top-down."),
