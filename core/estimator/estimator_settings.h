@@ -13,7 +13,8 @@
 //                   marg_connected_share
 //   [lm]            max_iterations, lambda_init, lambda_min, lambda_max, stop_relative_cost,
 //                   stop_max_step, stop_rule ("marglab"|"basalt", see LmStopRule),
-//                   max_failed_solves, landmark_damping, threads
+//                   max_failed_solves, indefinite_system ("fail"|"solve", see IndefiniteSystem),
+//                   landmark_damping, threads
 //   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
 //                   scalar type), strategy ("discard"|"dense"|"nfr", keyframe marginalization of
 //                   VIO; see MargStrategy), nfr_topology ("paper"|"joint-states"|"relative-pose",
@@ -97,6 +98,20 @@ inline const char* toString(LmStopRule value) { return nameOf(kLmStopRuleNames, 
 inline bool parseLmStopRule(const std::string& text, LmStopRule* value) {
   return parseName(kLmStopRuleNames, text, value);
 }
+// What the LM step does with a damped reduced system whose LDLT has a pivot ≤ 0 (the system is not
+// positive definite: in f32 a Hessian prior turned indefinite by rounding, README "Where we depart"):
+//   fail  — a failed solve: retried with more damping, lm.max_failed_solves in a row end the run;
+//   solve — Basalt's optimize() (sqrt_keypoint_vo.cpp): Eigen's pivoted LDLT factors a symmetric
+//           indefinite matrix too, and its solution is taken as the step whatever the pivots'
+//           signs; the cost test accepts or rejects it like any other step. Only a non-finite step
+//           is a failed solve.
+enum class IndefiniteSystem { kFail, kSolve };
+inline constexpr EnumNames<IndefiniteSystem, 2> kIndefiniteSystemNames{
+    {{IndefiniteSystem::kFail, "fail"}, {IndefiniteSystem::kSolve, "solve"}}};
+inline const char* toString(IndefiniteSystem value) {
+  return nameOf(kIndefiniteSystemNames, value);
+}
+
 // Basalt's absolute cost-decrease tolerance (its optimize() hard-codes 1e-6).
 inline constexpr double kBasaltStopCost = 1e-6;
 
@@ -128,6 +143,7 @@ struct EstimatorSettings {
   double stop_max_step = 1e-4;
   LmStopRule lm_stop_rule = LmStopRule::kMarglab;
   int max_failed_solves = 3;
+  IndefiniteSystem lm_indefinite_system = IndefiniteSystem::kFail;
   // Damping of the landmark blocks too (H_ll += λ…). Off as in the paper's estimator (§5: "we skip
   // Jacobian scaling and landmark damping"), which lets the reduced system be formed once per
   // linearization.
