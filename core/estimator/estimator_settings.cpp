@@ -44,6 +44,7 @@ Bindings EstimatorSettings::bindings() {
       choice(m, "nfr_topology", &nfr_topology, kSparsifyTopologyNames),
       flagKey(m, "nfr_rigid_deflation", &nfr_rigid_deflation),
       flagKey(m, "psd_hessian_prior", &psd_hessian_prior),
+      choice(m, "lost_landmarks", &lost_landmarks, kLostLandmarkMargNames),
       choice("imu", "noise_profile", &imu_noise_profile, kImuNoiseProfileNames),
   };
 }

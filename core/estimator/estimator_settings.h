@@ -23,7 +23,8 @@
 //                   motions, core/sparsify/rigid_deflation.h; needs strategy "nfr" and
 //                   nfr_topology "paper"), psd_hessian_prior (true: a Hessian prior — storages
 //                   sq, sqp, sqj — is stored as the Hessian JᵀJ, Jᵀr of its clamped LDLT square
-//                   root, positive semidefinite like a square-root prior; README item 5)
+//                   root, positive semidefinite like a square-root prior; README item 5),
+//                   lost_landmarks ("at-once"|"with-state", see LostLandmarkMarg)
 //   [imu]           noise_profile ("kalibr"|"basalt": the IMU densities of VIO runs, for the
 //                   synthetic IMU and the estimator's weights; see core/imu/noise_profile.h)
 //
@@ -98,6 +99,20 @@ inline const char* toString(LmStopRule value) { return nameOf(kLmStopRuleNames, 
 inline bool parseLmStopRule(const std::string& text, LmStopRule* value) {
   return parseName(kLmStopRuleNames, text, value);
 }
+// When a landmark whose track ended is marginalized (marg_policy.h):
+//   at-once    — after the frame in which its track ended: a marginalization event every frame
+//                that loses a track (nearly every frame on KITTI);
+//   with-state — Basalt's marginalize() (sqrt_keypoint_vo.cpp, vio_marg_lost_landmarks): it stays
+//                in the window, its observations in the optimization, until the next event that
+//                marginalizes a state (VO: a keyframe; VIO: nearly every frame), and goes with it.
+// An f32 Hessian prior takes rounding at every event (README "Where we depart", item 6).
+enum class LostLandmarkMarg { kAtOnce, kWithState };
+inline constexpr EnumNames<LostLandmarkMarg, 2> kLostLandmarkMargNames{
+    {{LostLandmarkMarg::kAtOnce, "at-once"}, {LostLandmarkMarg::kWithState, "with-state"}}};
+inline const char* toString(LostLandmarkMarg value) {
+  return nameOf(kLostLandmarkMargNames, value);
+}
+
 // What the LM step does with a damped reduced system whose LDLT has a pivot ≤ 0 (the system is not
 // positive definite: in f32 a Hessian prior turned indefinite by rounding, README "Where we depart"):
 //   fail  — a failed solve: retried with more damping, lm.max_failed_solves in a row end the run;
@@ -159,6 +174,7 @@ struct EstimatorSettings {
   SparsifyTopology nfr_topology = SparsifyTopology::kPaper;
   bool nfr_rigid_deflation = false;
   bool psd_hessian_prior = false;
+  LostLandmarkMarg lost_landmarks = LostLandmarkMarg::kAtOnce;
   // imu
   ImuNoiseProfile imu_noise_profile = ImuNoiseProfile::kKalibr;
 
