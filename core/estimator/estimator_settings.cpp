@@ -34,6 +34,7 @@ Bindings EstimatorSettings::bindings() {
       numberKey("lm", "stop_max_step", &stop_max_step, atLeast(0)),
       choice("lm", "stop_rule", &lm_stop_rule, kLmStopRuleNames),
       integerKey("lm", "max_failed_solves", &max_failed_solves, between(1, 1000)),
+      choice("lm", "indefinite_system", &lm_indefinite_system, kIndefiniteSystemNames),
       flagKey("lm", "landmark_damping", &lm_landmark_damping),
       integerKey("lm", "threads", &lm_threads, between(1, kMaxLmThreads)),
       choice(m, "qr_threshold_mode", &qr_threshold_mode, kRankThresholdModeNames),
@@ -43,6 +44,7 @@ Bindings EstimatorSettings::bindings() {
       choice(m, "nfr_topology", &nfr_topology, kSparsifyTopologyNames),
       flagKey(m, "nfr_rigid_deflation", &nfr_rigid_deflation),
       flagKey(m, "psd_hessian_prior", &psd_hessian_prior),
+      choice(m, "lost_landmarks", &lost_landmarks, kLostLandmarkMargNames),
       choice("imu", "noise_profile", &imu_noise_profile, kImuNoiseProfileNames),
   };
 }

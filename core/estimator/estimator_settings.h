@@ -13,7 +13,8 @@
 //                   marg_connected_share
 //   [lm]            max_iterations, lambda_init, lambda_min, lambda_max, stop_relative_cost,
 //                   stop_max_step, stop_rule ("marglab"|"basalt", see LmStopRule),
-//                   max_failed_solves, landmark_damping, threads
+//                   max_failed_solves, indefinite_system ("fail"|"solve", see IndefiniteSystem),
+//                   landmark_damping, threads
 //   [marginalization] qr_threshold_mode ("absolute"|"relative"), qr_threshold (−1: √ε of the
 //                   scalar type), strategy ("discard"|"dense"|"nfr", keyframe marginalization of
 //                   VIO; see MargStrategy), nfr_topology ("paper"|"joint-states"|"relative-pose",
@@ -22,7 +23,8 @@
 //                   motions, core/sparsify/rigid_deflation.h; needs strategy "nfr" and
 //                   nfr_topology "paper"), psd_hessian_prior (true: a Hessian prior — storages
 //                   sq, sqp, sqj — is stored as the Hessian JᵀJ, Jᵀr of its clamped LDLT square
-//                   root, positive semidefinite like a square-root prior; README item 5)
+//                   root, positive semidefinite like a square-root prior; README item 5),
+//                   lost_landmarks ("at-once"|"with-state", see LostLandmarkMarg)
 //   [imu]           noise_profile ("kalibr"|"basalt": the IMU densities of VIO runs, for the
 //                   synthetic IMU and the estimator's weights; see core/imu/noise_profile.h)
 //
@@ -97,6 +99,34 @@ inline const char* toString(LmStopRule value) { return nameOf(kLmStopRuleNames, 
 inline bool parseLmStopRule(const std::string& text, LmStopRule* value) {
   return parseName(kLmStopRuleNames, text, value);
 }
+// When a landmark whose track ended is marginalized (marg_policy.h):
+//   at-once    — after the frame in which its track ended: a marginalization event every frame
+//                that loses a track (nearly every frame on KITTI);
+//   with-state — Basalt's marginalize() (sqrt_keypoint_vo.cpp, vio_marg_lost_landmarks): it stays
+//                in the window, its observations in the optimization, until the next event that
+//                marginalizes a state (VO: a keyframe; VIO: nearly every frame), and goes with it.
+// An f32 Hessian prior takes rounding at every event (README "Where we depart", item 6).
+enum class LostLandmarkMarg { kAtOnce, kWithState };
+inline constexpr EnumNames<LostLandmarkMarg, 2> kLostLandmarkMargNames{
+    {{LostLandmarkMarg::kAtOnce, "at-once"}, {LostLandmarkMarg::kWithState, "with-state"}}};
+inline const char* toString(LostLandmarkMarg value) {
+  return nameOf(kLostLandmarkMargNames, value);
+}
+
+// What the LM step does with a damped reduced system whose LDLT has a pivot ≤ 0 (the system is not
+// positive definite: in f32 a Hessian prior turned indefinite by rounding, README "Where we depart"):
+//   fail  — a failed solve: retried with more damping, lm.max_failed_solves in a row end the run;
+//   solve — Basalt's optimize() (sqrt_keypoint_vo.cpp): Eigen's pivoted LDLT factors a symmetric
+//           indefinite matrix too, and its solution is taken as the step whatever the pivots'
+//           signs; the cost test accepts or rejects it like any other step. Only a non-finite step
+//           is a failed solve.
+enum class IndefiniteSystem { kFail, kSolve };
+inline constexpr EnumNames<IndefiniteSystem, 2> kIndefiniteSystemNames{
+    {{IndefiniteSystem::kFail, "fail"}, {IndefiniteSystem::kSolve, "solve"}}};
+inline const char* toString(IndefiniteSystem value) {
+  return nameOf(kIndefiniteSystemNames, value);
+}
+
 // Basalt's absolute cost-decrease tolerance (its optimize() hard-codes 1e-6).
 inline constexpr double kBasaltStopCost = 1e-6;
 
@@ -128,6 +158,7 @@ struct EstimatorSettings {
   double stop_max_step = 1e-4;
   LmStopRule lm_stop_rule = LmStopRule::kMarglab;
   int max_failed_solves = 3;
+  IndefiniteSystem lm_indefinite_system = IndefiniteSystem::kFail;
   // Damping of the landmark blocks too (H_ll += λ…). Off as in the paper's estimator (§5: "we skip
   // Jacobian scaling and landmark damping"), which lets the reduced system be formed once per
   // linearization.
@@ -143,6 +174,7 @@ struct EstimatorSettings {
   SparsifyTopology nfr_topology = SparsifyTopology::kPaper;
   bool nfr_rigid_deflation = false;
   bool psd_hessian_prior = false;
+  LostLandmarkMarg lost_landmarks = LostLandmarkMarg::kAtOnce;
   // imu
   ImuNoiseProfile imu_noise_profile = ImuNoiseProfile::kKalibr;
 

@@ -21,6 +21,7 @@ std::unique_ptr<Linearization<Scalar>> LevenbergMarquardt<Scalar>::makeLineariza
   options.damp_landmarks = config_.lm_landmark_damping;
   options.lambda_min = static_cast<Scalar>(config_.lambda_min);
   options.preconditioning = preconditioningOf(variant_.storage);
+  options.solve_indefinite = config_.lm_indefinite_system == IndefiniteSystem::kSolve;
   return marglab::makeLinearization<Scalar>(variant_, options);
 }
 

@@ -29,8 +29,9 @@
 //             the frame may end on a rejected step); stop when E − E_new < kBasaltStopCost or
 //             max |δ| < stop_max_step.
 //
-// Failed solves. A linear solve that fails (an LDLT pivot not positive, a non-finite system or
-// step) is retried with more damping; max_failed_solves failures in a row — counted across frames,
+// Failed solves. A linear solve that fails (an LDLT pivot not positive — unless
+// lm.indefinite_system = "solve", which takes the indefinite LDLT's solution as Basalt does — a
+// non-finite system or step) is retried with more damping; max_failed_solves failures in a row — counted across frames,
 // so that a run whose every frame needs one retry goes on — end the run as a numerical failure.
 
 #include <map>

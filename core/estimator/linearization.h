@@ -55,6 +55,9 @@ class Linearization {
     Scalar lambda_min = 0;
     // Of the damped reduced system before its LDLT (storages sqp / sqj).
     Preconditioning preconditioning = Preconditioning::kNone;
+    // A damped reduced system that is not positive definite is solved all the same
+    // (lm.indefinite_system = "solve", core/linalg/rcs_solve.h).
+    bool solve_indefinite = false;
   };
   virtual ~Linearization() = default;
 

@@ -231,8 +231,8 @@ Status LandmarkLinearization<Scalar, Block>::solve(Scalar lambda, LinearStep<Sca
   Status status = Status::Ok();
   if (options_.damp_landmarks && !lins_.empty()) status = addDampedLandmarks(lambda);
   if (status.ok()) {
-    DampedSolve<Scalar> solve =
-        solveDampedLdlt<Scalar>(H_, b_, lambda, options_.lambda_min, options_.preconditioning);
+    DampedSolve<Scalar> solve = solveDampedLdlt<Scalar>(
+        H_, b_, lambda, options_.lambda_min, options_.preconditioning, options_.solve_indefinite);
     status = solve.status;
     step->delta = std::move(solve.delta);
   }

@@ -115,6 +115,10 @@ MargDecision MarginalizationPolicy<Scalar>::decide(const Window<Scalar>& w, int6
       }
     }
   }
+  // Basalt's policy: an event that marginalizes no state leaves the lost landmarks in the window.
+  if (config_.lost_landmarks == LostLandmarkMarg::kWithState && plan.vars.empty()) {
+    marg_landmarks.clear();
+  }
   // Landmarks of a dense prior are variables of the prior: they go as such.
   for (int64_t track : w.priorLandmarks()) {
     if (marg_landmarks.erase(track) != 0) plan.vars.insert({track, StateBlock::kLandmark});

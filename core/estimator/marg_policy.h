@@ -8,7 +8,8 @@
 //          oldest of all but the newest two with a share < marg_connected_share of its landmarks
 //          still observed, else the DSO distance score) with the landmarks it hosts (its
 //          observations of other landmarks are dropped: keeps the prior sparse); landmarks whose
-//          track ended are marginalized right away.
+//          track ended are marginalized right away (marginalization.lost_landmarks = "at-once"),
+//          or with the next event that marginalizes a state ("with-state", Basalt's).
 // Strategies dense / nfr (VIO) keep the keyframe's landmarks that other frames still see, as world
 // points in the new prior, with the keyframe's observations of them.
 // The policy only decides (decide() is const on the window); the estimator applies the decision's

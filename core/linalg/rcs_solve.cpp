@@ -9,7 +9,8 @@ namespace marglab {
 
 template <typename Scalar>
 DampedSolve<Scalar> solveDampedLdlt(MatX<Scalar> H, const VecX<Scalar>& b, Scalar lambda,
-                                    Scalar lambda_min, Preconditioning preconditioning) {
+                                    Scalar lambda_min, Preconditioning preconditioning,
+                                    bool solve_indefinite) {
   DampedSolve<Scalar> result;
   if (!H.allFinite() || !b.allFinite()) {
     result.status = Status::Error(Status::Code::kNotFinite,
@@ -24,7 +25,8 @@ DampedSolve<Scalar> solveDampedLdlt(MatX<Scalar> H, const VecX<Scalar>& b, Scala
     H = P.scaled(H);
   }
   Eigen::LDLT<MatX<Scalar>> ldlt(H);
-  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > Scalar(0)).all()) {
+  const bool positive = (ldlt.vectorD().array() > Scalar(0)).all();
+  if (ldlt.info() != Eigen::Success || (!positive && !solve_indefinite)) {
     result.status = Status::Error(
         Status::Code::kSolveFailed,
         fmt::format("reduced camera system: damped {}H ({}x{}) is not positive definite "
@@ -43,7 +45,7 @@ DampedSolve<Scalar> solveDampedLdlt(MatX<Scalar> H, const VecX<Scalar>& b, Scala
 }
 
 #define MARGLAB_INST(S) \
-  template DampedSolve<S> solveDampedLdlt<S>(MatX<S>, const VecX<S>&, S, S, Preconditioning);
+  template DampedSolve<S> solveDampedLdlt<S>(MatX<S>, const VecX<S>&, S, S, Preconditioning, bool);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

@@ -4,6 +4,9 @@
 // solved by LDLT (Eigen's, with diagonal pivoting). The damping rule bounds the step along
 // directions the data does not constrain (gauge, weakly observed variables) instead of letting a
 // singular H fail. Failure — a non-positive pivot, a non-finite step — is returned as a Status.
+// With solve_indefinite a non-positive pivot is no failure: Eigen's LDLT (diagonal pivoting,
+// P(H + D)Pᵀ = L D Lᵀ with D of any sign) solves a symmetric indefinite system as well, and its
+// solution is returned — what Basalt's optimize() does; only a non-finite step then fails.
 // With a preconditioning (core/linalg/preconditioner.h) the damped system is solved as
 // (Pᵀ(H + D)P) y = −Pᵀb, δ = P y, P built from the damped H's 3×3 diagonal blocks.
 
@@ -29,6 +32,7 @@ inline Scalar lmDamping(Scalar H_ii, Scalar lambda, Scalar lambda_min) {
 template <typename Scalar>
 DampedSolve<Scalar> solveDampedLdlt(MatX<Scalar> H, const VecX<Scalar>& b, Scalar lambda,
                                     Scalar lambda_min,
-                                    Preconditioning preconditioning = Preconditioning::kNone);
+                                    Preconditioning preconditioning = Preconditioning::kNone,
+                                    bool solve_indefinite = false);
 
 }  // namespace marglab

@@ -9,6 +9,7 @@
 
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
+#include "core/estimator/marg_policy.h"
 #include "core/pipeline/run.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
@@ -182,6 +183,47 @@ TEST(VoEquivalence, NullspaceAndSchurGiveTheSameStep) {
   const VecXd step_ns = step(OptElimination::kNullspace), step_sc = step(OptElimination::kSchur);
   ASSERT_GT(step_ns.norm(), 0);
   EXPECT_LT((step_ns - step_sc).norm() / step_ns.norm(), 1e-8);
+}
+
+// marginalization.lost_landmarks (estimator_settings.h): on the same windows, "with-state" leaves
+// the landmarks whose track ended in the window when no state is marginalized (VO: no keyframe),
+// and otherwise plans exactly what "at-once" plans; the windows come from a with-state run, in
+// which lost landmarks wait, and that run still recovers the truth from noise-free tracks.
+TEST(VoMarginalization, LostLandmarksWaitForTheNextKeyframeMarginalizationWithState) {
+  const Scenario scenario(60);
+  EstimatorSettings with_state = testConfig();
+  with_state.lost_landmarks = LostLandmarkMarg::kWithState;
+  // The policies judge the window after its frame with one keyframe fewer allowed, so that a full
+  // window plans a keyframe marginalization too.
+  EstimatorSettings policy_with_state = with_state, policy_at_once = testConfig();
+  policy_with_state.max_kfs = policy_at_once.max_kfs = with_state.max_kfs - 1;
+  SlidingWindowEstimator<double> estimator(with_state, Variant::parse("sc-sc-sq-f64"),
+                                           rigFromCalib(scenario.calib), scenario.truth(0));
+  int waited = 0, with_keyframe = 0;
+  for (const TrackFrame& frame : scenario.stream.frames) {
+    const FrameResult result = estimator.processFrame(frame);
+    ASSERT_TRUE(result.status.ok()) << result.status.toString();
+    EXPECT_LT((result.p_est - scenario.truth(frame.t_ns).translation()).norm(), 1e-3);
+    const Window<double>& w = estimator.window();
+    const int64_t current = w.frames.rbegin()->first;
+    std::vector<int64_t> lost;
+    for (const auto& [id, lm] : w.landmarks) {
+      if (lm.obs.count(current) == 0) lost.push_back(id);
+    }
+    const MargDecision a = MarginalizationPolicy<double>(policy_at_once).decide(w, current);
+    const MargDecision b = MarginalizationPolicy<double>(policy_with_state).decide(w, current);
+    EXPECT_EQ(a.plan.vars, b.plan.vars);
+    if (b.plan.vars.empty()) {
+      EXPECT_TRUE(b.plan.landmarks.empty());
+      EXPECT_EQ(a.plan.landmarks, lost);
+      waited += lost.empty() ? 0 : 1;
+    } else {
+      EXPECT_EQ(a.plan.landmarks, b.plan.landmarks);
+      ++with_keyframe;
+    }
+  }
+  EXPECT_GT(waited, 0);  // the case the key is about occurred
+  EXPECT_GT(with_keyframe, 0);
 }
 
 TEST(VoEquivalence, QrAndSchurMarginalizationGiveTheSamePriorHessian) {
