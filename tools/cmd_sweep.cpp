@@ -41,7 +41,8 @@ class PlanValidator {
       const RunInputs& inputs = inputsOf(spec);
       const RunSpec resolved =
           resolveRunSpec(spec, inputs.dataset.sequence, inputs.has_ground_truth);
-      const std::vector<Problem> problems = runProblems(resolved, inputs);
+      std::vector<Problem> problems = runProblems(resolved, inputs);
+      addSharedTracksProblem(*run, spec, &problems);
       if (!problems.empty()) throwProblems(problems);
       run->spec_toml = childSpec(spec, *run).toToml();
     } catch (const InputError& e) {
@@ -64,6 +65,20 @@ class PlanValidator {
     RunSpec spec = parseRunArguments(arguments, run.config_toml, "the merged config of " + run.id);
     if (run.frontend == FrontendKind::kImages) spec.frontend = FrontendKind::kImages;
     return spec;
+  }
+
+  // Frontend "images": the runner tracks each dataset once, with the default front-end and
+  // calibration, for every run on it; a run whose config sets [frontend] or [calibration] keys
+  // would be estimated on tracks made without them.
+  static void addSharedTracksProblem(const experiment::PlannedRun& run, const RunSpec& spec,
+                                     std::vector<Problem>* problems) {
+    if (run.frontend != FrontendKind::kImages) return;
+    if (spec.config.trackingToml() == RunConfig().trackingToml()) return;
+    problems->push_back(
+        {ProblemKind::kUsage, "", 0,
+         "frontend = \"images\" tracks each dataset's images once, with the default [frontend] "
+         "and [calibration] keys, and this run's config sets some of them: leave frontend unset "
+         "(each run then tracks its images itself, with its config)"});
   }
 
   // The spec as its child runs it, in the sweep folder: its results file, and for frontend

@@ -98,6 +98,14 @@ std::string RunConfig::toToml() const {
   return bindingsToToml(copy.bindings());
 }
 
+std::string RunConfig::trackingToml() const {
+  RunConfig copy = *this;
+  Bindings list;
+  addFrontendBindings(copy.frontend, &list);
+  addCalibrationBindings(copy.calibration, &list);
+  return bindingsToToml(list);
+}
+
 void RunConfig::setOrigin(const std::string& key, const std::string& option) {
   origins[key] = ConfigOrigin{"", 0, option};
 }

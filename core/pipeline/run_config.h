@@ -105,6 +105,9 @@ struct RunConfig {
   // One key from the command line, "section.key=value" (applyAssignment).
   void set(const std::string& assignment, const std::string& option = "--set");
   std::string toToml() const;
+  // The keys that decide the tracks of images (`datasets track`: [frontend] and [calibration]),
+  // as TOML: two configs track alike when these are equal.
+  std::string trackingToml() const;
 
   // Records that `key` ("lm.threads") was set by a command-line option.
   void setOrigin(const std::string& key, const std::string& option);

@@ -222,6 +222,25 @@ TEST_F(SweepFolders, ForceClearsOnlyWhatTheSweepWrote) {
 }
 
 // Minor item of issue #32: `--dry-run` and the validation before a sweep accepted frontend =
+// Found in issue #40 §5: a `frontend = "images"` group tracks each dataset once with the default
+// front-end, so its [calibration] or [frontend] keys reached the estimator and not the tracks; such
+// a group is refused at plan time, and the same group without `frontend` (each run tracks its
+// images itself, with its config) is planned.
+TEST_F(SweepFolders, SharedTracksWithTrackingKeysAreRefusedBeforeAnyRun) {
+  const std::string group =
+      "name = \"cal\"\n[[group]]\nname = \"g\"\ndatasets = [\"kitti/06_images\"]\n"
+      "variants = [\"ns-qr-sqrt-f64\"]\nconfig = { calibration = { right_cx_shift_px = 0.2 } }\n";
+  const fs::path shared = write("shared.toml", group + "frontend = \"images\"\n");
+  const auto refused = runCli("sweep " + quote(shared) + " --dry-run");
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_NE(refused.output.find("frontend = \"images\" tracks each dataset's images once"),
+            std::string::npos)
+      << refused.output;
+  const fs::path own = write("own.toml", group);
+  const auto planned = runCli("sweep " + quote(own) + " --dry-run");
+  EXPECT_EQ(planned.exit_code, 0) << planned.output;
+}
+
 // "images" on a dataset without images.
 TEST_F(SweepFolders, ImagesFrontendOnADatasetWithoutImagesIsRefusedBeforeAnyRun) {
   const fs::path file = write("noimg.toml",
