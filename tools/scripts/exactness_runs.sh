@@ -35,4 +35,5 @@ for isa in sse2 avx2 avx512; do
   run "v103_nfr_$isa" --dataset euroc/V1_03_difficult --variant ns-qr-sqrt-f64 --frames 200 \
     --config "$nfr" --isa "$isa"
 done
-run v101_damped --dataset euroc/V1_01_easy --variant ns-qr-sqrt-f32 --frames 40 --config "$damped"
+run v101_damped --dataset euroc/V1_01_easy --variant ns-qr-sqrt-f32 --frames 40 --config "$damped" \
+  --isa avx512  # pinned: auto is measured per machine (core/bench/isa_choice.h)
