@@ -136,6 +136,88 @@ TEST_F(SweepEndToEnd, IndexListsEveryRunWithTheValuesOfItsResultsFile) {
   EXPECT_NE(nan->get("command").find("--inject-nan-frame 12"), std::string::npos);
 }
 
+// Independent expectation: mean over seeds of the HDF5 /summary values, per dataset × variant
+// ("dataset|variant").
+struct RunMeans {
+  std::map<std::string, std::vector<SummaryValues>> runs;
+  std::map<std::string, bool> failed;
+
+  bool failedAny(const std::string& key) const { return failed.count(key) && failed.at(key); }
+  double mean(const std::string& key, double SummaryValues::*field) const {
+    double sum = 0;
+    for (const SummaryValues& s : runs.at(key)) sum += s.*field;
+    return sum / static_cast<double>(runs.at(key).size());
+  }
+};
+
+RunMeans runMeans(const fs::path& out) {
+  RunMeans m;
+  for (const IndexRow& row : readIndex((out / "index.csv").string())) {
+    const ResultsReader reader((out / row.get("results")).string());
+    const std::string key = row.get("dataset") + "|" + row.get("variant");
+    m.runs[key].push_back(reader.summary());
+    m.failed[key] = m.failed[key] || reader.info().status == "failed";
+  }
+  return m;
+}
+
+// Every cell of the CSV (full precision) against the means; returns the cells checked.
+int checkCsvCells(const fs::path& file, const RunMeans& m) {
+  const auto csv = parseCsv(readText(file), file.filename().string());
+  EXPECT_GT(csv.size(), 1u);
+  if (csv.empty()) return 0;
+  const auto& header = csv.front();
+  auto col = [&](const char* name) {
+    return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) - header.begin());
+  };
+  int checked = 0;
+  for (std::size_t r = 1; r < csv.size(); ++r) {
+    const auto& f = csv[r];
+    const std::string key = f[col("row")] + "|" + f[col("variant")];
+    if (!m.runs.count(key)) {
+      EXPECT_EQ(f[col("ours_state")], "missing") << key;
+      continue;
+    }
+    SCOPED_TRACE(f[col("table")] + " " + key + " " + f[col("quantity")]);
+    if (m.failedAny(key)) {
+      EXPECT_EQ(f[col("ours_state")], "failed");
+      EXPECT_EQ(f[col("ours")], "");
+      continue;
+    }
+    EXPECT_EQ(f[col("ours_state")], "ok");
+    const std::string q = f[col("quantity")];
+    const double want = q == "ate"   ? m.mean(key, &SummaryValues::ate_rmse)
+                        : q == "opt" ? m.mean(key, &SummaryValues::t_opt_total_s)
+                                     : m.mean(key, &SummaryValues::t_marg_total_s);
+    EXPECT_DOUBLE_EQ(std::stod(f[col("ours")]), want);
+    EXPECT_EQ(f[col("n_runs")], std::to_string(m.runs.at(key).size()));
+    ++checked;
+  }
+  return checked;
+}
+
+// The printed ATE (4 decimals) of every cell of Table 2 in Markdown and LaTeX.
+void checkTable2Cells(const std::string& md, const std::string& tex, const RunMeans& m) {
+  const std::vector<std::string> variants = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64",
+                                             "sc-sc-sq-f32"};
+  for (const auto& [dataset, label] : std::vector<std::pair<std::string, std::string>>{
+           {"kitti/10", "kitti10"}, {"kitti/04", "kitti04"}}) {
+    const auto md_cells = tableRow(md, "| " + label + " |", '|');
+    const auto tex_cells = tableRow(tex, label + " &", '&');
+    ASSERT_EQ(md_cells.size(), 1u + 2u + 8u) << md;  // leading empty, label, frames, 4×2
+    ASSERT_EQ(tex_cells.size(), 2u + 8u) << tex;     // label, frames, 4×2
+    for (std::size_t v = 0; v < variants.size(); ++v) {
+      const std::string key = dataset + "|" + variants[v];
+      const std::string want = !m.runs.count(key) ? "–"
+                               : m.failedAny(key)
+                                   ? "x"
+                                   : fmt::format("{:.4f}", m.mean(key, &SummaryValues::ate_rmse));
+      EXPECT_EQ(stripBold(md_cells[3 + 2 * v]), want) << key;
+      EXPECT_EQ(stripBold(tex_cells[2 + 2 * v]), want == "–" ? "--" : want) << key;
+    }
+  }
+}
+
 TEST_F(SweepEndToEnd, TablesInThreeFormatsEqualTheHdf5Values) {
   ASSERT_EQ(sweep_.exit_code, 0) << sweep_.output;
   // kitti/04 has two seeds: --seeds off keeps the single-value cells checked here (mean over
@@ -147,75 +229,12 @@ TEST_F(SweepEndToEnd, TablesInThreeFormatsEqualTheHdf5Values) {
                            "table2.csv", "table5.md", "table5.tex", "table5.csv"}) {
     EXPECT_TRUE(fs::is_regular_file(tables / name)) << name;
   }
-  // Independent expectation: mean over seeds of the HDF5 /summary values, per dataset × variant.
-  std::map<std::string, std::vector<SummaryValues>> expected;
-  std::map<std::string, bool> failed;
-  for (const IndexRow& row : readIndex((out() / "index.csv").string())) {
-    const ResultsReader reader((out() / row.get("results")).string());
-    const std::string key = row.get("dataset") + "|" + row.get("variant");
-    expected[key].push_back(reader.summary());
-    failed[key] = failed[key] || reader.info().status == "failed";
-  }
-  auto meanOf = [&](const std::string& key, double SummaryValues::*field) {
-    double sum = 0;
-    for (const SummaryValues& s : expected.at(key)) sum += s.*field;
-    return sum / static_cast<double>(expected.at(key).size());
-  };
-
-  // CSV: full precision.
-  const auto csv = parseCsv(readText(tables / "tables.csv"), "tables.csv");
-  ASSERT_GT(csv.size(), 1u);
-  const auto& header = csv.front();
-  auto col = [&](const char* name) {
-    return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) - header.begin());
-  };
-  int checked = 0;
-  for (std::size_t r = 1; r < csv.size(); ++r) {
-    const auto& f = csv[r];
-    const std::string key = f[col("row")] + "|" + f[col("variant")];
-    if (!expected.count(key)) {
-      EXPECT_EQ(f[col("ours_state")], "missing") << key;
-      continue;
-    }
-    SCOPED_TRACE(f[col("table")] + " " + key + " " + f[col("quantity")]);
-    if (failed[key]) {
-      EXPECT_EQ(f[col("ours_state")], "failed");
-      EXPECT_EQ(f[col("ours")], "");
-      continue;
-    }
-    ASSERT_EQ(f[col("ours_state")], "ok");
-    const std::string q = f[col("quantity")];
-    const double value = std::stod(f[col("ours")]);
-    const double want = q == "ate"   ? meanOf(key, &SummaryValues::ate_rmse)
-                        : q == "opt" ? meanOf(key, &SummaryValues::t_opt_total_s)
-                                     : meanOf(key, &SummaryValues::t_marg_total_s);
-    EXPECT_DOUBLE_EQ(value, want);
-    EXPECT_EQ(f[col("n_runs")], std::to_string(expected.at(key).size()));
-    ++checked;
-  }
-  EXPECT_EQ(checked, 7 + 7 * 2);  // Table 2: 7 ok cells (one failed); Table 5: 7 × opt, marg
-
+  const RunMeans means = runMeans(out());
+  EXPECT_EQ(checkCsvCells(tables / "tables.csv", means), 7 + 7 * 2);  // Table 2: 7 ok cells (one
+                                                                      // failed); Table 5: 7 × 2
   // Markdown and LaTeX: the printed value of every cell of Table 2 (4 decimals).
   const std::string md = readText(tables / "table2.md");
-  const std::string tex = readText(tables / "table2.tex");
-  const std::vector<std::string> variants = {"ns-qr-sqrt-f64", "ns-qr-sqrt-f32", "sc-sc-sq-f64",
-                                             "sc-sc-sq-f32"};
-  for (const auto& [dataset, label] : std::vector<std::pair<std::string, std::string>>{
-           {"kitti/10", "kitti10"}, {"kitti/04", "kitti04"}}) {
-    const auto md_cells = tableRow(md, "| " + label + " |", '|');
-    const auto tex_cells = tableRow(tex, label + " &", '&');
-    ASSERT_EQ(md_cells.size(), 1u + 2u + 8u) << md;  // leading empty, label, frames, 4×2
-    ASSERT_EQ(tex_cells.size(), 2u + 8u) << tex;     // label, frames, 4×2
-    for (std::size_t v = 0; v < variants.size(); ++v) {
-      const std::string key = dataset + "|" + variants[v];
-      const std::string want = !expected.count(key) ? "–"
-                               : failed[key]
-                                   ? "x"
-                                   : fmt::format("{:.4f}", meanOf(key, &SummaryValues::ate_rmse));
-      EXPECT_EQ(stripBold(md_cells[3 + 2 * v]), want) << key;
-      EXPECT_EQ(stripBold(tex_cells[2 + 2 * v]), want == "–" ? "--" : want) << key;
-    }
-  }
+  checkTable2Cells(md, readText(tables / "table2.tex"), means);
   // The paper's whole-sequence value (Table 2, kitti10, VO-32 = 26.12) never beside 30 frames.
   EXPECT_EQ(tableRow(md, "| kitti10 |", '|').back(), "–");
   EXPECT_EQ(md.find("26.12"), std::string::npos) << md;
@@ -254,6 +273,42 @@ FileStamp stamp(const fs::path& path) {
           static_cast<std::int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec};
 }
 
+// The pid of run `id` once the sweep's index says it is running; 0 when it does not within 60 s.
+pid_t runningChild(const fs::path& out, const std::string& id) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    try {
+      const auto rows = readIndex((out / "index.csv").string());
+      const IndexRow* row = findRow(rows, id);
+      if (row != nullptr && row->get("status") == "running" && !row->get("pid").empty()) {
+        return static_cast<pid_t>(std::stol(row->get("pid")));
+      }
+    } catch (const std::exception&) {
+      // The sweep has not written its index yet.
+    }
+  }
+  return 0;
+}
+
+// A damaged results file (not a complete HDF5 file) is redone by --resume, the others kept; and
+// without --resume an existing sweep folder is not overwritten.
+void expectDamagedRedoneAndNoClobber(const fs::path& sweep_file, const fs::path& out,
+                                     const fs::path& damaged, const std::string& damaged_id) {
+  fs::resize_file(damaged, fs::file_size(damaged) / 2);
+  const auto again =
+      runCli("sweep " + quote(sweep_file) + " --jobs 1 --resume --out " + quote(out));
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_NE(again.output.find("[1/1] ok"), std::string::npos) << again.output;
+  EXPECT_NE(again.output.find(damaged_id), std::string::npos) << again.output;
+  EXPECT_NE(again.output.find("(2 kept"), std::string::npos) << again.output;
+  EXPECT_EQ(ResultsReader(damaged.string()).info().status, "ok");
+
+  const auto clobber = runCli("sweep " + quote(sweep_file) + " --out " + quote(out));
+  EXPECT_EQ(clobber.exit_code, 2) << clobber.output;
+  EXPECT_NE(clobber.output.find("--resume"), std::string::npos) << clobber.output;
+}
+
 TEST(SweepKill, KilledRunIsFailedAndResumeRedoesOnlyIt) {
   const fs::path dir =
       fs::temp_directory_path() / ("marglab_sweep_kill_" + std::to_string(getpid()));
@@ -280,20 +335,7 @@ frames = 20
       startCli({"sweep", (dir / "kill.toml").string(), "--jobs", "1", "--out", out.string()},
                dir / "sweep.log");
   ASSERT_GT(sweep, 0);
-  pid_t child = 0;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (child == 0 && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    try {
-      const auto rows = readIndex((out / "index.csv").string());
-      const IndexRow* row = findRow(rows, long_id);
-      if (row != nullptr && row->get("status") == "running" && !row->get("pid").empty()) {
-        child = static_cast<pid_t>(std::stol(row->get("pid")));
-      }
-    } catch (const std::exception&) {
-      // The sweep has not written its index yet.
-    }
-  }
+  const pid_t child = runningChild(out, long_id);
   ASSERT_NE(child, 0) << readText(dir / "sweep.log");
   std::this_thread::sleep_for(std::chrono::milliseconds(100));  // mid-way through its frames
   ASSERT_EQ(kill(child, SIGKILL), 0);
@@ -340,21 +382,8 @@ frames = 20
     EXPECT_TRUE(stamp(out / findRow(rows, id)->get("results")) == before[id]) << id;
   }
 
-  // A damaged results file (not a complete HDF5 file) is redone too; the others are kept.
-  const fs::path damaged = out / findRow(rows, short_ids[0])->get("results");
-  fs::resize_file(damaged, fs::file_size(damaged) / 2);
-  const auto again =
-      runCli("sweep " + quote(dir / "kill.toml") + " --jobs 1 --resume --out " + quote(out));
-  ASSERT_EQ(again.exit_code, 0) << again.output;
-  EXPECT_NE(again.output.find("[1/1] ok"), std::string::npos) << again.output;
-  EXPECT_NE(again.output.find(short_ids[0]), std::string::npos) << again.output;
-  EXPECT_NE(again.output.find("(2 kept"), std::string::npos) << again.output;
-  EXPECT_EQ(ResultsReader(damaged.string()).info().status, "ok");
-
-  // Without --resume an existing sweep folder is not overwritten.
-  const auto clobber = runCli("sweep " + quote(dir / "kill.toml") + " --out " + quote(out));
-  EXPECT_EQ(clobber.exit_code, 2) << clobber.output;
-  EXPECT_NE(clobber.output.find("--resume"), std::string::npos) << clobber.output;
+  expectDamagedRedoneAndNoClobber(dir / "kill.toml", out,
+                                  out / findRow(rows, short_ids[0])->get("results"), short_ids[0]);
   fs::remove_all(dir);
 }
 
