@@ -110,14 +110,6 @@ std::function<void()> iterationCandidate(Isa isa, const WindowSnapshot& w, const
   return iterationOf(*keep.f64.back());
 }
 
-std::vector<Isa> supportedIsas() {
-  std::vector<Isa> out;
-  for (const Isa isa : kAllIsas) {
-    if (isaAvailable(isa)) out.push_back(isa);
-  }
-  return out;
-}
-
 WholeRun wholeRun(const BenchOptions& o, const std::string& dataset, const std::string& variant) {
   WholeRun run;
   run.dataset = dataset;
@@ -192,7 +184,7 @@ void timeIterations(const WindowSnapshot& w, const BenchOptions& o, WindowTimes&
   IterationKernels keep;
   std::vector<std::function<void()>> candidates;
   std::vector<std::pair<Isa, IterationCell>> timed;  // what candidates[k] is
-  for (const Isa isa : supportedIsas()) {
+  for (const Isa isa : availableIsas()) {
     for (const IterationCell& cell : kIterationCells) {
       candidates.push_back(iterationCandidate(isa, w, cell, keep));
       timed.emplace_back(isa, cell);
@@ -240,7 +232,7 @@ void timeQrKernel(const WindowSnapshot& w, const BenchOptions& o, WindowTimes& t
                                   static_cast<int>(ns32.blockJp(i).cols()) + 4);
   }
   for (int i = 0; i < ns64.numLandmarkBlocks(); ++i) maps64.push_back(ns64.blockMap(i));
-  const std::vector<Isa> isas = supportedIsas();
+  const std::vector<Isa> isas = availableIsas();
   std::vector<std::function<void()>> candidates;
   for (const Isa isa : isas) {
     candidates.push_back(qrOf(kernelsOf(isa).f32, ns32, maps32));
@@ -353,7 +345,7 @@ BenchReport runBench(const BenchOptions& o) {
   r.peak_f32 = p32.gflops;
   r.peak_f64 = p64.gflops;
   r.peak_isa = p32.isa;
-  for (const Isa isa : supportedIsas()) {
+  for (const Isa isa : availableIsas()) {
     r.isa_peak_f32[static_cast<size_t>(isa)] = isaPeak(isa, true, 0.3).gflops;
     r.isa_peak_f64[static_cast<size_t>(isa)] = isaPeak(isa, false, 0.3).gflops;
   }
@@ -376,7 +368,7 @@ BenchReport runBench(const BenchOptions& o) {
   r.speedup_ns_f32_over_sc_f64 = all.sc.f64 / all.ns.f32;
   ceresTotals(r);
   const double flops = sum(W, &WindowTimes::qr_flops);
-  for (const Isa isa : supportedIsas()) {
+  for (const Isa isa : availableIsas()) {
     const size_t i = static_cast<size_t>(isa);
     double s32 = 0, s64 = 0;
     for (const auto& t : W) {
@@ -464,7 +456,7 @@ std::string isaMarkdown(const BenchReport& r) {
       "peak)\n\n| isa | ns-f32 | ns-f64 | sc-f32 | sc-f64 | sc-f64 / ns-f32 | QR f32 | peak f32 | "
       "fraction | QR f64 | peak f64 | fraction |\n"
       "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
-  for (const Isa isa : supportedIsas()) {
+  for (const Isa isa : availableIsas()) {
     const size_t i = static_cast<size_t>(isa);
     const IterationTimes all = iterationSum(r.windows, isa);
     s += fmt::format(
@@ -503,7 +495,7 @@ std::string runFramesNote(const BenchReport& r) {
 // The JSON object of per-ISA figures.
 Json isaJson(const BenchReport& r) {
   Json all = Json::object();
-  for (const Isa isa : supportedIsas()) {
+  for (const Isa isa : availableIsas()) {
     const size_t i = static_cast<size_t>(isa);
     Json& j = all[isaName(isa)];
     iterationJson(j, iterationSum(r.windows, isa));

@@ -48,14 +48,6 @@ double secondsOf(const std::function<void()>& f) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-std::vector<Isa> availableIsas() {
-  std::vector<Isa> out;
-  for (const Isa isa : kAllIsas) {
-    if (isaAvailable(isa)) out.push_back(isa);
-  }
-  return out;
-}
-
 std::string cpuModel() {
   std::ifstream in("/proc/cpuinfo");
   std::string line;
@@ -148,14 +140,16 @@ void writeCache(const std::string& path, toml::table cache, const std::string& k
 
 std::vector<IsaTiming> timeIsas(int repetitions) {
   const Isa active = activeIsa();
+  std::vector<WindowSnapshot> windows;
+  for (const char* name : kProbeWindows) {
+    windows.push_back(readWindow((fs::path(datasetsRoot()) / "windows" / name).string()));
+  }
   std::vector<IsaTiming> out;
   std::vector<std::vector<std::function<void()>>> probes;
   for (const Isa isa : availableIsas()) {
     out.push_back({isa, 0});
     probes.emplace_back();
-    for (const char* name : kProbeWindows) {
-      const WindowSnapshot window =
-          readWindow((fs::path(datasetsRoot()) / "windows" / name).string());
+    for (const WindowSnapshot& window : windows) {
       probes.back().push_back(probe<float>(isa, window, "ns-qr-sqrt-f32"));
       probes.back().push_back(probe<double>(isa, window, "sc-sc-sq-f64"));
     }

@@ -56,6 +56,14 @@ bool isaBuilt(Isa isa) {
 #endif
 }
 
+std::vector<Isa> availableIsas() {
+  std::vector<Isa> out;
+  for (const Isa isa : kAllIsas) {
+    if (isaAvailable(isa)) out.push_back(isa);
+  }
+  return out;
+}
+
 Isa bestIsa() {
   if (isaAvailable(Isa::kAvx512)) return Isa::kAvx512;
   if (isaAvailable(Isa::kAvx2)) return Isa::kAvx2;

@@ -8,6 +8,7 @@
 
 #include <cstddef>
 #include <string>
+#include <vector>
 
 namespace marglab {
 
@@ -24,6 +25,8 @@ bool cpuSupports(Isa isa);
 bool isaBuilt(Isa isa);
 // Built and supported by this CPU: the ISAs a run can use.
 inline bool isaAvailable(Isa isa) { return isaBuilt(isa) && cpuSupports(isa); }
+// The available ISAs, narrowest first.
+std::vector<Isa> availableIsas();
 // The widest available ISA.
 Isa bestIsa();
 
