@@ -97,16 +97,21 @@ TEST_F(Subprocess, HelperEndingNormallyLeavesNothingBehind) {
 }
 
 TEST_F(Subprocess, HelperDiesWithASigkilledParent) {
+  // The pid file appears by rename, whole: a file that the shell's redirection had created but
+  // not yet written, read as "" after the kernel killed the helper, made the path /proc//cmdline,
+  // i.e. /proc/cmdline, which never empties.
+  const fs::path pid_file = dir_ / "pid";
   const pid_t parent =
-      startParent("echo $$ > '" + (dir_ / "pid").string() + "'; sleep " + marker_ + "; :");
+      startParent("echo $$ > '" + pid_file.string() + ".tmp'; mv '" + pid_file.string() +
+                  ".tmp' '" + pid_file.string() + "'; sleep " + marker_ + "; :");
   ASSERT_GT(parent, 0);
-  ASSERT_TRUE(waitForFile(dir_ / "pid"));
+  ASSERT_TRUE(waitForFile(pid_file));
   ASSERT_EQ(kill(parent, SIGKILL), 0);
   EXPECT_EQ(exitCodeOfWait(parent), 128 + SIGKILL);
   std::string pid_text;
-  for (int i = 0; i < 3000 && pid_text.empty(); ++i) {
-    std::ifstream(dir_ / "pid") >> pid_text;
-  }
+  std::ifstream(pid_file) >> pid_text;
+  ASSERT_FALSE(pid_text.empty());
+  ASSERT_EQ(pid_text.find_first_not_of("0123456789"), std::string::npos) << pid_text;
   const std::string proc = "/proc/" + pid_text + "/cmdline";
   // PR_SET_PDEATHSIG: the kernel kills the helper as its parent dies (a zombie until reaped by
   // init has an empty command line).
@@ -116,6 +121,9 @@ TEST_F(Subprocess, HelperDiesWithASigkilledParent) {
     if (!gone) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   EXPECT_TRUE(gone) << "the helper outlived its SIGKILLed parent";
+  // The helper's own sleep outlives it (nothing is left to end it): end it here, so that a
+  // repeated run of these tests does not find it.
+  test::runShell("pkill -f " + pattern());
 }
 
 TEST_F(Subprocess, ExitCodesFollowTheShellConvention) {
