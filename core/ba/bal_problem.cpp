@@ -14,6 +14,7 @@
 #include <string_view>
 
 #include "core/common/error.h"
+#include "core/common/statistics.h"
 #include "core/geometry/so3.h"
 
 namespace marglab {
@@ -175,12 +176,6 @@ BalProblem loadBalProblem(const std::string& path) {
 
 namespace {
 
-double medianOf(std::vector<double> values) {
-  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  return *middle;
-}
-
 // A camera's centre C = −Rᵀt and back (t = −R C).
 Vec3<double> cameraCentre(const Vec<double, 9>& camera) {
   return -(expSO3<double>(camera.head<3>()).transpose() * camera.segment<3>(3));
@@ -196,12 +191,12 @@ void normalizeBalProblem(BalProblem* problem, double scale) {
   std::vector<double> values(problem->points.size());
   for (int k = 0; k < 3; ++k) {
     for (size_t i = 0; i < values.size(); ++i) values[i] = problem->points[i][k];
-    median[k] = medianOf(values);
+    median[k] = upperMedian(values);
   }
   for (size_t i = 0; i < values.size(); ++i) {
     values[i] = (problem->points[i] - median).lpNorm<1>();
   }
-  const double s = scale / medianOf(values);
+  const double s = scale / upperMedian(values);
   for (Vec3<double>& X : problem->points) X = s * (X - median);
   for (Vec<double, 9>& camera : problem->cameras) {
     setCameraCentre(s * (cameraCentre(camera) - median), &camera);

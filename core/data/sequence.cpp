@@ -10,6 +10,7 @@
 
 #include "core/common/error.h"
 #include "core/common/source_dir.h"
+#include "core/common/statistics.h"
 #include "core/data/parsers.h"
 #include "core/data/plausibility.h"
 #include "core/data/text_file.h"
@@ -380,10 +381,7 @@ double checkImuCoverage(const Sequence& seq) {
   if (cam.empty()) throw InputError(seq.cam_file, 0, "expected at least 2 camera timestamps");
   const auto& t = seq.imu->t_ns;
   if (t.size() < 2) throw InputError(seq.imu_file, 0, "expected at least 2 IMU samples");
-  std::vector<int64_t> dt(t.size() - 1);
-  for (std::size_t i = 1; i < t.size(); ++i) dt[i - 1] = t[i] - t[i - 1];
-  std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
-  const double rate_hz = 1e9 / static_cast<double>(dt[dt.size() / 2]);
+  const double rate_hz = 1e9 / static_cast<double>(medianGapNs(t));
   if (std::abs(rate_hz / kNominalImuRateHz - 1.0) > kImuRateTolerance) {
     throw InputError(seq.imu_file, 0,
                      fmt::format("expected an IMU rate of {:.0f} Hz ± {:.0f} %, found {:.1f} Hz",
@@ -433,10 +431,8 @@ SequenceCheck checkSequence(const Sequence& seq) {
       check.notes.push_back(
           fmt::format("trajectory spans {} of {} frames", check.frames_in_gt, check.frames));
     }
-    std::vector<int64_t> dt(seq.gt.size() > 1 ? seq.gt.size() - 1 : 1, 0);
-    for (std::size_t i = 1; i < seq.gt.size(); ++i) dt[i - 1] = seq.gt.t_ns[i] - seq.gt.t_ns[i - 1];
-    std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
-    const double median_dt_s = 1e-9 * static_cast<double>(dt[dt.size() / 2]);
+    const double median_dt_s =
+        seq.gt.size() > 1 ? 1e-9 * static_cast<double>(medianGapNs(seq.gt.t_ns)) : 0.0;
     if (check.max_gt_gap_s > std::max(kGtGapNoteS, 2 * median_dt_s)) {
       check.notes.push_back(fmt::format("trajectory gaps up to {:.2f} s", check.max_gt_gap_s));
     }

@@ -16,6 +16,7 @@
 #include "core/ba/ba_options.h"
 #include "core/ba/bal_problem.h"
 #include "core/common/error.h"
+#include "core/common/statistics.h"
 #include "core/experiment/table_cells.h"
 
 namespace marglab::experiment {
@@ -43,12 +44,6 @@ struct Group {
   std::map<std::string, std::map<std::uint64_t, Instance>> problems;  // problem → seed → runs
 };
 
-double median(std::vector<double> v) {
-  if (v.empty()) return kNaN;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 double mean(const std::vector<double>& v) { return meanOf(v); }
 double maximum(const std::vector<double>& v) {
   return v.empty() ? kNaN : *std::max_element(v.begin(), v.end());

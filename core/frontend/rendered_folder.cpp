@@ -13,6 +13,7 @@
 
 #include "core/common/error.h"
 #include "core/common/interrupt.h"
+#include "core/common/statistics.h"
 #include "core/data/sequence.h"
 #include "core/frontend/image_file.h"
 #include "core/sim/feature_tracker.h"
@@ -52,11 +53,7 @@ Sequence shippedSequenceWithTrajectory(const std::string& dataset) {
 // Median sample rate of the real IMU, 200 Hz without one.
 double imuRateHz(const Sequence& seq) {
   if (!seq.imu || seq.imu->size() < 2) return 200.0;
-  std::vector<int64_t> dt;
-  for (std::size_t i = 1; i < seq.imu->size(); ++i)
-    dt.push_back(seq.imu->t_ns[i] - seq.imu->t_ns[i - 1]);
-  std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
-  return 1e9 / static_cast<double>(dt[dt.size() / 2]);
+  return 1e9 / static_cast<double>(medianGapNs(seq.imu->t_ns));
 }
 
 // Frames: the real camera times inside the trajectory, from start_s after its first pose on.

@@ -10,6 +10,7 @@
 
 #include "core/common/error.h"
 #include "core/common/scalar.h"
+#include "core/common/statistics.h"
 #include "core/frontend/track_source.h"
 
 namespace marglab {
@@ -158,14 +159,6 @@ void addSamples(const std::vector<TrackObservation>& track, const std::vector<SE
 
 }  // namespace
 
-double medianValue(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  if (v.size() % 2 == 1) return *mid;
-  return 0.5 * (*mid + *std::max_element(v.begin(), mid));
-}
-
 std::vector<DisparitySample> motionStereoSamples(const TrackStream& stream,
                                                  const std::vector<SE3<double>>& T_w_c,
                                                  const RectifiedStereo& stereo, int first, int last,
@@ -227,8 +220,8 @@ std::vector<ErrorBin> binned(const std::vector<DisparitySample>& samples,
       dv.push_back(s.dv);
     }
     if (e.size() < 5) continue;
-    bins.push_back({edges[b], edges[b + 1], static_cast<int>(e.size()), mean(e), medianValue(e),
-                    standardError(e), medianValue(rel), medianValue(dv)});
+    bins.push_back({edges[b], edges[b + 1], static_cast<int>(e.size()), mean(e), median(e),
+                    standardError(e), median(rel), median(dv)});
   }
   return bins;
 }
@@ -270,14 +263,14 @@ DisparityErrorSummary summarizeDisparityErrors(const std::vector<DisparitySample
     rel.push_back(-s.error() / s.d_stereo);
     dv.push_back(s.dv);
   }
-  out.median = medianValue(e);
+  out.median = median(e);
   out.mean = mean(e);
   out.se = standardError(e);
   std::vector<double> deviation;
   for (double x : e) deviation.push_back(std::abs(x - out.median));
-  out.spread = 1.4826 * medianValue(deviation);
-  out.rel_depth_error = medianValue(rel);
-  out.dv = medianValue(dv);
+  out.spread = 1.4826 * median(deviation);
+  out.rel_depth_error = median(rel);
+  out.dv = median(dv);
   const OffsetScaleFit fit = fitOffsetScale(samples, min_noise_px);
   out.fit_c = fit.c;
   out.fit_s = fit.s;
@@ -317,10 +310,10 @@ VerticalField verticalMisalignment(const TrackStream& stream, int first, int las
   }
   for (const auto& cell : cells) {
     field.median_dv.push_back(cell.size() < 5 ? std::numeric_limits<double>::quiet_NaN()
-                                              : medianValue(cell));
+                                              : median(cell));
   }
   field.n = static_cast<int>(all.size());
-  field.overall = medianValue(all);
+  field.overall = median(all);
   return field;
 }
 

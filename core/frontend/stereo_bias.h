@@ -84,9 +84,6 @@ struct DisparitySample {
   double error() const { return d_stereo - d_motion; }
 };
 
-// The median (the mean of the middle two for an even count); NaN for no values.
-double medianValue(std::vector<double> values);
-
 // Steps 1–3 over the observations of frames [first, last] of `stream` (frame k of the stream at
 // pose T_w_c[k], the left camera); `tracks_used` gets the number of tracks triangulated.
 std::vector<DisparitySample> motionStereoSamples(const TrackStream& stream,

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "core/common/error.h"
+#include "core/common/statistics.h"
 #include "core/frontend/stereo_bias.h"
 #include "core/frontend/track_source.h"
 
@@ -80,7 +81,7 @@ double offsetOf(const std::vector<DisparitySample>& samples, OffsetStatistic sta
   if (statistic == OffsetStatistic::kFitIntercept) return fitOffsetScale(samples, min_noise_px).c;
   std::vector<double> e;
   for (const DisparitySample& s : samples) e.push_back(s.error());
-  return medianValue(std::move(e));
+  return median(std::move(e));
 }
 
 // Each half of [first, last] measured alone, its offset applied to the other half.

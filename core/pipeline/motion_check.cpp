@@ -1,4 +1,5 @@
 #include "core/pipeline/motion_check.h"
+#include "core/common/statistics.h"
 
 #include <fmt/core.h>
 
@@ -6,12 +7,7 @@
 
 namespace marglab {
 
-double MotionCheck::recentStep() const {
-  std::vector<double> sorted = steps_;
-  const auto middle = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-  std::nth_element(sorted.begin(), middle, sorted.end());
-  return *middle;
-}
+double MotionCheck::recentStep() const { return median(steps_); }
 
 std::string MotionCheck::update(int frame_index, std::int64_t t_ns, const Eigen::Vector3d& p_est) {
   std::string failure;

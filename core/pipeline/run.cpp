@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "core/common/error.h"
+#include "core/common/statistics.h"
 #include "core/data/sequence.h"
 #include "core/diagnostics/ate.h"
 #include "core/diagnostics/diagnostics.h"
@@ -91,12 +92,7 @@ ImuSetup vioImuSetup(const RunSpec& spec, const Sequence& sequence,
     if (setup.imu.size() < 2) {
       throw InputError(sequence.imu_file, 0, "fewer than two IMU samples inside the trajectory");
     }
-    std::vector<std::int64_t> dt;
-    for (size_t k = 1; k < setup.imu.size(); ++k) {
-      dt.push_back(setup.imu.t_ns[k] - setup.imu.t_ns[k - 1]);
-    }
-    std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
-    setup.sample_period_s = 1e-9 * static_cast<double>(dt[dt.size() / 2]);
+    setup.sample_period_s = 1e-9 * static_cast<double>(medianGapNs(setup.imu.t_ns));
     std::string biases = "zero";
     if (sequence.gt_imu_state && !sequence.gt_imu_state->bias_gyro.empty()) {
       const auto& gt_t = sequence.gt.t_ns;
