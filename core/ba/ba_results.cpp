@@ -9,6 +9,7 @@
 #include "core/common/utc_time.h"
 #include "core/io/hdf5.h"
 #include "core/io/hdf5_trust.h"
+#include "core/linalg/isa.h"
 #include "marglab/version.h"
 
 namespace marglab {
@@ -42,6 +43,9 @@ void writeSettings(const h5::File& file, const BaRunRecord& run) {
   file.setAttr("cg_max_iterations", o.cg.max_iterations);
   file.setAttr("cg_eta", o.cg.eta);
   file.setAttr("threads", o.threads);
+  // The kernels of ns / sc (core/linalg/isa.h); Ceres is built for the baseline whatever it says.
+  file.setAttr("isa", isaName(activeIsa()));
+  file.setAttr("isa_choice", activeIsaChoice());
 }
 
 void writeOutcome(const h5::File& file, const BaRunRecord& run) {
@@ -121,6 +125,7 @@ BaResultsFile readBaResultsUntrusted(const std::string& path) {
     throw InputError(path, 0, "not a `marglab ba` results file (no root attribute kind = \"ba\")");
   }
   BaResultsFile r;
+  if (file.hasAttr("isa")) r.isa = file.attr<std::string>("isa");  // "" before the attribute
   for (auto [name, value] : {std::pair{"git_sha", &r.git_sha},
                              {"problem", &r.problem},
                              {"problem_file", &r.problem_file},

@@ -39,6 +39,7 @@ Json baResultJson(const BaRunRecord& run);
 // A ba results file as read back (by the sweep's index and resume, and by `marglab tables`).
 struct BaResultsFile {
   std::string git_sha, problem, problem_file, solver, precision, status, status_reason;
+  std::string isa;  // the kernels' ISA ("" in files written before it was recorded)
   int num_cameras = 0, num_points = 0, num_observations = 0;
   int max_iterations = 0, threads = 1;
   std::uint64_t seed = 0;

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "core/ba/ceres_ba.h"
 #include "core/ba/landmark_system.h"
@@ -46,15 +47,14 @@ BalState<Scalar> applied(const BalState<Scalar>& state, const BaStep<Scalar>& st
   return moved;
 }
 
-template <typename Block>
+template <typename Scalar>
 class LmRun {
  public:
-  using Scalar = typename Block::Scalar;
-  LmRun(const BalProblem& problem, const BaOptions& options)
+  LmRun(const BalProblem& problem, const BaOptions& options, BaElimination elimination)
       : problem_(problem),
         options_(options),
         loss_{options.huber_px},
-        system_(problem),
+        system_(makeBaLinearSystem<Scalar>(problem, elimination)),
         state_(BalState<Scalar>::fromProblem(problem)),
         damping_{options.initial_lambda} {}
 
@@ -66,8 +66,8 @@ class LmRun {
     bool relinearize = true;
     for (int it = 1; it <= options_.iterations && result_.status.empty(); ++it) {
       if (relinearize) {
-        Status status = system_.linearize(state_, loss_);
-        result_.num_fixed_points = system_.numFixedPoints();
+        Status status = system_->linearize(state_, loss_);
+        result_.num_fixed_points = system_->numFixedPoints();
         if (!status.ok()) return finish("failed", "linearization: " + status.message());
       }
       relinearize = tryStep(it);
@@ -81,7 +81,7 @@ class LmRun {
   bool tryStep(int it) {
     BaStep<Scalar> step;
     const double lambda = damping_.lambda;
-    Status status = system_.solve(Scalar(lambda), options_.cg, &step);
+    Status status = system_->solve(Scalar(lambda), options_.cg, &step);
     double new_cost = std::numeric_limits<double>::quiet_NaN();
     BalState<Scalar> moved;
     if (status.ok()) {
@@ -149,7 +149,7 @@ class LmRun {
   const BalProblem& problem_;
   const BaOptions& options_;
   RobustLoss loss_;
-  LandmarkSystem<Block> system_;
+  std::unique_ptr<BaLinearSystem<Scalar>> system_;  // the active ISA's
   BalState<Scalar> state_;
   Damping damping_;
   double cost_ = 0;
@@ -157,9 +157,9 @@ class LmRun {
   BaResult result_;
 };
 
-template <typename Block>
-BaResult runLm(const BalProblem& problem, const BaOptions& options) {
-  return LmRun<Block>(problem, options).run();
+template <typename Scalar>
+BaResult runLm(const BalProblem& problem, const BaOptions& options, BaElimination elimination) {
+  return LmRun<Scalar>(problem, options, elimination).run();
 }
 
 }  // namespace
@@ -167,14 +167,14 @@ BaResult runLm(const BalProblem& problem, const BaOptions& options) {
 BaResult solveBundleAdjustment(const BalProblem& problem, const BaOptions& options) {
   switch (options.solver) {
     case BaSolver::kNsF64:
-      return runLm<LandmarkBlockNs<double>>(problem, options);
+      return runLm<double>(problem, options, BaElimination::kNullspace);
     case BaSolver::kScF64:
-      return runLm<LandmarkBlockSc<double>>(problem, options);
+      return runLm<double>(problem, options, BaElimination::kSchur);
 #if defined(MARGLAB_WITH_FLOAT)
     case BaSolver::kNsF32:
-      return runLm<LandmarkBlockNs<float>>(problem, options);
+      return runLm<float>(problem, options, BaElimination::kNullspace);
     case BaSolver::kScF32:
-      return runLm<LandmarkBlockSc<float>>(problem, options);
+      return runLm<float>(problem, options, BaElimination::kSchur);
 #endif
     default:
       if (isCeres(options.solver)) return solveWithCeres(problem, options);

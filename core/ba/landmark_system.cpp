@@ -1,3 +1,4 @@
+// Compiled per ISA only (core/isa_kernels.cmake): reached through makeBaLinearSystem.
 #include "core/ba/landmark_system.h"
 
 #include <fmt/core.h>
@@ -7,8 +8,44 @@
 #include <type_traits>
 
 #include "core/common/scalar.h"
+#include "core/linalg/landmark_block.h"
+
+#if !defined(MARGLAB_ISA_NS)
+#error "compiled per ISA only: core/isa_kernels.cmake defines MARGLAB_ISA_NS"
+#endif
 
 namespace marglab {
+namespace {
+
+template <typename Block>
+class LandmarkSystem final : public BaLinearSystem<typename Block::Scalar> {
+ public:
+  using Scalar = typename Block::Scalar;
+  explicit LandmarkSystem(const BalProblem& problem);
+
+  Status linearize(const BalState<Scalar>& state, const RobustLoss& loss) override;
+  Status solve(Scalar lambda, const CgOptions& cg, BaStep<Scalar>* step) override;
+  int numFixedPoints() const override { return num_fixed_points_; }
+  Status denseReducedSystem(MatX<Scalar>* S, VecX<Scalar>* g) const override;
+
+ private:
+  struct ObservationRows;
+  void cameraColumnScaling(const std::vector<ObservationRows>& rows);
+  Status setBlock(int point, const std::vector<ObservationRows>& rows, Block* block);
+  // The 9×9 camera blocks of S + λI (ns: from the reduced rows; sc: from S).
+  std::vector<Mat<Scalar, 9, 9>> cameraBlocks(Scalar lambda, const MatX<Scalar>& S) const;
+  Status backSubstitute(const VecX<Scalar>& x, BaStep<Scalar>* step) const;
+  CgOperators<Scalar> operators(Scalar lambda, const MatX<Scalar>& S,
+                                const std::vector<Mat<Scalar, 9, 9>>& M_inverse) const;
+
+  const BalProblem& problem_;
+  std::vector<std::vector<int>> point_observations_;  // observation indices of each point
+  std::vector<int> point_block_;                      // block index of a point, −1 when fixed
+  std::vector<Block> blocks_;
+  std::vector<Vec3<Scalar>> point_scaling_;
+  VecX<Scalar> camera_scaling_;
+  int num_fixed_points_ = 0;
+};
 
 template <typename Block>
 struct LandmarkSystem<Block>::ObservationRows {
@@ -16,8 +53,6 @@ struct LandmarkSystem<Block>::ObservationRows {
   Mat<Scalar, 2, 3> J_point;
   Vec<Scalar, 2> r;
 };
-
-namespace {
 
 template <typename Block>
 constexpr bool kIsNullspace = std::is_same_v<Block, LandmarkBlockNs<typename Block::Scalar>>;
@@ -77,8 +112,6 @@ void addNullspaceProduct(const std::vector<LandmarkBlockNs<Scalar>>& blocks, con
     }
   }
 }
-
-}  // namespace
 
 template <typename Block>
 LandmarkSystem<Block>::LandmarkSystem(const BalProblem& problem) : problem_(problem) {
@@ -210,8 +243,6 @@ auto LandmarkSystem<Block>::operators(Scalar lambda, const MatX<Scalar>& S,
   return ops;
 }
 
-namespace {
-
 // The inverses of the Schur-Jacobi blocks, by Cholesky in the system's precision.
 template <typename Scalar>
 Status invertCameraBlocks(std::vector<Mat<Scalar, 9, 9>>* blocks) {
@@ -227,8 +258,6 @@ Status invertCameraBlocks(std::vector<Mat<Scalar, 9, 9>>* blocks) {
   }
   return Status::Ok();
 }
-
-}  // namespace
 
 template <typename Block>
 Status LandmarkSystem<Block>::solve(Scalar lambda, const CgOptions& cg, BaStep<Scalar>* step) {
@@ -272,11 +301,27 @@ Status LandmarkSystem<Block>::backSubstitute(const VecX<Scalar>& x, BaStep<Scala
   return Status::Ok();
 }
 
-template class LandmarkSystem<LandmarkBlockNs<double>>;
-template class LandmarkSystem<LandmarkBlockSc<double>>;
+template <typename Scalar>
+std::unique_ptr<BaLinearSystem<Scalar>> makeSystem(const BalProblem& problem,
+                                                   BaElimination elimination) {
+  if (elimination == BaElimination::kNullspace) {
+    return std::make_unique<LandmarkSystem<LandmarkBlockNs<Scalar>>>(problem);
+  }
+  return std::make_unique<LandmarkSystem<LandmarkBlockSc<Scalar>>>(problem);
+}
+
+}  // namespace
+
+template <typename Scalar>
+BaKernels<Scalar> baKernelsIn() {
+  BaKernels<Scalar> k;
+  k.make_system = &makeSystem<Scalar>;
+  return k;
+}
+
+template BaKernels<double> baKernelsIn<double>();
 #if defined(MARGLAB_WITH_FLOAT)
-template class LandmarkSystem<LandmarkBlockNs<float>>;
-template class LandmarkSystem<LandmarkBlockSc<float>>;
+template BaKernels<float> baKernelsIn<float>();
 #endif
 
 }  // namespace marglab

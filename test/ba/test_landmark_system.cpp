@@ -40,19 +40,19 @@ VecX<double> stacked(const BaStep<double>& step) {
 TEST(LandmarkSystem, NullspaceAndSchurGiveTheSameReducedSystemAndStep) {
   const BalProblem problem = shipped("ladybug-problem-49-7776-pre-shrink-1800.txt.bz2");
   const BalState<double> state = BalState<double>::fromProblem(problem);
-  LandmarkSystem<LandmarkBlockNs<double>> ns(problem);
-  LandmarkSystem<LandmarkBlockSc<double>> sc(problem);
-  ASSERT_TRUE(ns.linearize(state, RobustLoss{}).ok());
-  ASSERT_TRUE(sc.linearize(state, RobustLoss{1.0}).ok());  // a different loss: relinearized below
-  ASSERT_TRUE(sc.linearize(state, RobustLoss{}).ok());
+  const auto ns = makeBaLinearSystem<double>(problem, BaElimination::kNullspace);
+  const auto sc = makeBaLinearSystem<double>(problem, BaElimination::kSchur);
+  ASSERT_TRUE(ns->linearize(state, RobustLoss{}).ok());
+  ASSERT_TRUE(sc->linearize(state, RobustLoss{1.0}).ok());  // a different loss: relinearized below
+  ASSERT_TRUE(sc->linearize(state, RobustLoss{}).ok());
   BaStep<double> step_ns, step_sc;
   const double lambda = 1e-4;
-  ASSERT_TRUE(ns.solve(lambda, CgOptions{}, &step_ns).ok());
-  ASSERT_TRUE(sc.solve(lambda, CgOptions{}, &step_sc).ok());
+  ASSERT_TRUE(ns->solve(lambda, CgOptions{}, &step_ns).ok());
+  ASSERT_TRUE(sc->solve(lambda, CgOptions{}, &step_sc).ok());
   MatX<double> S_ns, S_sc;
   VecX<double> g_ns, g_sc;
-  ASSERT_TRUE(ns.denseReducedSystem(&S_ns, &g_ns).ok());
-  ASSERT_TRUE(sc.denseReducedSystem(&S_sc, &g_sc).ok());
+  ASSERT_TRUE(ns->denseReducedSystem(&S_ns, &g_ns).ok());
+  ASSERT_TRUE(sc->denseReducedSystem(&S_sc, &g_sc).ok());
   const double S_error = (S_ns - S_sc).norm() / S_sc.norm();
   const double step_error = relativeError(stacked(step_ns), stacked(step_sc));
   RecordProperty("reduced_system_relative_error", fmt::format("{:.3e}", S_error));
