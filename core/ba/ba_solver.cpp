@@ -50,11 +50,14 @@ BalState<Scalar> applied(const BalState<Scalar>& state, const BaStep<Scalar>& st
 template <typename Scalar>
 class LmRun {
  public:
-  LmRun(const BalProblem& problem, const BaOptions& options, BaElimination elimination)
+  LmRun(const BalProblem& problem, const BaOptions& options, BaElimination elimination,
+        BalState<double>* solution)
       : problem_(problem),
+        solution_(solution),
         options_(options),
         loss_{options.huber_px},
-        system_(makeBaLinearSystem<Scalar>(problem, elimination)),
+        pool_(options.threads),
+        system_(makeBaLinearSystem<Scalar>(problem, elimination, pool_)),
         state_(BalState<Scalar>::fromProblem(problem)),
         damping_{options.initial_lambda} {}
 
@@ -143,13 +146,25 @@ class LmRun {
     result_.final_cost = cost_;
     result_.num_behind_final = evaluateCost(problem_.observations, state_, loss_).num_behind;
     result_.total_time_s = clock_.seconds();
+    if (solution_ != nullptr) {
+      solution_->cameras.clear();
+      for (const auto& camera : state_.cameras) {
+        solution_->cameras.push_back(camera.template cast<double>());
+      }
+      solution_->points.clear();
+      for (const auto& point : state_.points) {
+        solution_->points.push_back(point.template cast<double>());
+      }
+    }
     return result_;
   }
 
   const BalProblem& problem_;
+  BalState<double>* solution_;
   const BaOptions& options_;
   RobustLoss loss_;
-  std::unique_ptr<BaLinearSystem<Scalar>> system_;  // the active ISA's
+  ThreadPool pool_;
+  std::unique_ptr<BaLinearSystem<Scalar>> system_;  // the active ISA's, on pool_
   BalState<Scalar> state_;
   Damping damping_;
   double cost_ = 0;
@@ -158,26 +173,28 @@ class LmRun {
 };
 
 template <typename Scalar>
-BaResult runLm(const BalProblem& problem, const BaOptions& options, BaElimination elimination) {
-  return LmRun<Scalar>(problem, options, elimination).run();
+BaResult runLm(const BalProblem& problem, const BaOptions& options, BaElimination elimination,
+               BalState<double>* solution) {
+  return LmRun<Scalar>(problem, options, elimination, solution).run();
 }
 
 }  // namespace
 
-BaResult solveBundleAdjustment(const BalProblem& problem, const BaOptions& options) {
+BaResult solveBundleAdjustment(const BalProblem& problem, const BaOptions& options,
+                               BalState<double>* solution) {
   switch (options.solver) {
     case BaSolver::kNsF64:
-      return runLm<double>(problem, options, BaElimination::kNullspace);
+      return runLm<double>(problem, options, BaElimination::kNullspace, solution);
     case BaSolver::kScF64:
-      return runLm<double>(problem, options, BaElimination::kSchur);
+      return runLm<double>(problem, options, BaElimination::kSchur, solution);
 #if defined(MARGLAB_WITH_FLOAT)
     case BaSolver::kNsF32:
-      return runLm<float>(problem, options, BaElimination::kNullspace);
+      return runLm<float>(problem, options, BaElimination::kNullspace, solution);
     case BaSolver::kScF32:
-      return runLm<float>(problem, options, BaElimination::kSchur);
+      return runLm<float>(problem, options, BaElimination::kSchur, solution);
 #endif
     default:
-      if (isCeres(options.solver)) return solveWithCeres(problem, options);
+      if (isCeres(options.solver)) return solveWithCeres(problem, options, solution);
       throw UsageError(
           fmt::format("--solver {}: this build has no float numerics "
                       "(MARGLAB_FLOAT=OFF)",

@@ -102,7 +102,8 @@ std::string statusOf(ceres::TerminationType type) {
 
 }  // namespace
 
-BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options) {
+BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options,
+                        BalState<double>* solution) {
   BalProblem variables = problem;  // Ceres updates the parameters in place
   ceres::Problem ceres_problem;
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
@@ -134,6 +135,7 @@ BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options) {
       evaluateCost(variables.observations, BalState<double>::fromProblem(variables), loss)
           .num_behind;
   result.total_time_s = recorder.seconds();
+  if (solution != nullptr) *solution = BalState<double>::fromProblem(variables);
   return result;
 }
 

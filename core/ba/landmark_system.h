@@ -31,6 +31,7 @@
 #include "core/ba/ba_state.h"
 #include "core/ba/pcg.h"
 #include "core/common/status.h"
+#include "core/common/thread_pool.h"
 #include "core/linalg/isa.h"
 
 namespace marglab {
@@ -67,20 +68,25 @@ class BaLinearSystem {
 // reference to the problem's observations (the problem must outlive the system).
 template <typename Scalar>
 struct BaKernels {
-  std::unique_ptr<BaLinearSystem<Scalar>> (*make_system)(const BalProblem&,
-                                                         BaElimination) = nullptr;
+  std::unique_ptr<BaLinearSystem<Scalar>> (*make_system)(const BalProblem&, BaElimination,
+                                                         ThreadPool&) = nullptr;
 };
 // Defined in landmark_system.cpp, compiled per ISA only.
 template <typename Scalar>
 BaKernels<Scalar> baKernelsIn();
 
-// The system of the active ISA's copy.
+// The system of the active ISA's copy, or of one ISA's (the tests compare the copies). It
+// linearizes, multiplies and back-substitutes over the landmark blocks on the pool's threads
+// (which must outlive it), with the same numbers for every thread count: the sums over landmarks
+// are formed per camera in landmark order (ns: gradient, preconditioner, CG product) or in fixed
+// chunks of landmarks added in chunk order (sc's reduced system).
 template <typename Scalar>
 std::unique_ptr<BaLinearSystem<Scalar>> makeBaLinearSystem(const BalProblem& problem,
-                                                           BaElimination elimination);
-// The system of one ISA's copy (the tests compare the copies).
+                                                           BaElimination elimination,
+                                                           ThreadPool& pool);
 template <typename Scalar>
 std::unique_ptr<BaLinearSystem<Scalar>> makeBaLinearSystem(const BalProblem& problem,
-                                                           BaElimination elimination, Isa isa);
+                                                           BaElimination elimination,
+                                                           ThreadPool& pool, Isa isa);
 
 }  // namespace marglab

@@ -28,7 +28,8 @@ struct Solved {
 template <typename Scalar>
 Solved<Scalar> solveOnce(const BalProblem& problem, BaElimination elimination, Isa isa,
                          Scalar lambda) {
-  const auto system = makeBaLinearSystem<Scalar>(problem, elimination, isa);
+  ThreadPool pool(1);
+  const auto system = makeBaLinearSystem<Scalar>(problem, elimination, pool, isa);
   const BalState<Scalar> state = BalState<Scalar>::fromProblem(problem);
   EXPECT_TRUE(system->linearize(state, RobustLoss{1.0}).ok());
   BaStep<Scalar> step;
