@@ -15,7 +15,7 @@
 namespace marglab {
 namespace {
 
-constexpr int kBaSchemaVersion = 1;
+constexpr int kBaSchemaVersion = 2;  // 2: isa, isa_choice, total_cpu_s, /iterations/cpu_s
 
 void writeSettings(const h5::File& file, const BaRunRecord& run) {
   const BaOptions& o = run.options;
@@ -58,18 +58,20 @@ void writeOutcome(const h5::File& file, const BaRunRecord& run) {
   file.setAttr("num_behind_final", r.num_behind_final);
   file.setAttr("num_fixed_points", r.num_fixed_points);
   file.setAttr("total_time_s", r.total_time_s);
+  file.setAttr("total_cpu_s", r.total_cpu_s);
   file.setAttr("peak_rss_mb", run.peak_rss_mb);
 }
 
 void writeIterations(const h5::File& file, const std::vector<BaIteration>& rows) {
   std::vector<std::int64_t> iteration, cg_iterations;
   std::vector<std::uint8_t> accepted;
-  std::vector<double> cost, time_s, lambda, ritz_min, ritz_max;
+  std::vector<double> cost, time_s, cpu_s, lambda, ritz_min, ritz_max;
   std::vector<std::string> messages;
   for (const BaIteration& row : rows) {
     iteration.push_back(row.iteration);
     cost.push_back(row.cost);
     time_s.push_back(row.time_s);
+    cpu_s.push_back(row.cpu_s);
     lambda.push_back(row.lambda);
     cg_iterations.push_back(row.cg_iterations);
     accepted.push_back(row.accepted ? 1 : 0);
@@ -81,6 +83,7 @@ void writeIterations(const h5::File& file, const std::vector<BaIteration>& rows)
   g.write("iteration", iteration);
   g.write("cost", cost);
   g.write("time_s", time_s);
+  g.write("cpu_s", cpu_s);
   g.write("lambda", lambda);
   g.write("cg_iterations", cg_iterations);
   g.write("accepted", accepted);

@@ -2,7 +2,6 @@
 
 #include <fmt/core.h>
 
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -12,16 +11,6 @@
 
 namespace marglab {
 namespace {
-
-class Stopwatch {
- public:
-  double seconds() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
-
- private:
-  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
-};
 
 // The LM damping after a step (rootba's and Ceres' rule) and the loop's state.
 struct Damping {
@@ -130,7 +119,8 @@ class LmRun {
     BaIteration row;
     row.iteration = it;
     row.cost = cost_;
-    row.time_s = clock_.seconds();
+    row.time_s = clock_.wallSeconds();
+    row.cpu_s = clock_.cpuSeconds();
     row.lambda = lambda;
     row.accepted = accepted;
     row.cg_iterations = cg != nullptr ? cg->iterations : 0;
@@ -145,7 +135,8 @@ class LmRun {
     result_.reason = reason;
     result_.final_cost = cost_;
     result_.num_behind_final = evaluateCost(problem_.observations, state_, loss_).num_behind;
-    result_.total_time_s = clock_.seconds();
+    result_.total_time_s = clock_.wallSeconds();
+    result_.total_cpu_s = clock_.cpuSeconds();
     if (solution_ != nullptr) {
       solution_->cameras.clear();
       for (const auto& camera : state_.cameras) {
@@ -168,7 +159,7 @@ class LmRun {
   BalState<Scalar> state_;
   Damping damping_;
   double cost_ = 0;
-  Stopwatch clock_;
+  BaClock clock_;
   BaResult result_;
 };
 

@@ -4,6 +4,7 @@
 #include <fmt/core.h>
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <functional>
 #include <limits>
 #include <type_traits>
@@ -44,7 +45,13 @@ class LandmarkSystem final : public BaLinearSystem<typename Block::Scalar> {
   Status observationRows(const BalState<Scalar>& state, const RobustLoss& loss,
                          std::vector<ObservationRows>* rows) const;
   void cameraColumnScaling(const std::vector<ObservationRows>& rows);
-  // local ← f(block) for every block in parallel, then out_c (+)= Σ the camera's slots in order.
+  // Scratch of one thread's local products, sized once for the longest track (no allocation per
+  // landmark and product).
+  struct LocalScratch {
+    VecX<Scalar> x, t, y;
+  };
+  // local(block, scratch) writes the block's 9n entries to scratch.y.head(9n), for every block in
+  // parallel; then out_c += the camera's slots, in landmark order.
   template <typename LocalFn>
   void gatherOverCameras(const LocalFn& local, VecX<Scalar>* out) const;
   VecX<Scalar> nullspaceGradient() const;
@@ -64,6 +71,7 @@ class LandmarkSystem final : public BaLinearSystem<typename Block::Scalar> {
   std::vector<int> point_block_;                      // block index of a point, −1 when fixed
   std::vector<int> block_point_;                      // point of each block
   std::vector<Eigen::Index> local_offset_;            // of each block in local_
+  Eigen::Index max_track_ = 0;                        // the most observations of a block
   std::vector<std::vector<CameraSlot>> camera_slots_;
   mutable VecX<Scalar> local_;  // the blocks' local vectors (9n each), reused by every product
   mutable std::vector<MatX<Scalar>> chunk_S_;  // sc: the reduction chunks 1, 2, ... (0 adds to S)
@@ -144,6 +152,7 @@ void LandmarkSystem<Block>::indexBlocks() {
           {block, static_cast<int>(j), offset + kBalCameraDim * static_cast<Eigen::Index>(j)});
     }
     offset += kBalCameraDim * static_cast<Eigen::Index>(obs.size());
+    max_track_ = std::max(max_track_, static_cast<Eigen::Index>(obs.size()));
   }
   local_.resize(offset);
 }
@@ -221,10 +230,13 @@ template <typename Block>
 template <typename LocalFn>
 void LandmarkSystem<Block>::gatherOverCameras(const LocalFn& local, VecX<Scalar>* out) const {
   pool_->forChunks(blocks_.size(), [&](size_t begin, size_t end, int) {
-    VecX<Scalar> y;
+    LocalScratch scratch{VecX<Scalar>(kBalCameraDim * max_track_), VecX<Scalar>(2 * max_track_ + 3),
+                         VecX<Scalar>(kBalCameraDim * max_track_)};
     for (size_t b = begin; b < end; ++b) {
-      local(blocks_[b], &y);
-      local_.segment(local_offset_[b], y.size()) = y;
+      const Eigen::Index n =
+          kBalCameraDim * static_cast<Eigen::Index>(blocks_[b].map().rcs_offset.size());
+      local(blocks_[b], scratch);
+      local_.segment(local_offset_[b], n) = scratch.y.head(n);
     }
   });
   pool_->forChunks(camera_slots_.size(), [&](size_t begin, size_t end, int) {
@@ -242,9 +254,9 @@ template <typename Block>
 VecX<typename Block::Scalar> LandmarkSystem<Block>::nullspaceGradient() const {
   VecX<Scalar> g = VecX<Scalar>::Zero(camera_scaling_.size());
   gatherOverCameras(
-      [](const Block& block, VecX<Scalar>* y) {
-        const VecX<Scalar> g_local = block.reducedJp().transpose() * block.reducedR();
-        *y = g_local;
+      [](const Block& block, LocalScratch& s) {
+        s.y.head(block.reducedJp().cols()).noalias() =
+            block.reducedJp().transpose() * block.reducedR();
       },
       &g);
   return g;
@@ -269,15 +281,15 @@ void LandmarkSystem<Block>::addNullspaceCameraBlocks(std::vector<Mat<Scalar, 9, 
 template <typename Block>
 void LandmarkSystem<Block>::addNullspaceProduct(const VecX<Scalar>& x, VecX<Scalar>* Ax) const {
   gatherOverCameras(
-      [&x](const Block& block, VecX<Scalar>* y) {
+      [&x](const Block& block, LocalScratch& s) {
         const std::vector<int>& offsets = block.map().rcs_offset;
-        VecX<Scalar> x_local(kBalCameraDim * static_cast<Eigen::Index>(offsets.size()));
+        const auto Jr = block.reducedJp();
         for (size_t j = 0; j < offsets.size(); ++j) {
-          x_local.template segment<kBalCameraDim>(kBalCameraDim * j) =
+          s.x.template segment<kBalCameraDim>(kBalCameraDim * j) =
               x.template segment<kBalCameraDim>(offsets[j]);
         }
-        const VecX<Scalar> t = block.reducedJp() * x_local;
-        y->noalias() = block.reducedJp().transpose() * t;
+        s.t.head(Jr.rows()).noalias() = Jr * s.x.head(Jr.cols());
+        s.y.head(Jr.cols()).noalias() = Jr.transpose() * s.t.head(Jr.rows());
       },
       Ax);
 }
