@@ -40,20 +40,43 @@ TEST(BaDubrovnik3, ItsMinimumIsAnExactFit) {
   EXPECT_LT(2 * problem.numObservations(), 9 * problem.numCameras() + 3 * problem.numPoints());
 }
 
-// After rootba's 50 iterations both precisions are still descending: over the last 10 iterations
-// the cost falls by more than 1 % (a converged run stops once a step gains less than 1e-6).
-TEST(BaDubrovnik3, FiftyIterationsDoNotConverge) {
-  const BalProblem problem = dubrovnikUnderProtocol(38401);
-  for (const BaSolver solver : {BaSolver::kNsF64, BaSolver::kNsF32}) {
+template <typename To, typename From>
+BalState<To> castState(const BalState<From>& state) {
+  BalState<To> out;
+  for (const auto& camera : state.cameras) out.cameras.push_back(camera.template cast<To>());
+  for (const auto& point : state.points) out.points.push_back(point.template cast<To>());
+  return out;
+}
+
+// After rootba's 50 iterations both precisions are still descending (over the last 10 iterations
+// the cost falls by more than 1 %; a converged run stops once a step gains less than 1e-6), and
+// the f32 / f64 gap is not the rounding of the cost's evaluation: evaluating the f64 end point in
+// float moves its cost by less than a tenth of the gap, and the f32 end point evaluated in double
+// keeps the gap. Over rootba's seed and the four of results/bal.
+TEST(BaDubrovnik3, FiftyIterationsEndOnUnconvergedTrajectories) {
+  for (const std::uint64_t seed : {38401, 1, 2, 3, 4}) {
+    const BalProblem problem = dubrovnikUnderProtocol(seed);
     BaOptions options;
-    options.solver = solver;
     options.iterations = 50;
     options.huber_px = 1;
-    const BaResult result = solveBundleAdjustment(problem, options);
-    EXPECT_EQ(result.status, "max_iterations") << toString(solver);
-    const BaIteration& last = result.iterations.back();
-    const BaIteration& before = result.iterations[result.iterations.size() - 11];
-    EXPECT_LT(last.cost, 0.99 * before.cost) << toString(solver);
+    BalState<double> x64, x32;
+    options.solver = BaSolver::kNsF64;
+    const BaResult r64 = solveBundleAdjustment(problem, options, &x64);
+    options.solver = BaSolver::kNsF32;
+    const BaResult r32 = solveBundleAdjustment(problem, options, &x32);
+    for (const BaResult* r : {&r64, &r32}) {
+      EXPECT_EQ(r->status, "max_iterations") << seed;
+      EXPECT_LT(r->iterations.back().cost, 0.99 * r->iterations[r->iterations.size() - 11].cost)
+          << seed;
+    }
+    const RobustLoss loss{1.0};
+    const double c64 = evaluateCost(problem.observations, x64, loss).cost;
+    const double c64_in_float =
+        evaluateCost(problem.observations, castState<float>(x64), loss).cost;
+    const double c32_in_double = evaluateCost(problem.observations, x32, loss).cost;
+    const double gap = std::abs(r32.final_cost - c64);
+    EXPECT_LT(std::abs(c64_in_float - c64), gap / 10) << seed;
+    EXPECT_NEAR(std::abs(c32_in_double - c64), gap, gap / 10) << seed;
   }
 }
 
