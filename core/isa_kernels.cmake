@@ -16,7 +16,8 @@
 # references (__asan_*, the coverage sections) are exactly the undefined and shared symbols the
 # check refuses. The sources are the same for every ISA; what the sanitizers check is the code.
 # MARGLAB_ISA_SSE2_ONLY tells core/linalg/isa.cpp that the other ISAs are not built.
-set(MARGLAB_ISA_ONLY_SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/estimator/linearization_kernels.cpp)
+set(MARGLAB_ISA_ONLY_SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/estimator/linearization_kernels.cpp
+                             ${CMAKE_CURRENT_SOURCE_DIR}/ba/landmark_system.cpp)
 if(MARGLAB_SANITIZE)
   add_library(marglab_isa_sse2 OBJECT ${MARGLAB_ISA_ONLY_SOURCES})
   target_compile_definitions(marglab_isa_sse2 PRIVATE MARGLAB_ISA_NS=isa_sse2 MARGLAB_ISA_ENUM=kSse2
@@ -33,6 +34,7 @@ find_package(Python3 REQUIRED COMPONENTS Interpreter)
 set(MARGLAB_ISA_KERNEL_SOURCES
     ${MARGLAB_ISA_ONLY_SOURCES}
     ${CMAKE_CURRENT_SOURCE_DIR}/estimator/window_landmark.cpp
+    ${CMAKE_CURRENT_SOURCE_DIR}/ba/snavely_residual.cpp
     ${CMAKE_CURRENT_SOURCE_DIR}/linalg/landmark_block.cpp
     ${CMAKE_CURRENT_SOURCE_DIR}/linalg/landmark_block_sc.cpp
     ${CMAKE_CURRENT_SOURCE_DIR}/linalg/rcs_solve.cpp)

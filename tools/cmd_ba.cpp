@@ -12,7 +12,9 @@
 #include "core/ba/ba_solver.h"
 #include "core/ba/bal_problem.h"
 #include "core/ba/ceres_ba.h"
+#include "core/bench/isa_choice.h"
 #include "core/common/error.h"
+#include "core/linalg/isa.h"
 #include "tools/command.h"
 #include "tools/option_checks.h"
 #include "tools/output_checks.h"
@@ -44,7 +46,15 @@ void addOptions(CLI::App& sub, BaArgs& a) {
   sub.add_option("--seed", o.seed, "seed of the perturbation (rootba's 38401)");
   sub.add_option("--normalize", o.normalize_scale,
                  "normalize the scene to this median absolute deviation (rootba: 100; 0: off)");
-  sub.add_option("--threads", o.threads, "threads (Ceres; ns / sc run on one)");
+  sub.add_option("--threads", o.threads,
+                 "threads: ns / sc linearize and multiply over the landmark blocks in parallel "
+                 "(the same numbers for every count); Ceres' num_threads");
+  sub.add_option("--isa", a.spec.isa,
+                 "instruction set of the ns / sc kernels (auto: the fastest on this machine, "
+                 "measured once per CPU and build and cached; docs/design.md §ISA dispatch); "
+                 "recorded in the results file's isa and isa_choice attributes")
+      ->check(CLI::IsMember({"auto", "sse2", "avx2", "avx512"}))
+      ->capture_default_str();
   sub.add_flag("--json", a.json, "print the result as one JSON object");
   sub.add_option("-o,--output", a.spec.output, "the HDF5 results file to write");
   sub.final_callback([&sub, &a] {
@@ -98,10 +108,12 @@ int runBa(const BaArgs& a) {
   if (!problems.empty()) throwProblems(problems);
   cli::checkOutputFile(spec.output, "-o");
   cli::refuseOverwritingInputs({spec.output}, {{spec.problem, a.spec_file}, {}});
+  resolveIsa(spec.isa);  // the name and the CPU, before any work
   BalProblem problem = loadBalProblem(spec.problem);
   const BaOptions& o = spec.options;
   if (o.normalize_scale > 0) normalizeBalProblem(&problem, o.normalize_scale);
   if (o.perturb_sigma > 0) perturbBalProblem(&problem, o.perturb_sigma, o.seed);
+  activateIsa(spec.isa);         // `auto` measures once per machine and build
   keepCeresWarningsOffStderr();  // recorded per step in /iterations messages instead
   BaRunRecord run;
   run.problem_file = spec.problem;

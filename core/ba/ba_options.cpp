@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cmath>
+#include <ctime>
 
 namespace marglab {
 namespace {
@@ -16,7 +17,22 @@ void require(bool ok, const std::string& message, std::vector<Problem>* problems
   if (!ok) problems->push_back({ProblemKind::kUsage, "", 0, message});
 }
 
+double processCpuSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
 }  // namespace
+
+BaClock::BaClock()
+    : wall_start_(std::chrono::steady_clock::now()), cpu_start_(processCpuSeconds()) {}
+
+double BaClock::wallSeconds() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start_).count();
+}
+
+double BaClock::cpuSeconds() const { return processCpuSeconds() - cpu_start_; }
 
 const char* toString(BaSolver solver) { return kSolverNames[static_cast<size_t>(solver)]; }
 

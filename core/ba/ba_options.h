@@ -9,6 +9,7 @@
 // Jacobian scaling on; 20 iterations; perturbation seed 38401. Every LM trial, accepted or not,
 // counts as one iteration (rootba and Ceres count so).
 
+#include <chrono>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -63,6 +64,21 @@ struct BaIteration {
   double ritz_min = 0;  // NaN where not available (iteration 0, Ceres)
   double ritz_max = 0;
   std::string message;  // why a step failed ("" otherwise)
+  // CPU time of the process (all its threads) since the start of the solve: beside time_s, the
+  // measure that a machine shared with other work inflates least (one thread).
+  double cpu_s = 0;
+};
+
+// Wall-clock and process CPU seconds since construction (the solve's clock).
+class BaClock {
+ public:
+  BaClock();
+  double wallSeconds() const;
+  double cpuSeconds() const;
+
+ private:
+  std::chrono::steady_clock::time_point wall_start_;
+  double cpu_start_ = 0;
 };
 
 struct BaResult {
@@ -77,6 +93,7 @@ struct BaResult {
   int num_behind_final = 0;
   int num_fixed_points = 0;  // points seen once: not eliminated, kept fixed (ns / sc)
   double total_time_s = 0;
+  double total_cpu_s = 0;
 };
 
 }  // namespace marglab

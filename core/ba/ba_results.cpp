@@ -9,12 +9,13 @@
 #include "core/common/utc_time.h"
 #include "core/io/hdf5.h"
 #include "core/io/hdf5_trust.h"
+#include "core/linalg/isa.h"
 #include "marglab/version.h"
 
 namespace marglab {
 namespace {
 
-constexpr int kBaSchemaVersion = 1;
+constexpr int kBaSchemaVersion = 2;  // 2: isa, isa_choice, total_cpu_s, /iterations/cpu_s
 
 void writeSettings(const h5::File& file, const BaRunRecord& run) {
   const BaOptions& o = run.options;
@@ -42,6 +43,9 @@ void writeSettings(const h5::File& file, const BaRunRecord& run) {
   file.setAttr("cg_max_iterations", o.cg.max_iterations);
   file.setAttr("cg_eta", o.cg.eta);
   file.setAttr("threads", o.threads);
+  // The kernels of ns / sc (core/linalg/isa.h); Ceres is built for the baseline whatever it says.
+  file.setAttr("isa", isaName(activeIsa()));
+  file.setAttr("isa_choice", activeIsaChoice());
 }
 
 void writeOutcome(const h5::File& file, const BaRunRecord& run) {
@@ -54,18 +58,20 @@ void writeOutcome(const h5::File& file, const BaRunRecord& run) {
   file.setAttr("num_behind_final", r.num_behind_final);
   file.setAttr("num_fixed_points", r.num_fixed_points);
   file.setAttr("total_time_s", r.total_time_s);
+  file.setAttr("total_cpu_s", r.total_cpu_s);
   file.setAttr("peak_rss_mb", run.peak_rss_mb);
 }
 
 void writeIterations(const h5::File& file, const std::vector<BaIteration>& rows) {
   std::vector<std::int64_t> iteration, cg_iterations;
   std::vector<std::uint8_t> accepted;
-  std::vector<double> cost, time_s, lambda, ritz_min, ritz_max;
+  std::vector<double> cost, time_s, cpu_s, lambda, ritz_min, ritz_max;
   std::vector<std::string> messages;
   for (const BaIteration& row : rows) {
     iteration.push_back(row.iteration);
     cost.push_back(row.cost);
     time_s.push_back(row.time_s);
+    cpu_s.push_back(row.cpu_s);
     lambda.push_back(row.lambda);
     cg_iterations.push_back(row.cg_iterations);
     accepted.push_back(row.accepted ? 1 : 0);
@@ -77,6 +83,7 @@ void writeIterations(const h5::File& file, const std::vector<BaIteration>& rows)
   g.write("iteration", iteration);
   g.write("cost", cost);
   g.write("time_s", time_s);
+  g.write("cpu_s", cpu_s);
   g.write("lambda", lambda);
   g.write("cg_iterations", cg_iterations);
   g.write("accepted", accepted);
@@ -121,6 +128,7 @@ BaResultsFile readBaResultsUntrusted(const std::string& path) {
     throw InputError(path, 0, "not a `marglab ba` results file (no root attribute kind = \"ba\")");
   }
   BaResultsFile r;
+  if (file.hasAttr("isa")) r.isa = file.attr<std::string>("isa");  // "" before the attribute
   for (auto [name, value] : {std::pair{"git_sha", &r.git_sha},
                              {"problem", &r.problem},
                              {"problem_file", &r.problem_file},

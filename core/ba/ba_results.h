@@ -8,9 +8,10 @@
 //                     normalize_scale, initial_lambda, min_lambda, max_lambda, function_tolerance,
 //                     cg_max_iterations, cg_eta, threads); the outcome (initial_cost, final_cost,
 //                     status, status_reason, num_behind_initial, num_behind_final,
-//                     num_fixed_points, total_time_s, peak_rss_mb)
+//                     num_fixed_points, total_time_s, total_cpu_s, peak_rss_mb)
 //   /iterations       one row per LM trial (row 0: the initial cost): iteration, cost (after the
-//                     trial: the current cost, unchanged by a rejected step), time_s, lambda,
+//                     trial: the current cost, unchanged by a rejected step), time_s, cpu_s
+//                     (the process's CPU time, all threads), lambda,
 //                     cg_iterations, accepted (0/1), ritz_min, ritz_max (NaN where not
 //                     available); attribute `messages` (one string per row, "" or why the step
 //                     failed).
@@ -39,6 +40,7 @@ Json baResultJson(const BaRunRecord& run);
 // A ba results file as read back (by the sweep's index and resume, and by `marglab tables`).
 struct BaResultsFile {
   std::string git_sha, problem, problem_file, solver, precision, status, status_reason;
+  std::string isa;  // the kernels' ISA ("" in files written before it was recorded)
   int num_cameras = 0, num_points = 0, num_observations = 0;
   int max_iterations = 0, threads = 1;
   std::uint64_t seed = 0;

@@ -27,7 +27,7 @@ class BaTableReader {
       if (it == keys.end()) {
         throw error(node, fmt::format("unknown key ba.{} (expected one of: problem, solver, "
                                       "iterations, huber_px, perturb_sigma, seed, "
-                                      "normalize_scale, threads, output)",
+                                      "normalize_scale, threads, isa, output)",
                                       key.str()));
       }
       it->second(node);
@@ -51,6 +51,7 @@ class BaTableReader {
         {"normalize_scale",
          [&](const toml::node& n) { o.normalize_scale = number(n, "normalize_scale"); }},
         {"threads", [&](const toml::node& n) { o.threads = integer(n, "threads"); }},
+        {"isa", [&](const toml::node& n) { s.isa = text(n, "isa"); }},
         {"output", [&](const toml::node& n) { s.output = text(n, "output"); }},
     };
   }
@@ -121,6 +122,7 @@ std::string BaRunSpec::toToml() const {
   }
   ba.insert("normalize_scale", options.normalize_scale);
   ba.insert("threads", options.threads);
+  ba.insert("isa", isa);
   ba.insert("output", output);
   toml::table root;
   root.insert("ba", std::move(ba));
@@ -168,6 +170,10 @@ std::vector<std::string> BaRunSpec::arguments() const {
     args.push_back("--threads");
     args.push_back(std::to_string(o.threads));
   }
+  if (isa != "auto") {
+    args.push_back("--isa");
+    args.push_back(isa);
+  }
   args.push_back("-o");
   args.push_back(output);
   return args;
@@ -190,6 +196,10 @@ std::vector<Problem> baRunProblems(const BaRunSpec& spec) {
     problems.push_back({ProblemKind::kUsage, "", 0, "no results file (-o)"});
   }
   for (Problem& p : validate(spec.options)) problems.push_back(std::move(p));
+  if (spec.isa != "auto" && spec.isa != "sse2" && spec.isa != "avx2" && spec.isa != "avx512") {
+    problems.push_back({ProblemKind::kUsage, "", 0,
+                        fmt::format("isa {}: expected auto, sse2, avx2 or avx512", spec.isa)});
+  }
   return problems;
 }
 

@@ -14,7 +14,8 @@
 //   perturb_sigma = 0.01          # 0: no perturbation
 //   seed = 38401                  # seed of the perturbation
 //   normalize_scale = 100.0       # 0: no normalization
-//   threads = 1
+//   threads = 1                   # ns / sc: landmark blocks in parallel; Ceres: num_threads
+//   isa = "auto"                  # the kernels of ns / sc: auto | sse2 | avx2 | avx512
 //   output = "runs/x.h5"
 //
 // `marglab ba --spec FILE` runs it (a -o given beside it replaces `output`).
@@ -31,6 +32,7 @@ struct BaRunSpec {
   std::string problem;  // a BAL file, plain or .bz2
   BaOptions options;    // the solver and the settings the verb exposes; the LM defaults otherwise
   std::string output;   // the HDF5 results file
+  std::string isa = "auto";  // core/linalg/isa.h; `auto` is measured (core/bench/isa_choice.h)
 
   // The spec file's text (above); fromTomlString(toToml()) gives the same spec.
   std::string toToml() const;

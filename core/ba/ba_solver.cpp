@@ -2,25 +2,15 @@
 
 #include <fmt/core.h>
 
-#include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "core/ba/ceres_ba.h"
 #include "core/ba/landmark_system.h"
 
 namespace marglab {
 namespace {
-
-class Stopwatch {
- public:
-  double seconds() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
-
- private:
-  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
-};
 
 // The LM damping after a step (rootba's and Ceres' rule) and the loop's state.
 struct Damping {
@@ -46,15 +36,17 @@ BalState<Scalar> applied(const BalState<Scalar>& state, const BaStep<Scalar>& st
   return moved;
 }
 
-template <typename Block>
+template <typename Scalar>
 class LmRun {
  public:
-  using Scalar = typename Block::Scalar;
-  LmRun(const BalProblem& problem, const BaOptions& options)
+  LmRun(const BalProblem& problem, const BaOptions& options, BaElimination elimination,
+        BalState<double>* solution)
       : problem_(problem),
+        solution_(solution),
         options_(options),
         loss_{options.huber_px},
-        system_(problem),
+        pool_(options.threads),
+        system_(makeBaLinearSystem<Scalar>(problem, elimination, pool_)),
         state_(BalState<Scalar>::fromProblem(problem)),
         damping_{options.initial_lambda} {}
 
@@ -66,8 +58,8 @@ class LmRun {
     bool relinearize = true;
     for (int it = 1; it <= options_.iterations && result_.status.empty(); ++it) {
       if (relinearize) {
-        Status status = system_.linearize(state_, loss_);
-        result_.num_fixed_points = system_.numFixedPoints();
+        Status status = system_->linearize(state_, loss_);
+        result_.num_fixed_points = system_->numFixedPoints();
         if (!status.ok()) return finish("failed", "linearization: " + status.message());
       }
       relinearize = tryStep(it);
@@ -81,7 +73,7 @@ class LmRun {
   bool tryStep(int it) {
     BaStep<Scalar> step;
     const double lambda = damping_.lambda;
-    Status status = system_.solve(Scalar(lambda), options_.cg, &step);
+    Status status = system_->solve(Scalar(lambda), options_.cg, &step);
     double new_cost = std::numeric_limits<double>::quiet_NaN();
     BalState<Scalar> moved;
     if (status.ok()) {
@@ -127,7 +119,8 @@ class LmRun {
     BaIteration row;
     row.iteration = it;
     row.cost = cost_;
-    row.time_s = clock_.seconds();
+    row.time_s = clock_.wallSeconds();
+    row.cpu_s = clock_.cpuSeconds();
     row.lambda = lambda;
     row.accepted = accepted;
     row.cg_iterations = cg != nullptr ? cg->iterations : 0;
@@ -142,42 +135,57 @@ class LmRun {
     result_.reason = reason;
     result_.final_cost = cost_;
     result_.num_behind_final = evaluateCost(problem_.observations, state_, loss_).num_behind;
-    result_.total_time_s = clock_.seconds();
+    result_.total_time_s = clock_.wallSeconds();
+    result_.total_cpu_s = clock_.cpuSeconds();
+    if (solution_ != nullptr) {
+      solution_->cameras.clear();
+      for (const auto& camera : state_.cameras) {
+        solution_->cameras.push_back(camera.template cast<double>());
+      }
+      solution_->points.clear();
+      for (const auto& point : state_.points) {
+        solution_->points.push_back(point.template cast<double>());
+      }
+    }
     return result_;
   }
 
   const BalProblem& problem_;
+  BalState<double>* solution_;
   const BaOptions& options_;
   RobustLoss loss_;
-  LandmarkSystem<Block> system_;
+  ThreadPool pool_;
+  std::unique_ptr<BaLinearSystem<Scalar>> system_;  // the active ISA's, on pool_
   BalState<Scalar> state_;
   Damping damping_;
   double cost_ = 0;
-  Stopwatch clock_;
+  BaClock clock_;
   BaResult result_;
 };
 
-template <typename Block>
-BaResult runLm(const BalProblem& problem, const BaOptions& options) {
-  return LmRun<Block>(problem, options).run();
+template <typename Scalar>
+BaResult runLm(const BalProblem& problem, const BaOptions& options, BaElimination elimination,
+               BalState<double>* solution) {
+  return LmRun<Scalar>(problem, options, elimination, solution).run();
 }
 
 }  // namespace
 
-BaResult solveBundleAdjustment(const BalProblem& problem, const BaOptions& options) {
+BaResult solveBundleAdjustment(const BalProblem& problem, const BaOptions& options,
+                               BalState<double>* solution) {
   switch (options.solver) {
     case BaSolver::kNsF64:
-      return runLm<LandmarkBlockNs<double>>(problem, options);
+      return runLm<double>(problem, options, BaElimination::kNullspace, solution);
     case BaSolver::kScF64:
-      return runLm<LandmarkBlockSc<double>>(problem, options);
+      return runLm<double>(problem, options, BaElimination::kSchur, solution);
 #if defined(MARGLAB_WITH_FLOAT)
     case BaSolver::kNsF32:
-      return runLm<LandmarkBlockNs<float>>(problem, options);
+      return runLm<float>(problem, options, BaElimination::kNullspace, solution);
     case BaSolver::kScF32:
-      return runLm<LandmarkBlockSc<float>>(problem, options);
+      return runLm<float>(problem, options, BaElimination::kSchur, solution);
 #endif
     default:
-      if (isCeres(options.solver)) return solveWithCeres(problem, options);
+      if (isCeres(options.solver)) return solveWithCeres(problem, options, solution);
       throw UsageError(
           fmt::format("--solver {}: this build has no float numerics "
                       "(MARGLAB_FLOAT=OFF)",

@@ -12,10 +12,14 @@
 // rejected iteration with its reason, never an abort.
 
 #include "core/ba/ba_options.h"
+#include "core/ba/ba_state.h"
 #include "core/ba/bal_problem.h"
 
 namespace marglab {
 
-BaResult solveBundleAdjustment(const BalProblem& problem, const BaOptions& options);
+// `solution`, when not null, receives the final cameras and points: an f32 solver's float state
+// exactly (every float is a double), Ceres' angle-axis cameras through Rodrigues in double.
+BaResult solveBundleAdjustment(const BalProblem& problem, const BaOptions& options,
+                               BalState<double>* solution = nullptr);
 
 }  // namespace marglab

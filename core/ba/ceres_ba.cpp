@@ -3,7 +3,6 @@
 #include <ceres/ceres.h>
 #include <glog/logging.h>
 
-#include <chrono>
 #include <limits>
 #include <mutex>
 #include <string>
@@ -45,7 +44,8 @@ class Recorder : public ceres::IterationCallback {
     BaIteration row;
     row.iteration = s.iteration;
     row.cost = s.cost;
-    row.time_s = seconds();
+    row.time_s = clock_.wallSeconds();
+    row.cpu_s = clock_.cpuSeconds();
     row.lambda = 1.0 / s.trust_region_radius;
     row.cg_iterations = s.linear_solver_iterations;
     row.accepted = s.step_is_successful;
@@ -56,14 +56,12 @@ class Recorder : public ceres::IterationCallback {
     result_->iterations.push_back(row);
     return ceres::SOLVER_CONTINUE;
   }
-  double seconds() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
+  const BaClock& clock() const { return clock_; }
 
  private:
   BaResult* result_;
   WarningSink* warnings_;
-  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  BaClock clock_;
 };
 
 ceres::Solver::Options solverOptions(const BaOptions& options) {
@@ -102,7 +100,8 @@ std::string statusOf(ceres::TerminationType type) {
 
 }  // namespace
 
-BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options) {
+BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options,
+                        BalState<double>* solution) {
   BalProblem variables = problem;  // Ceres updates the parameters in place
   ceres::Problem ceres_problem;
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
@@ -133,7 +132,9 @@ BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options) {
   result.num_behind_final =
       evaluateCost(variables.observations, BalState<double>::fromProblem(variables), loss)
           .num_behind;
-  result.total_time_s = recorder.seconds();
+  result.total_time_s = recorder.clock().wallSeconds();
+  result.total_cpu_s = recorder.clock().cpuSeconds();
+  if (solution != nullptr) *solution = BalState<double>::fromProblem(variables);
   return result;
 }
 

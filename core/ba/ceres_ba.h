@@ -16,6 +16,7 @@
 #include <ceres/rotation.h>
 
 #include "core/ba/ba_options.h"
+#include "core/ba/ba_state.h"
 #include "core/ba/bal_problem.h"
 
 namespace marglab {
@@ -42,7 +43,8 @@ struct SnavelyResidual {
 
 // An invalid step (Ceres' linear solver failed: for ceres-sparse CHOLMOD's "Matrix not positive
 // definite") records Ceres' own warning as its message ("invalid step: ...").
-BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options);
+BaResult solveWithCeres(const BalProblem& problem, const BaOptions& options,
+                        BalState<double>* solution = nullptr);
 
 // Ceres writes those warnings through glog to stderr; a program that records them in its results
 // calls this once first: glog then writes no log files and only errors to stderr, and the

@@ -1,14 +1,86 @@
+// Compiled per ISA only (core/isa_kernels.cmake): reached through makeBaLinearSystem.
 #include "core/ba/landmark_system.h"
 
 #include <fmt/core.h>
 
 #include <Eigen/Cholesky>
+#include <algorithm>
+#include <functional>
 #include <limits>
 #include <type_traits>
 
 #include "core/common/scalar.h"
+#include "core/common/thread_pool.h"
+#include "core/linalg/landmark_block.h"
+
+#if !defined(MARGLAB_ISA_NS)
+#error "compiled per ISA only: core/isa_kernels.cmake defines MARGLAB_ISA_NS"
+#endif
 
 namespace marglab {
+namespace {
+
+template <typename Block>
+class LandmarkSystem final : public BaLinearSystem<typename Block::Scalar> {
+ public:
+  using Scalar = typename Block::Scalar;
+  LandmarkSystem(const BalProblem& problem, ThreadPool* pool);
+
+  Status linearize(const BalState<Scalar>& state, const RobustLoss& loss) override;
+  Status solve(Scalar lambda, const CgOptions& cg, BaStep<Scalar>* step) override;
+  int numFixedPoints() const override { return num_fixed_points_; }
+  Status denseReducedSystem(MatX<Scalar>* S, VecX<Scalar>* g) const override;
+
+ private:
+  struct ObservationRows;
+  // Where each camera's 9 entries sit in the landmarks' local vectors (a block's 9n entries at
+  // local_offset_ of the block, camera slot j at +9j), in landmark order: the per-camera sums
+  // (gradient, CG product, preconditioner) add the landmarks' terms in the order of the serial
+  // loop, so every thread count gives the same bits.
+  struct CameraSlot {
+    int block, slot;
+    Eigen::Index position;
+  };
+  void indexBlocks();
+  Status observationRows(const BalState<Scalar>& state, const RobustLoss& loss,
+                         std::vector<ObservationRows>* rows) const;
+  void cameraColumnScaling(const std::vector<ObservationRows>& rows);
+  // Scratch of one thread's local products, sized once for the longest track (no allocation per
+  // landmark and product).
+  struct LocalScratch {
+    VecX<Scalar> x, t, y;
+  };
+  // local(block, scratch) writes the block's 9n entries to scratch.y.head(9n), for every block in
+  // parallel; then out_c += the camera's slots, in landmark order.
+  template <typename LocalFn>
+  void gatherOverCameras(const LocalFn& local, VecX<Scalar>* out) const;
+  VecX<Scalar> nullspaceGradient() const;
+  void addNullspaceCameraBlocks(std::vector<Mat<Scalar, 9, 9>>* D) const;
+  void addNullspaceProduct(const VecX<Scalar>& x, VecX<Scalar>* Ax) const;
+  Status reducedSystemInChunks(MatX<Scalar>* S, VecX<Scalar>* g) const;
+  Status setBlock(int point, const std::vector<ObservationRows>& rows, Block* block);
+  // The 9×9 camera blocks of S + λI (ns: from the reduced rows; sc: from S).
+  std::vector<Mat<Scalar, 9, 9>> cameraBlocks(Scalar lambda, const MatX<Scalar>& S) const;
+  Status backSubstitute(const VecX<Scalar>& x, BaStep<Scalar>* step) const;
+  CgOperators<Scalar> operators(Scalar lambda, const MatX<Scalar>& S,
+                                const std::vector<Mat<Scalar, 9, 9>>& M_inverse) const;
+
+  const BalProblem& problem_;
+  ThreadPool* pool_;
+  std::vector<std::vector<int>> point_observations_;  // observation indices of each point
+  std::vector<int> point_block_;                      // block index of a point, −1 when fixed
+  std::vector<int> block_point_;                      // point of each block
+  std::vector<Eigen::Index> local_offset_;            // of each block in local_
+  Eigen::Index max_track_ = 0;                        // the most observations of a block
+  std::vector<std::vector<CameraSlot>> camera_slots_;
+  mutable VecX<Scalar> local_;  // the blocks' local vectors (9n each), reused by every product
+  mutable std::vector<MatX<Scalar>> chunk_S_;  // sc: the reduction chunks 1, 2, ... (0 adds to S)
+  mutable std::vector<VecX<Scalar>> chunk_g_;
+  std::vector<Block> blocks_;
+  std::vector<Vec3<Scalar>> point_scaling_;
+  VecX<Scalar> camera_scaling_;
+  int num_fixed_points_ = 0;
+};
 
 template <typename Block>
 struct LandmarkSystem<Block>::ObservationRows {
@@ -16,8 +88,6 @@ struct LandmarkSystem<Block>::ObservationRows {
   Mat<Scalar, 2, 3> J_point;
   Vec<Scalar, 2> r;
 };
-
-namespace {
 
 template <typename Block>
 constexpr bool kIsNullspace = std::is_same_v<Block, LandmarkBlockNs<typename Block::Scalar>>;
@@ -28,72 +98,84 @@ auto inverseColumnScale(const Eigen::ArrayBase<Derived>& squared_norms) {
   return (NumericTraits<Scalar>::kEpsilon + squared_norms.sqrt()).inverse();
 }
 
-// ns: g = Σ_l (Q2ᵀJ_p)ᵀ Q2ᵀr over each landmark's reduced rows.
-template <typename Scalar>
-VecX<Scalar> nullspaceGradient(const std::vector<LandmarkBlockNs<Scalar>>& blocks, Eigen::Index n) {
-  VecX<Scalar> g = VecX<Scalar>::Zero(n);
-  for (const auto& block : blocks) {
-    const VecX<Scalar> g_local = block.reducedJp().transpose() * block.reducedR();
-    const std::vector<int>& offsets = block.map().rcs_offset;
-    for (size_t j = 0; j < offsets.size(); ++j) {
-      g.template segment<kBalCameraDim>(offsets[j]) +=
-          g_local.template segment<kBalCameraDim>(kBalCameraDim * j);
+// fn(i) for every i in [0, n) on the pool's threads; the failure of the smallest i (the pool's
+// chunks are contiguous and in order), the same for every thread count.
+Status forEachIndex(ThreadPool& pool, size_t n, const std::function<Status(size_t)>& fn) {
+  std::vector<Status> first(static_cast<size_t>(pool.threads()), Status::Ok());
+  pool.forChunks(n, [&](size_t begin, size_t end, int chunk) {
+    for (size_t i = begin; i < end; ++i) {
+      Status status = fn(i);
+      if (!status.ok()) {
+        first[static_cast<size_t>(chunk)] = std::move(status);
+        return;
+      }
     }
+  });
+  for (Status& status : first) {
+    if (!status.ok()) return status;
   }
-  return g;
+  return Status::Ok();
 }
 
-// ns: D_c += (Q2ᵀJ_p)_cᵀ (Q2ᵀJ_p)_c, the camera blocks of S from the reduced rows.
-template <typename Scalar>
-void addNullspaceCameraBlocks(const std::vector<LandmarkBlockNs<Scalar>>& blocks,
-                              std::vector<Mat<Scalar, 9, 9>>* D) {
-  for (const auto& block : blocks) {
-    const auto Jr = block.reducedJp();
-    const std::vector<int>& offsets = block.map().rcs_offset;
-    for (size_t j = 0; j < offsets.size(); ++j) {
-      const auto Jr_j = Jr.middleCols(kBalCameraDim * j, kBalCameraDim);
-      (*D)[offsets[j] / kBalCameraDim].noalias() += Jr_j.transpose() * Jr_j;
-    }
-  }
-}
-
-// ns, matrix-free: Ax += Σ_l (Q2ᵀJ_p)ᵀ((Q2ᵀJ_p) x_l), never forming S.
-template <typename Scalar>
-void addNullspaceProduct(const std::vector<LandmarkBlockNs<Scalar>>& blocks, const VecX<Scalar>& x,
-                         VecX<Scalar>* Ax) {
-  VecX<Scalar> x_local, y_local, t;
-  for (const auto& block : blocks) {
-    const std::vector<int>& offsets = block.map().rcs_offset;
-    x_local.resize(kBalCameraDim * static_cast<Eigen::Index>(offsets.size()));
-    for (size_t j = 0; j < offsets.size(); ++j) {
-      x_local.template segment<kBalCameraDim>(kBalCameraDim * j) =
-          x.template segment<kBalCameraDim>(offsets[j]);
-    }
-    t.noalias() = block.reducedJp() * x_local;
-    y_local.noalias() = block.reducedJp().transpose() * t;
-    for (size_t j = 0; j < offsets.size(); ++j) {
-      Ax->template segment<kBalCameraDim>(offsets[j]) +=
-          y_local.template segment<kBalCameraDim>(kBalCameraDim * j);
-    }
-  }
-}
-
-}  // namespace
+// sc's reduced system is summed in this many fixed chunks of landmarks, each into its own S, then
+// in chunk order: the result depends on the chunks only, not on the threads running them.
+constexpr size_t kReductionChunks = 8;
 
 template <typename Block>
-LandmarkSystem<Block>::LandmarkSystem(const BalProblem& problem) : problem_(problem) {
+LandmarkSystem<Block>::LandmarkSystem(const BalProblem& problem, ThreadPool* pool)
+    : problem_(problem), pool_(pool) {
   point_observations_.resize(problem.points.size());
   for (int i = 0; i < problem.numObservations(); ++i) {
     point_observations_[problem.observations[i].point].push_back(i);
   }
+  indexBlocks();
+}
+
+// A point seen only once (2 rows for 3 unknowns) cannot be eliminated: it stays fixed.
+template <typename Block>
+void LandmarkSystem<Block>::indexBlocks() {
+  point_block_.assign(problem_.points.size(), -1);
+  camera_slots_.assign(problem_.cameras.size(), {});
+  Eigen::Index offset = 0;
+  for (size_t l = 0; l < point_observations_.size(); ++l) {
+    const std::vector<int>& obs = point_observations_[l];
+    if (obs.size() < 2) {
+      ++num_fixed_points_;
+      continue;
+    }
+    const int block = static_cast<int>(block_point_.size());
+    point_block_[l] = block;
+    block_point_.push_back(static_cast<int>(l));
+    local_offset_.push_back(offset);
+    for (size_t j = 0; j < obs.size(); ++j) {
+      camera_slots_[problem_.observations[obs[j]].camera].push_back(
+          {block, static_cast<int>(j), offset + kBalCameraDim * static_cast<Eigen::Index>(j)});
+    }
+    offset += kBalCameraDim * static_cast<Eigen::Index>(obs.size());
+    max_track_ = std::max(max_track_, static_cast<Eigen::Index>(obs.size()));
+  }
+  local_.resize(offset);
 }
 
 template <typename Block>
 Status LandmarkSystem<Block>::linearize(const BalState<Scalar>& state, const RobustLoss& loss) {
   std::vector<ObservationRows> rows(problem_.observations.size());
-  for (size_t i = 0; i < rows.size(); ++i) {
+  Status status = observationRows(state, loss, &rows);
+  if (!status.ok()) return status;
+  cameraColumnScaling(rows);
+  blocks_.clear();
+  blocks_.resize(block_point_.size());
+  point_scaling_.assign(problem_.points.size(), Vec3<Scalar>::Zero());
+  return forEachIndex(*pool_, blocks_.size(),
+                      [&](size_t b) { return setBlock(block_point_[b], rows, &blocks_[b]); });
+}
+
+template <typename Block>
+Status LandmarkSystem<Block>::observationRows(const BalState<Scalar>& state, const RobustLoss& loss,
+                                              std::vector<ObservationRows>* rows) const {
+  return forEachIndex(*pool_, rows->size(), [&](size_t i) {
     const BalObservation& obs = problem_.observations[i];
-    ObservationRows& row = rows[i];
+    ObservationRows& row = (*rows)[i];
     snavelyResidual<Scalar>(state.cameras[obs.camera], state.points[obs.point],
                             obs.z.cast<Scalar>(), &row.r, &row.J_camera, &row.J_point);
     const Scalar sqrt_w = loss.costAndSqrtWeight(row.r.squaredNorm()).second;
@@ -104,22 +186,8 @@ Status LandmarkSystem<Block>::linearize(const BalState<Scalar>& state, const Rob
       return Status::Error(Status::Code::kNotFinite,
                            fmt::format("observation {}: non-finite residual or Jacobian", i));
     }
-  }
-  cameraColumnScaling(rows);
-  blocks_.clear();
-  point_block_.assign(problem_.points.size(), -1);
-  point_scaling_.assign(problem_.points.size(), Vec3<Scalar>::Zero());
-  num_fixed_points_ = 0;
-  for (size_t l = 0; l < point_observations_.size(); ++l) {
-    if (point_observations_[l].size() < 2) {
-      ++num_fixed_points_;
-      continue;
-    }
-    point_block_[l] = static_cast<int>(blocks_.size());
-    Status status = setBlock(static_cast<int>(l), rows, &blocks_.emplace_back());
-    if (!status.ok()) return status;
-  }
-  return Status::Ok();
+    return Status::Ok();
+  });
 }
 
 template <typename Block>
@@ -159,11 +227,79 @@ Status LandmarkSystem<Block>::setBlock(int point, const std::vector<ObservationR
 }
 
 template <typename Block>
+template <typename LocalFn>
+void LandmarkSystem<Block>::gatherOverCameras(const LocalFn& local, VecX<Scalar>* out) const {
+  pool_->forChunks(blocks_.size(), [&](size_t begin, size_t end, int) {
+    LocalScratch scratch{VecX<Scalar>(kBalCameraDim * max_track_), VecX<Scalar>(2 * max_track_ + 3),
+                         VecX<Scalar>(kBalCameraDim * max_track_)};
+    for (size_t b = begin; b < end; ++b) {
+      const Eigen::Index n =
+          kBalCameraDim * static_cast<Eigen::Index>(blocks_[b].map().rcs_offset.size());
+      local(blocks_[b], scratch);
+      local_.segment(local_offset_[b], n) = scratch.y.head(n);
+    }
+  });
+  pool_->forChunks(camera_slots_.size(), [&](size_t begin, size_t end, int) {
+    for (size_t c = begin; c < end; ++c) {
+      for (const CameraSlot& slot : camera_slots_[c]) {
+        out->template segment<kBalCameraDim>(kBalCameraDim * static_cast<Eigen::Index>(c)) +=
+            local_.template segment<kBalCameraDim>(slot.position);
+      }
+    }
+  });
+}
+
+// ns: g = Σ_l (Q2ᵀJ_p)ᵀ Q2ᵀr over each landmark's reduced rows.
+template <typename Block>
+VecX<typename Block::Scalar> LandmarkSystem<Block>::nullspaceGradient() const {
+  VecX<Scalar> g = VecX<Scalar>::Zero(camera_scaling_.size());
+  gatherOverCameras(
+      [](const Block& block, LocalScratch& s) {
+        s.y.head(block.reducedJp().cols()).noalias() =
+            block.reducedJp().transpose() * block.reducedR();
+      },
+      &g);
+  return g;
+}
+
+// ns: D_c += (Q2ᵀJ_p)_cᵀ (Q2ᵀJ_p)_c, the camera blocks of S from the reduced rows, each camera's
+// in landmark order.
+template <typename Block>
+void LandmarkSystem<Block>::addNullspaceCameraBlocks(std::vector<Mat<Scalar, 9, 9>>* D) const {
+  pool_->forChunks(camera_slots_.size(), [&](size_t begin, size_t end, int) {
+    for (size_t c = begin; c < end; ++c) {
+      for (const CameraSlot& slot : camera_slots_[c]) {
+        const auto Jr = blocks_[static_cast<size_t>(slot.block)].reducedJp();
+        const auto Jr_j = Jr.middleCols(kBalCameraDim * slot.slot, kBalCameraDim);
+        (*D)[c].noalias() += Jr_j.transpose() * Jr_j;
+      }
+    }
+  });
+}
+
+// ns, matrix-free: Ax += Σ_l (Q2ᵀJ_p)ᵀ((Q2ᵀJ_p) x_l), never forming S.
+template <typename Block>
+void LandmarkSystem<Block>::addNullspaceProduct(const VecX<Scalar>& x, VecX<Scalar>* Ax) const {
+  gatherOverCameras(
+      [&x](const Block& block, LocalScratch& s) {
+        const std::vector<int>& offsets = block.map().rcs_offset;
+        const auto Jr = block.reducedJp();
+        for (size_t j = 0; j < offsets.size(); ++j) {
+          s.x.template segment<kBalCameraDim>(kBalCameraDim * j) =
+              x.template segment<kBalCameraDim>(offsets[j]);
+        }
+        s.t.head(Jr.rows()).noalias() = Jr * s.x.head(Jr.cols());
+        s.y.head(Jr.cols()).noalias() = Jr.transpose() * s.t.head(Jr.rows());
+      },
+      Ax);
+}
+
+template <typename Block>
 auto LandmarkSystem<Block>::cameraBlocks(Scalar lambda, const MatX<Scalar>& S) const
     -> std::vector<Mat<Scalar, 9, 9>> {
   std::vector<Mat<Scalar, 9, 9>> D(problem_.cameras.size(), lambda * Mat<Scalar, 9, 9>::Identity());
   if constexpr (kIsNullspace<Block>) {
-    addNullspaceCameraBlocks(blocks_, &D);
+    addNullspaceCameraBlocks(&D);
   } else {
     for (size_t c = 0; c < D.size(); ++c) {
       D[c] += S.template block<kBalCameraDim, kBalCameraDim>(kBalCameraDim * c, kBalCameraDim * c);
@@ -177,9 +313,30 @@ Status LandmarkSystem<Block>::denseReducedSystem(MatX<Scalar>* S, VecX<Scalar>* 
   const Eigen::Index n = camera_scaling_.size();
   S->setZero(n, n);
   g->setZero(n);
-  for (const Block& block : blocks_) {
-    Status status = block.addToReducedSystem(*S, *g);
-    if (!status.ok()) return status;
+  chunk_S_.resize(kReductionChunks - 1);
+  chunk_g_.resize(kReductionChunks - 1);
+  std::vector<Status> status(kReductionChunks, Status::Ok());
+  const size_t num_blocks = blocks_.size();
+  pool_->forChunks(kReductionChunks, [&](size_t begin, size_t end, int) {
+    for (size_t k = begin; k < end; ++k) {
+      if (k > 0) {
+        chunk_S_[k - 1].setZero(n, n);
+        chunk_g_[k - 1].setZero(n);
+      }
+      MatX<Scalar>& S_k = k == 0 ? *S : chunk_S_[k - 1];
+      VecX<Scalar>& g_k = k == 0 ? *g : chunk_g_[k - 1];
+      for (size_t b = k * num_blocks / kReductionChunks;
+           b < (k + 1) * num_blocks / kReductionChunks && status[k].ok(); ++b) {
+        status[k] = blocks_[b].addToReducedSystem(S_k, g_k);
+      }
+    }
+  });
+  for (size_t k = 0; k < kReductionChunks; ++k) {
+    if (!status[k].ok()) return status[k];
+    if (k > 0) {
+      *S += chunk_S_[k - 1];
+      *g += chunk_g_[k - 1];
+    }
   }
   return Status::Ok();
 }
@@ -199,7 +356,7 @@ auto LandmarkSystem<Block>::operators(Scalar lambda, const MatX<Scalar>& S,
   if constexpr (kIsNullspace<Block>) {
     ops.apply_A = [this, lambda](const VecX<Scalar>& x, VecX<Scalar>* Ax) {
       *Ax = lambda * x;
-      addNullspaceProduct(blocks_, x, Ax);
+      addNullspaceProduct(x, Ax);
     };
   } else {
     ops.apply_A = [&S, lambda](const VecX<Scalar>& x, VecX<Scalar>* Ax) {
@@ -209,8 +366,6 @@ auto LandmarkSystem<Block>::operators(Scalar lambda, const MatX<Scalar>& S,
   }
   return ops;
 }
-
-namespace {
 
 // The inverses of the Schur-Jacobi blocks, by Cholesky in the system's precision.
 template <typename Scalar>
@@ -228,15 +383,17 @@ Status invertCameraBlocks(std::vector<Mat<Scalar, 9, 9>>* blocks) {
   return Status::Ok();
 }
 
-}  // namespace
-
 template <typename Block>
 Status LandmarkSystem<Block>::solve(Scalar lambda, const CgOptions& cg, BaStep<Scalar>* step) {
-  for (Block& block : blocks_) block.setLandmarkDamping(Vec3<Scalar>::Constant(lambda));
+  pool_->forChunks(blocks_.size(), [&](size_t begin, size_t end, int) {
+    for (size_t b = begin; b < end; ++b) {
+      blocks_[b].setLandmarkDamping(Vec3<Scalar>::Constant(lambda));
+    }
+  });
   MatX<Scalar> S;
   VecX<Scalar> g;
   if constexpr (kIsNullspace<Block>) {
-    g = nullspaceGradient(blocks_, camera_scaling_.size());
+    g = nullspaceGradient();
   } else {
     Status status = denseReducedSystem(&S, &g);
     if (!status.ok()) return status;
@@ -259,24 +416,43 @@ Status LandmarkSystem<Block>::backSubstitute(const VecX<Scalar>& x, BaStep<Scala
             .cwiseProduct(x.template segment<kBalCameraDim>(kBalCameraDim * c));
   }
   step->delta_points.assign(problem_.points.size(), Vec3<Scalar>::Zero());
-  step->model_change = 0;
-  for (size_t l = 0; l < point_block_.size(); ++l) {
-    if (point_block_[l] < 0) continue;
-    const Block& block = blocks_[point_block_[l]];
+  std::vector<double> change(blocks_.size());
+  const Status status = forEachIndex(*pool_, blocks_.size(), [&](size_t b) {
+    const int l = block_point_[b];
     Vec3<Scalar> delta_l;
-    Status status = block.backSubstitute(x, &delta_l);
-    if (!status.ok()) return status;
-    step->model_change += double(block.linearizedCostChange(x, delta_l));
+    Status s = blocks_[b].backSubstitute(x, &delta_l);
+    if (!s.ok()) return s;
+    change[b] = double(blocks_[b].linearizedCostChange(x, delta_l));
     step->delta_points[l] = point_scaling_[l].cwiseProduct(delta_l);
-  }
+    return Status::Ok();
+  });
+  if (!status.ok()) return status;
+  step->model_change = 0;
+  for (const double c : change) step->model_change += c;  // in landmark order
   return Status::Ok();
 }
 
-template class LandmarkSystem<LandmarkBlockNs<double>>;
-template class LandmarkSystem<LandmarkBlockSc<double>>;
+template <typename Scalar>
+std::unique_ptr<BaLinearSystem<Scalar>> makeSystem(const BalProblem& problem,
+                                                   BaElimination elimination, ThreadPool& pool) {
+  if (elimination == BaElimination::kNullspace) {
+    return std::make_unique<LandmarkSystem<LandmarkBlockNs<Scalar>>>(problem, &pool);
+  }
+  return std::make_unique<LandmarkSystem<LandmarkBlockSc<Scalar>>>(problem, &pool);
+}
+
+}  // namespace
+
+template <typename Scalar>
+BaKernels<Scalar> baKernelsIn() {
+  BaKernels<Scalar> k;
+  k.make_system = &makeSystem<Scalar>;
+  return k;
+}
+
+template BaKernels<double> baKernelsIn<double>();
 #if defined(MARGLAB_WITH_FLOAT)
-template class LandmarkSystem<LandmarkBlockNs<float>>;
-template class LandmarkSystem<LandmarkBlockSc<float>>;
+template BaKernels<float> baKernelsIn<float>();
 #endif
 
 }  // namespace marglab

@@ -31,7 +31,8 @@
 #include "core/ba/ba_state.h"
 #include "core/ba/pcg.h"
 #include "core/common/status.h"
-#include "core/linalg/landmark_block.h"
+#include "core/common/thread_pool.h"
+#include "core/linalg/isa.h"
 
 namespace marglab {
 
@@ -46,38 +47,46 @@ struct BaStep {
   CgSummary cg;
 };
 
-template <typename Block>
-class LandmarkSystem {
+enum class BaElimination { kNullspace, kSchur };
+
+// The linear system of one LM linearization (above). Made by makeBaLinearSystem: its code is
+// compiled per ISA (landmark_system.cpp, with the landmark blocks it uses; core/isa_kernels.cmake)
+// and the active ISA's copy is taken (core/linalg/isa.h); a system keeps the ISA it was made with.
+template <typename Scalar>
+class BaLinearSystem {
  public:
-  using Scalar = typename Block::Scalar;
-  // Keeps a reference to the problem's observations (the problem must outlive this object).
-  explicit LandmarkSystem(const BalProblem& problem);
-
-  Status linearize(const BalState<Scalar>& state, const RobustLoss& loss);
-  Status solve(Scalar lambda, const CgOptions& cg, BaStep<Scalar>* step);
-
-  int numFixedPoints() const { return num_fixed_points_; }
-  // The reduced system S, g (scaled columns, landmarks damped as by the last solve) formed densely:
-  // sc's explicit system; for ns the tests' check of the equivalence and of CG.
-  Status denseReducedSystem(MatX<Scalar>* S, VecX<Scalar>* g) const;
-
- private:
-  struct ObservationRows;
-  void cameraColumnScaling(const std::vector<ObservationRows>& rows);
-  Status setBlock(int point, const std::vector<ObservationRows>& rows, Block* block);
-  // The 9×9 camera blocks of S + λI (ns: from the reduced rows; sc: from S).
-  std::vector<Mat<Scalar, 9, 9>> cameraBlocks(Scalar lambda, const MatX<Scalar>& S) const;
-  Status backSubstitute(const VecX<Scalar>& x, BaStep<Scalar>* step) const;
-  CgOperators<Scalar> operators(Scalar lambda, const MatX<Scalar>& S,
-                                const std::vector<Mat<Scalar, 9, 9>>& M_inverse) const;
-
-  const BalProblem& problem_;
-  std::vector<std::vector<int>> point_observations_;  // observation indices of each point
-  std::vector<int> point_block_;                      // block index of a point, −1 when fixed
-  std::vector<Block> blocks_;
-  std::vector<Vec3<Scalar>> point_scaling_;
-  VecX<Scalar> camera_scaling_;
-  int num_fixed_points_ = 0;
+  virtual ~BaLinearSystem() = default;
+  virtual Status linearize(const BalState<Scalar>& state, const RobustLoss& loss) = 0;
+  virtual Status solve(Scalar lambda, const CgOptions& cg, BaStep<Scalar>* step) = 0;
+  virtual int numFixedPoints() const = 0;
+  // The reduced system S, g (scaled columns, landmarks damped as by the last solve) formed
+  // densely: sc's explicit system; for ns the tests' check of the equivalence and of CG.
+  virtual Status denseReducedSystem(MatX<Scalar>* S, VecX<Scalar>* g) const = 0;
 };
+
+// One ISA's entry point (core/estimator/linearization_kernels.h holds the table). Keeps a
+// reference to the problem's observations (the problem must outlive the system).
+template <typename Scalar>
+struct BaKernels {
+  std::unique_ptr<BaLinearSystem<Scalar>> (*make_system)(const BalProblem&, BaElimination,
+                                                         ThreadPool&) = nullptr;
+};
+// Defined in landmark_system.cpp, compiled per ISA only.
+template <typename Scalar>
+BaKernels<Scalar> baKernelsIn();
+
+// The system of the active ISA's copy, or of one ISA's (the tests compare the copies). It
+// linearizes, multiplies and back-substitutes over the landmark blocks on the pool's threads
+// (which must outlive it), with the same numbers for every thread count: the sums over landmarks
+// are formed per camera in landmark order (ns: gradient, preconditioner, CG product) or in fixed
+// chunks of landmarks added in chunk order (sc's reduced system).
+template <typename Scalar>
+std::unique_ptr<BaLinearSystem<Scalar>> makeBaLinearSystem(const BalProblem& problem,
+                                                           BaElimination elimination,
+                                                           ThreadPool& pool);
+template <typename Scalar>
+std::unique_ptr<BaLinearSystem<Scalar>> makeBaLinearSystem(const BalProblem& problem,
+                                                           BaElimination elimination,
+                                                           ThreadPool& pool, Isa isa);
 
 }  // namespace marglab

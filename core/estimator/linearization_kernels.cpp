@@ -342,8 +342,10 @@ IsaKernels makeKernels() {
   k.isa = Isa::MARGLAB_ISA_ENUM;
 #if defined(MARGLAB_WITH_FLOAT)
   k.f32 = kernelsIn<float>();
+  k.ba_f32 = baKernelsIn<float>();
 #endif
   k.f64 = kernelsIn<double>();
+  k.ba_f64 = baKernelsIn<double>();
   return k;
 }
 

@@ -8,11 +8,14 @@
 // hidden symbols made local, so every Eigen instantiation and every marglab function inside stays
 // private to that ISA's copy (no weak symbol shared between copies for the linker to pick one of).
 // The only symbol each copy exports is its kernels() table below; makeLinearization
-// (linearization.h) takes the table of the active ISA (core/linalg/isa.h).
+// (linearization.h) takes the table of the active ISA (core/linalg/isa.h). The table also holds
+// the bundle adjustment's linear system (core/ba/landmark_system.cpp, on the same landmark blocks;
+// makeBaLinearSystem).
 
 #include <memory>
 #include <vector>
 
+#include "core/ba/landmark_system.h"
 #include "core/estimator/linearization.h"
 #include "core/linalg/isa.h"
 #include "core/linalg/landmark_block.h"
@@ -40,6 +43,8 @@ struct IsaKernels {
   Isa isa = Isa::kSse2;
   LinearizationKernels<float> f32;  // null entries without MARGLAB_WITH_FLOAT
   LinearizationKernels<double> f64;
+  BaKernels<float> ba_f32;  // null without MARGLAB_WITH_FLOAT
+  BaKernels<double> ba_f64;
 };
 
 namespace isa_sse2 {

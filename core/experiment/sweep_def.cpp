@@ -550,7 +550,7 @@ class Parser {
     const int line = lineOf(group);
     checkKeys(group,
               {"name", "kind", "problems", "solvers", "seeds", "iterations", "huber_px",
-               "perturb_sigma", "normalize_scale", "threads", "timeout_s"},
+               "perturb_sigma", "normalize_scale", "threads", "isa", "timeout_s"},
               "a [[group]] of kind \"ba\"");
     const std::string name = requiredString(group, "name", "a [[group]]", line);
     if (!validName(name)) {
@@ -563,6 +563,7 @@ class Parser {
     const std::vector<BaSolver> solvers = parseSolvers(group, line);
     const std::vector<std::uint64_t> seeds = parseSeeds(group, line, BaOptions{}.seed);
     const BaOptions options = parseBaSettings(group, name, line);
+    const std::string isa = parseBaIsa(group);
     const double timeout_s = parseTimeout(group);
     const double planned = static_cast<double>(plan->runs.size()) +
                            static_cast<double>(problems.size()) * solvers.size() * seeds.size();
@@ -577,13 +578,24 @@ class Parser {
     for (const std::string& problem : problems) {
       for (const std::uint64_t seed : seeds) {
         for (const BaSolver solver : solvers) {
-          BaRunSpec spec{problem, options, ""};
+          BaRunSpec spec{problem, options, "", isa};
           spec.options.solver = solver;
           spec.options.seed = seed;
           plan->runs.push_back(plannedBaRun(name, line, std::move(spec), timeout_s));
         }
       }
     }
+  }
+
+  // The group's `isa` (the kernels of ns / sc), "auto" when not given.
+  std::string parseBaIsa(const toml::table& group) const {
+    const toml::node* node = group.get("isa");
+    if (node == nullptr) return "auto";
+    const auto v = node->value_exact<std::string>();
+    if (!v || (*v != "auto" && *v != "sse2" && *v != "avx2" && *v != "avx512")) {
+      throw error(*node, "isa must be one of \"auto\", \"sse2\", \"avx2\", \"avx512\"");
+    }
+    return *v;
   }
 
   // A problem file, relative to the sweep file, read and parsed once per sweep (a malformed file

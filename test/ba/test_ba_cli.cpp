@@ -43,6 +43,21 @@ TEST_F(BaCli, WritesResultsAndJson) {
   EXPECT_EQ(file.attr<double>("final_cost"), json["final_cost"].get<double>());
   EXPECT_EQ(file.readVector<double>("iterations/cost").size(), 6u);
   EXPECT_FALSE(file.attr<std::string>("git_sha").empty());
+  EXPECT_FALSE(file.attr<std::string>("isa").empty());  // auto: the measured or widest ISA
+}
+
+// --isa picks the kernels of ns / sc and is recorded; the same ISA gives the same numbers.
+TEST_F(BaCli, IsaIsChosenAndRecorded) {
+  const std::string out = (dir_ / "run.h5").string();
+  const std::string args = "ba --problem " + dubrovnik() + " --solver sc-f64 --iterations 3 --isa ";
+  auto result = runCli(args + "sse2 -o '" + out + "'");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  const h5::File file = h5::File::openReadOnly(out);
+  EXPECT_EQ(file.attr<std::string>("isa"), "sse2");
+  EXPECT_EQ(file.attr<std::string>("isa_choice"), "--isa sse2");
+  result = runCli(args + "avx3 -o '" + (dir_ / "other.h5").string() + "'");
+  EXPECT_EQ(result.exit_code, 2) << result.output;
+  EXPECT_FALSE(fs::exists(dir_ / "other.h5"));
 }
 
 TEST_F(BaCli, BadInputExitsOneWithoutAResultsFile) {

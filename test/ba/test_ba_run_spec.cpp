@@ -32,6 +32,7 @@ BaRunSpec sampleSpec() {
   spec.options.normalize_scale = 100;
   spec.options.threads = 2;
   spec.output = "runs/x.h5";
+  spec.isa = "sse2";
   return spec;
 }
 
@@ -47,6 +48,7 @@ TEST(BaRunSpec, TomlRoundTripsEverySetting) {
   EXPECT_EQ(back.options.seed, spec.options.seed);
   EXPECT_EQ(back.options.normalize_scale, spec.options.normalize_scale);
   EXPECT_EQ(back.options.threads, spec.options.threads);
+  EXPECT_EQ(back.isa, spec.isa);
   EXPECT_EQ(back.toToml(), spec.toToml());
 }
 

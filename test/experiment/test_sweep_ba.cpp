@@ -90,6 +90,7 @@ solvers = ["all", "ns-f32"]
   const BaOptions defaults;
   EXPECT_EQ(plan.runs.front().ba->options.seed, defaults.seed);
   EXPECT_EQ(plan.runs.front().ba->options.iterations, defaults.iterations);
+  EXPECT_EQ(plan.runs.front().ba->isa, "auto");
   EXPECT_EQ(plan.runs.back().variant, "ceres-sparse");
 }
 
@@ -110,6 +111,7 @@ TEST(SweepBa, TheShippedSweepIsRootbasProtocol) {
     EXPECT_EQ(o.perturb_sigma, 0.01);
     EXPECT_EQ(o.normalize_scale, 100.0);
     EXPECT_EQ(o.threads, 1);
+    EXPECT_EQ(run.ba->isa, "sse2");  // as results/bal was made
     seeds.insert(o.seed);
     problems.insert(balProblemName(run.ba->problem));
     solvers.insert(run.variant);
@@ -144,6 +146,7 @@ TEST(SweepBa, RefusesEachMistakeAtItsLine) {
   expectRefused("huber_px = 1.0", "huber_px = \"1\"", "sweep.toml:10:", "must be a number");
   expectRefused("iterations = 4", "iterations = -4", "sweep.toml:9:", "iterations");
   expectRefused("normalize_scale = 100", "threads = 0", "sweep.toml:12:", "--threads 0");
+  expectRefused("normalize_scale = 100", "isa = \"avx3\"", "sweep.toml:12:", "isa must be");
   expectRefused("dubrovnik-3-7-pre.txt", "dubrovnik-3-8-pre.txt",
                 "sweep.toml:6:", "no such problem file");
   expectRefused("kind = \"ba\"", "kind = \"bal\"", "sweep.toml:5:", "kind must be");
