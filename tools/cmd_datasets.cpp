@@ -5,7 +5,7 @@
 //                                           every image too), one line per sequence; exit 1 on
 //                                           error
 //   marglab datasets simulate --dataset SEQ [--seed S] [--frames N] [--no-noise]
-//                             [--profile ideal|realistic] -o FILE
+//                             [--profile ideal|realistic|realistic-motion] -o FILE
 //                                           simulated stereo tracks along the GT spline -> track
 //                                           file (.h5 / .hdf5: HDF5, else text) + statistics
 //   marglab datasets track --dataset PATH [--frames N] [--passes P] -o FILE
@@ -183,8 +183,9 @@ CommandRun setupSimulate(CLI::App& app) {
       ->check(nonNegativeInt("the number of frames (0: all)"));
   app.add_flag("--no-noise", options->no_noise, "exact projections: no pixel noise, no outliers");
   app.add_option("--profile", options->profile,
-                 "measurement profile (sim.profile, core/sim/sim_profile.h): ideal | realistic")
-      ->check(CLI::IsMember({"ideal", "realistic"}));
+                 "measurement profile (sim.profile, core/sim/sim_profile.h): ideal | realistic "
+                 "| realistic-motion")
+      ->check(CLI::IsMember({"ideal", "realistic", "realistic-motion"}));
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   return [options] {
@@ -204,8 +205,10 @@ CommandRun setupSimulate(CLI::App& app) {
     SimulationOptions sim = defaultSimulationOptions(seq, options->seed);
     sim.tracker.max_frames = options->frames;
     std::string profile_path;  // the realistic profile of the dataset's family, printed below
-    if (options->profile == "realistic") {
-      profile_path = realisticProfilePath(seq.kind);
+    SimProfile profile = SimProfile::kIdeal;
+    parseSimProfile(options->profile, &profile);  // checked by IsMember above
+    if (profile != SimProfile::kIdeal) {
+      profile_path = realisticProfilePath(seq.kind, profile);
       applyRealisticProfile(readRealisticProfile(profile_path), &sim.tracker);
     }
     if (options->no_noise) {
@@ -222,7 +225,8 @@ CommandRun setupSimulate(CLI::App& app) {
     const Distribution& l = s.track_length;
     fmt::print("sequence            {} (seed {}{})\n", seq.name, options->seed,
                options->no_noise ? ", no noise" : "");
-    if (!profile_path.empty()) fmt::print("profile             realistic ({})\n", profile_path);
+    if (!profile_path.empty())
+      fmt::print("profile             {} ({})\n", options->profile, profile_path);
     fmt::print("frames              {}\n", s.frames);
     fmt::print("landmarks           {} world points\n", stream.landmarks_w.size());
     fmt::print("features per frame  mean {:.1f}  median {:.0f}  min {:.0f}  max {:.0f}\n", f.mean,

@@ -17,7 +17,7 @@
 //   [failure]       max_position_error_m (−1: dataset default), min_tracked_observations,
 //                   max_tracking_loss_frames, inconsistent_px, max_inconsistent_share (the
 //                   tracking-failure rule, core/pipeline/tracking_monitor.h)
-//   [sim]           profile ("ideal"|"realistic": simulated tracks' noise model,
+//   [sim]           profile ("ideal"|"realistic"|"realistic-motion": simulated tracks' noise model,
 //                   core/sim/sim_profile.h)
 //   [diagnostics]   enabled, store_prior_every (0: never; k: every k-th event, default 25), seed
 //
