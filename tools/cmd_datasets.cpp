@@ -28,7 +28,9 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -43,8 +45,11 @@
 #include "core/frontend/rendered_folder.h"
 #include "core/frontend/stereo_bias.h"
 #include "core/frontend/track_source.h"
+#include "core/imu/noise_profile.h"
 #include "core/pipeline/run_config.h"
 #include "core/sim/feature_tracker.h"
+#include "core/sim/imu_hold.h"
+#include "core/sim/imu_synth.h"
 #include "core/sim/sim_profile.h"
 #include "core/sim/track_io.h"
 #include "core/sim/trajectory_spline.h"
@@ -466,6 +471,64 @@ CommandRun setupStereoBias(CLI::App& app) {
   return [options] { return runStereoBias(*options); };
 }
 
+struct ImuHoldArgs {
+  std::string dataset;
+  std::string noise_profile = "kalibr";
+};
+
+// Quantiles of one field of the intervals, printed in `scale` units.
+std::string holdQuantiles(std::vector<double> v, double scale) {
+  std::sort(v.begin(), v.end());
+  const auto q = [&](double p) { return scale * v[static_cast<std::size_t>(p * (v.size() - 1))]; };
+  return fmt::format("{:10.3g} {:10.3g} {:10.3g} {:10.3g}", q(0.5), q(0.9), q(0.99),
+                     v.back() * scale);
+}
+
+int runImuHold(const ImuHoldArgs& options) {
+  const Sequence seq = loadSequence(options.dataset);
+  if (!seq.hasTrajectory() || seq.kind == DatasetKind::kKitti) {
+    throw InputError(seq.directory, 0,
+                     "imu-hold: expected an EuRoC or TUM-VI sequence with a trajectory");
+  }
+  ImuNoiseProfile profile = ImuNoiseProfile::kKalibr;
+  parseImuNoiseProfile(options.noise_profile, &profile);  // checked by IsMember
+  const ImuNoise noise = profileImuNoise(seq, profile);
+  const TrajectorySpline spline = TrajectorySpline::fromSequence(seq);
+  fmt::print(
+      "{}: noise-free synthetic IMU (200 Hz) preintegrated over each frame interval, "
+      "residual at the spline's true states; chi2 whitened with the {} densities\n",
+      seq.name, options.noise_profile);
+  fmt::print("{:28s} {:>10s} {:>10s} {:>10s} {:>10s}\n", "", "median", "p90", "p99", "max");
+  for (const double shift : {0.0, 0.0025}) {
+    const std::vector<ImuHoldInterval> h =
+        imuHoldErrors(spline, seq.cam_t_ns, noise, gravityWorld(seq.kind), 200.0, shift);
+    std::vector<double> rot, vel, pos, chi2;
+    for (const ImuHoldInterval& x : h) {
+      rot.push_back(x.rot_rad), vel.push_back(x.vel_mps), pos.push_back(x.pos_m);
+      chi2.push_back(x.chi2);
+    }
+    fmt::print("samples at t_k + {:.1f} ms ({} intervals)\n", shift * 1e3, h.size());
+    fmt::print("  {:26s} {}\n", "|r_R| [deg]", holdQuantiles(rot, 180.0 / M_PI));
+    fmt::print("  {:26s} {}\n", "|r_v| [mm/s]", holdQuantiles(vel, 1e3));
+    fmt::print("  {:26s} {}\n", "|r_p| [mm]", holdQuantiles(pos, 1e3));
+    fmt::print("  {:26s} {}\n", "chi2 (noise: 9 on average)", holdQuantiles(chi2, 1.0));
+  }
+  return 0;
+}
+
+CommandRun setupImuHold(CLI::App& app) {
+  auto options = std::make_shared<ImuHoldArgs>();
+  app.add_option("--dataset", options->dataset, "EuRoC or TUM-VI sequence name or folder")
+      ->required();
+  app.add_option("--noise-profile", options->noise_profile,
+                 "IMU densities that whiten the residual (imu.noise_profile): kalibr | basalt")
+      ->check(CLI::IsMember({"kalibr", "basalt"}));
+  return [options] {
+    checkDatasetArgument(options->dataset);
+    return runImuHold(*options);
+  };
+}
+
 struct SubVerb {
   const char* name;
   const char* description;
@@ -482,6 +545,10 @@ const SubVerb kSubVerbs[] = {
      "stereo images rendered along a sequence's trajectory through its real camera model -> a "
      "dataset folder in its original layout",
      setupRender},
+    {"imu-hold",
+     "the estimator's zero-order hold on the noise-free synthetic IMU against the trajectory's "
+     "true states, per frame interval (core/sim/imu_hold.h)",
+     setupImuHold},
     {"stereo-bias",
      "a KITTI folder's stereo disparities against motion stereo (ground-truth poses) -> report "
      "+ config fragment [calibration] right_cx_shift_px",
@@ -489,8 +556,8 @@ const SubVerb kSubVerbs[] = {
 };
 
 const bool kRegistered = registerCommand(
-    {"datasets", "the real datasets: list, check, simulate, track, render, stereo-bias", 60,
-     [](CLI::App& app) -> CommandRun {
+    {"datasets", "the real datasets: list, check, simulate, track, render, imu-hold, stereo-bias",
+     60, [](CLI::App& app) -> CommandRun {
        app.require_subcommand(1);
        auto runs = std::make_shared<std::vector<std::pair<CLI::App*, CommandRun>>>();
        for (const SubVerb& verb : kSubVerbs) {
