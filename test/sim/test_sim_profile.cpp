@@ -310,7 +310,9 @@ TEST(SimProfileConfig, KeyParsesAndRejectsUnknownNames) {
     FAIL() << "accepted an unknown profile";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("c.toml:2"), std::string::npos);
-    EXPECT_NE(std::string(e.what()).find("\"ideal\" or \"realistic\""), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("\"ideal\", \"realistic\" or \"realistic-motion\""),
+              std::string::npos)
+        << e.what();
   }
 }
 

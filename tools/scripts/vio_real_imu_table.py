@@ -34,8 +34,8 @@ def read_cell(folder):
         sys.exit(f"vio_real_imu_table.py: {path}: cannot read ({e.strerror})")
     out = {}
     for r in rows:
-        if r["variant"] != VARIANT or not r["n_runs"] or int(r["n_runs"]) == 0:
-            continue
+        if r["variant"] != VARIANT or r["ours_state"] not in ("ok", "failed"):
+            continue  # missing, or pending in an unfinished folder
         ours = float(r["ours"]) if r["ours"] else None
         runs = int(r["n_runs"])
         # a single run's cell has no failure count: its state says whether it failed
