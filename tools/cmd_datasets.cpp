@@ -5,7 +5,7 @@
 //                                           every image too), one line per sequence; exit 1 on
 //                                           error
 //   marglab datasets simulate --dataset SEQ [--seed S] [--frames N] [--no-noise]
-//                             [--profile ideal|realistic] -o FILE
+//                             [--profile ideal|realistic|realistic-motion] -o FILE
 //                                           simulated stereo tracks along the GT spline -> track
 //                                           file (.h5 / .hdf5: HDF5, else text) + statistics
 //   marglab datasets track --dataset PATH [--frames N] [--passes P] -o FILE
@@ -28,7 +28,9 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -43,8 +45,11 @@
 #include "core/frontend/rendered_folder.h"
 #include "core/frontend/stereo_bias.h"
 #include "core/frontend/track_source.h"
+#include "core/imu/noise_profile.h"
 #include "core/pipeline/run_config.h"
 #include "core/sim/feature_tracker.h"
+#include "core/sim/imu_hold.h"
+#include "core/sim/imu_synth.h"
 #include "core/sim/sim_profile.h"
 #include "core/sim/track_io.h"
 #include "core/sim/trajectory_spline.h"
@@ -183,8 +188,9 @@ CommandRun setupSimulate(CLI::App& app) {
       ->check(nonNegativeInt("the number of frames (0: all)"));
   app.add_flag("--no-noise", options->no_noise, "exact projections: no pixel noise, no outliers");
   app.add_option("--profile", options->profile,
-                 "measurement profile (sim.profile, core/sim/sim_profile.h): ideal | realistic")
-      ->check(CLI::IsMember({"ideal", "realistic"}));
+                 "measurement profile (sim.profile, core/sim/sim_profile.h): ideal | realistic "
+                 "| realistic-motion")
+      ->check(CLI::IsMember({"ideal", "realistic", "realistic-motion"}));
   app.add_option("-o,--output", options->output, "track file (.h5 / .hdf5: HDF5, else text)")
       ->required();
   return [options] {
@@ -204,8 +210,10 @@ CommandRun setupSimulate(CLI::App& app) {
     SimulationOptions sim = defaultSimulationOptions(seq, options->seed);
     sim.tracker.max_frames = options->frames;
     std::string profile_path;  // the realistic profile of the dataset's family, printed below
-    if (options->profile == "realistic") {
-      profile_path = realisticProfilePath(seq.kind);
+    SimProfile profile = SimProfile::kIdeal;
+    parseSimProfile(options->profile, &profile);  // checked by IsMember above
+    if (profile != SimProfile::kIdeal) {
+      profile_path = realisticProfilePath(seq.kind, profile);
       applyRealisticProfile(readRealisticProfile(profile_path), &sim.tracker);
     }
     if (options->no_noise) {
@@ -222,7 +230,8 @@ CommandRun setupSimulate(CLI::App& app) {
     const Distribution& l = s.track_length;
     fmt::print("sequence            {} (seed {}{})\n", seq.name, options->seed,
                options->no_noise ? ", no noise" : "");
-    if (!profile_path.empty()) fmt::print("profile             realistic ({})\n", profile_path);
+    if (!profile_path.empty())
+      fmt::print("profile             {} ({})\n", options->profile, profile_path);
     fmt::print("frames              {}\n", s.frames);
     fmt::print("landmarks           {} world points\n", stream.landmarks_w.size());
     fmt::print("features per frame  mean {:.1f}  median {:.0f}  min {:.0f}  max {:.0f}\n", f.mean,
@@ -462,6 +471,64 @@ CommandRun setupStereoBias(CLI::App& app) {
   return [options] { return runStereoBias(*options); };
 }
 
+struct ImuHoldArgs {
+  std::string dataset;
+  std::string noise_profile = "kalibr";
+};
+
+// Quantiles of one field of the intervals, printed in `scale` units.
+std::string holdQuantiles(std::vector<double> v, double scale) {
+  std::sort(v.begin(), v.end());
+  const auto q = [&](double p) { return scale * v[static_cast<std::size_t>(p * (v.size() - 1))]; };
+  return fmt::format("{:10.3g} {:10.3g} {:10.3g} {:10.3g}", q(0.5), q(0.9), q(0.99),
+                     v.back() * scale);
+}
+
+int runImuHold(const ImuHoldArgs& options) {
+  const Sequence seq = loadSequence(options.dataset);
+  if (!seq.hasTrajectory() || seq.kind == DatasetKind::kKitti) {
+    throw InputError(seq.directory, 0,
+                     "imu-hold: expected an EuRoC or TUM-VI sequence with a trajectory");
+  }
+  ImuNoiseProfile profile = ImuNoiseProfile::kKalibr;
+  parseImuNoiseProfile(options.noise_profile, &profile);  // checked by IsMember
+  const ImuNoise noise = profileImuNoise(seq, profile);
+  const TrajectorySpline spline = TrajectorySpline::fromSequence(seq);
+  fmt::print(
+      "{}: noise-free synthetic IMU (200 Hz) preintegrated over each frame interval, "
+      "residual at the spline's true states; chi2 whitened with the {} densities\n",
+      seq.name, options.noise_profile);
+  fmt::print("{:28s} {:>10s} {:>10s} {:>10s} {:>10s}\n", "", "median", "p90", "p99", "max");
+  for (const double shift : {0.0, 0.0025}) {
+    const std::vector<ImuHoldInterval> h =
+        imuHoldErrors(spline, seq.cam_t_ns, noise, gravityWorld(seq.kind), 200.0, shift);
+    std::vector<double> rot, vel, pos, chi2;
+    for (const ImuHoldInterval& x : h) {
+      rot.push_back(x.rot_rad), vel.push_back(x.vel_mps), pos.push_back(x.pos_m);
+      chi2.push_back(x.chi2);
+    }
+    fmt::print("samples at t_k + {:.1f} ms ({} intervals)\n", shift * 1e3, h.size());
+    fmt::print("  {:26s} {}\n", "|r_R| [deg]", holdQuantiles(rot, 180.0 / M_PI));
+    fmt::print("  {:26s} {}\n", "|r_v| [mm/s]", holdQuantiles(vel, 1e3));
+    fmt::print("  {:26s} {}\n", "|r_p| [mm]", holdQuantiles(pos, 1e3));
+    fmt::print("  {:26s} {}\n", "chi2 (noise: 9 on average)", holdQuantiles(chi2, 1.0));
+  }
+  return 0;
+}
+
+CommandRun setupImuHold(CLI::App& app) {
+  auto options = std::make_shared<ImuHoldArgs>();
+  app.add_option("--dataset", options->dataset, "EuRoC or TUM-VI sequence name or folder")
+      ->required();
+  app.add_option("--noise-profile", options->noise_profile,
+                 "IMU densities that whiten the residual (imu.noise_profile): kalibr | basalt")
+      ->check(CLI::IsMember({"kalibr", "basalt"}));
+  return [options] {
+    checkDatasetArgument(options->dataset);
+    return runImuHold(*options);
+  };
+}
+
 struct SubVerb {
   const char* name;
   const char* description;
@@ -478,6 +545,10 @@ const SubVerb kSubVerbs[] = {
      "stereo images rendered along a sequence's trajectory through its real camera model -> a "
      "dataset folder in its original layout",
      setupRender},
+    {"imu-hold",
+     "the estimator's zero-order hold on the noise-free synthetic IMU against the trajectory's "
+     "true states, per frame interval (core/sim/imu_hold.h)",
+     setupImuHold},
     {"stereo-bias",
      "a KITTI folder's stereo disparities against motion stereo (ground-truth poses) -> report "
      "+ config fragment [calibration] right_cx_shift_px",
@@ -485,8 +556,8 @@ const SubVerb kSubVerbs[] = {
 };
 
 const bool kRegistered = registerCommand(
-    {"datasets", "the real datasets: list, check, simulate, track, render, stereo-bias", 60,
-     [](CLI::App& app) -> CommandRun {
+    {"datasets", "the real datasets: list, check, simulate, track, render, imu-hold, stereo-bias",
+     60, [](CLI::App& app) -> CommandRun {
        app.require_subcommand(1);
        auto runs = std::make_shared<std::vector<std::pair<CLI::App*, CommandRun>>>();
        for (const SubVerb& verb : kSubVerbs) {

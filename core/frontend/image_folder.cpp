@@ -131,17 +131,18 @@ std::optional<StereoImageList> kittiImages(const Sequence& seq) {
   return list;
 }
 
-// "V1_01_easy_images" → "euroc/V1_01_easy"; "dataset-room1_512_16" → "tumvi/room1"; "07" →
+// "V1_01_easy_images" (or "_keyframes") → "euroc/V1_01_easy"; "dataset-room1_512_16" → "tumvi/room1"; "07" →
 // "kitti/07": the shipped sequence of the same name, if there is one.
 std::string shippedByName(const Sequence& seq) {
   std::string folder = fs::absolute(seq.directory).lexically_normal().filename().string();
   if (folder == "mav0") {
     folder = fs::absolute(seq.directory).lexically_normal().parent_path().filename().string();
   }
-  const std::string suffix = "_images";
-  if (folder.size() > suffix.size() &&
-      folder.compare(folder.size() - suffix.size(), suffix.size(), suffix) == 0) {
-    folder.resize(folder.size() - suffix.size());
+  for (const std::string suffix : {"_images", "_keyframes"}) {
+    if (folder.size() > suffix.size() &&
+        folder.compare(folder.size() - suffix.size(), suffix.size(), suffix) == 0) {
+      folder.resize(folder.size() - suffix.size());
+    }
   }
   if (folder.rfind("dataset-", 0) == 0) {
     folder = folder.substr(

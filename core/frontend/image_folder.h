@@ -14,7 +14,7 @@
 // Ground truth fallback (loadImageSequence): a user's image folder often lacks the ground truth
 // or the IMU (e.g. the shipped euroc/V1_01_easy_images, which holds only the cameras). They are
 // taken from the shipped sequence of the same recording, found by name (the folder's name
-// without an "_images" suffix, e.g. V1_01_easy; TUM-VI "dataset-room1_512_16" → room1; KITTI
+// without an "_images" or "_keyframes" suffix, e.g. V1_01_easy; TUM-VI "dataset-room1_512_16" → room1; KITTI
 // "NN") or, for EuRoC / TUM-VI, by the first camera timestamp (epoch ns, unique per recording).
 // Without any ground truth the sequence still loads (hasTrajectory() false).
 

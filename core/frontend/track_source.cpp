@@ -69,8 +69,8 @@ void simulate(const TrackSourceOptions& options, TrackSource* source) {
   SimulationOptions simulation = defaultSimulationOptions(seq, options.seed);
   if (options.max_frames > 0) simulation.tracker.max_frames = options.max_frames;
   std::string profile = toString(options.sim_profile);
-  if (options.sim_profile == SimProfile::kRealistic) {
-    const std::string path = realisticProfilePath(seq.kind);
+  if (options.sim_profile != SimProfile::kIdeal) {
+    const std::string path = realisticProfilePath(seq.kind, options.sim_profile);
     applyRealisticProfile(readRealisticProfile(path), &simulation.tracker);
     profile += " (" + path + ")";
   }

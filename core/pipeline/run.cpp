@@ -109,10 +109,15 @@ ImuSetup vioImuSetup(const RunSpec& spec, const Sequence& sequence,
   } else {
     ImuSynthOptions synth_options;
     synth_options.gravity_w = setup.g_w;
+    const bool midpoint = spec.config.sim_imu_sample_time == ImuSampleTime::kMidpoint;
+    synth_options.sample_shift_s = midpoint ? 0.5 / 200.0 : 0.0;
     setup.imu =
         synthesizeImu(trajectory, setup.noise, 200.0, imuSeed(spec.seed), synth_options).imu;
     setup.sample_period_s = 1.0 / 200.0;
-    (*provenance)["imu"] = "synthetic 200 Hz from the spline (white noise + bias random walk)";
+    (*provenance)["imu"] = std::string(
+                               "synthetic 200 Hz from the spline (white noise + bias "
+                               "random walk)") +
+                           (midpoint ? ", each sample at the midpoint of its hold" : "");
     (*provenance)["initial_biases"] = "zero (the synthetic biases start at zero)";
   }
   (*provenance)["initial_state"] = "ground-truth pose and velocity at the first frame";

@@ -76,6 +76,7 @@ Bindings RunConfig::bindings() {
   addCalibrationBindings(calibration, &list);
   addFailureBindings(failure, &list);
   list.push_back(choice("sim", "profile", &sim_profile, kSimProfileNames));
+  list.push_back(choice("sim", "imu_sample_time", &sim_imu_sample_time, kImuSampleTimeNames));
   addDiagnosticsBindings(diagnostics, &list);
   return list;
 }

@@ -17,8 +17,9 @@
 //   [failure]       max_position_error_m (−1: dataset default), min_tracked_observations,
 //                   max_tracking_loss_frames, inconsistent_px, max_inconsistent_share (the
 //                   tracking-failure rule, core/pipeline/tracking_monitor.h)
-//   [sim]           profile ("ideal"|"realistic": simulated tracks' noise model,
-//                   core/sim/sim_profile.h)
+//   [sim]           profile ("ideal"|"realistic"|"realistic-motion": simulated tracks' noise model,
+//                   core/sim/sim_profile.h), imu_sample_time ("start"|"midpoint": when each
+//                   synthetic IMU sample is taken, core/sim/imu_synth.h)
 //   [diagnostics]   enabled, store_prior_every (0: never; k: every k-th event, default 25), seed
 //
 // Validation (docs/design.md §9): loading checks each value against its key's range; problems()
@@ -33,6 +34,7 @@
 #include "core/common/error.h"
 #include "core/estimator/estimator_settings.h"
 #include "core/frontend/frontend_options.h"
+#include "core/sim/imu_synth.h"
 #include "core/sim/sim_profile.h"
 
 namespace marglab {
@@ -89,6 +91,7 @@ struct RunConfig {
   CalibrationSettings calibration;
   FailureSettings failure;
   SimProfile sim_profile = SimProfile::kIdeal;
+  ImuSampleTime sim_imu_sample_time = ImuSampleTime::kStart;
   DiagnosticsSettings diagnostics;
 
   // Where each key ("section.key") was last set by loadToml, set or setOrigin; absent: the

@@ -1,5 +1,6 @@
 #include "core/sim/imu_synth.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -54,10 +55,11 @@ SyntheticImu synthesizeImu(const TrajectoryFunction& traj, const ImuNoise& noise
   out.imu.accel.reserve(expected);
   out.bias_gyro.reserve(expected);
   out.bias_accel.reserve(expected);
+  const int64_t shift_ns = std::llround(options.sample_shift_s * 1e9);
   for (int64_t k = 0;; ++k) {
     const int64_t t = t_start + std::llround(static_cast<double>(k) * period_ns);
     if (t > t_end) break;
-    const TrajectorySample s = traj.evaluate(t);
+    const TrajectorySample s = traj.evaluate(std::min(t + shift_ns, t_end));
     Eigen::Vector3d gyro = s.omega_b + bg;
     Eigen::Vector3d accel = s.R_w_b.transpose() * (s.a_w - options.gravity_w) + ba;
     if (options.white_noise) {

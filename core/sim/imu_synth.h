@@ -27,6 +27,7 @@
 #include <random>
 #include <vector>
 
+#include "core/common/enum_names.h"
 #include "core/data/types.h"
 #include "core/sim/trajectory_spline.h"
 
@@ -54,12 +55,24 @@ class StandardNormal {
   double spare_ = 0;
 };
 
+// When each synthetic sample is taken (sim.imu_sample_time): at its timestamp, or at the midpoint
+// of the piece the estimator holds it over (ImuSynthOptions::sample_shift_s = Δt / 2).
+enum class ImuSampleTime { kStart, kMidpoint };
+inline constexpr EnumNames<ImuSampleTime, 2> kImuSampleTimeNames{
+    {{ImuSampleTime::kStart, "start"}, {ImuSampleTime::kMidpoint, "midpoint"}}};
+inline const char* toString(ImuSampleTime value) { return nameOf(kImuSampleTimeNames, value); }
+
 struct ImuSynthOptions {
   bool white_noise = true;  // n_g, n_a
   bool bias_walk = true;    // random walk of b_g, b_a
   Eigen::Vector3d initial_bias_gyro = Eigen::Vector3d::Zero();
   Eigen::Vector3d initial_bias_accel = Eigen::Vector3d::Zero();
   Eigen::Vector3d gravity_w = Eigen::Vector3d(0, 0, -kGravityMagnitude);
+  // Sample k carries the motion at t_k + sample_shift_s (clamped to the trajectory's end). 0: the
+  // instant t_k, which the estimator's zero-order hold then holds over [t_k, t_k + Δt), half a
+  // sample late (first order in Δt); Δt / 2: the midpoint of that piece (second order;
+  // core/sim/imu_hold.h measures both).
+  double sample_shift_s = 0;
 
   // Noise-free measurements (biases stay at their initial values).
   static ImuSynthOptions noiseFree() {

@@ -92,8 +92,10 @@ RealisticProfile readRealisticProfile(const std::string& path) {
   return profile;
 }
 
-std::string realisticProfilePath(DatasetKind kind) {
-  const char* file = kind == DatasetKind::kKitti ? "realistic_kitti.toml" : "realistic_euroc.toml";
+std::string realisticProfilePath(DatasetKind kind, SimProfile profile) {
+  const char* euroc = profile == SimProfile::kRealisticMotion ? "realistic_euroc_motion.toml"
+                                                              : "realistic_euroc.toml";
+  const char* file = kind == DatasetKind::kKitti ? "realistic_kitti.toml" : euroc;
   return (std::filesystem::path(datasetsRoot()) / "sim_profiles" / file).string();
 }
 

@@ -130,8 +130,9 @@ TEST(ShippedData, KittiPosesTimesCalib) {
 
 TEST(ShippedData, ListAndUnknownName) {
   const std::vector<std::string> names = listSequences();
-  // 30 with ground truth or timestamps + the image folders euroc/V1_01_easy_images, kitti/06_images
-  EXPECT_EQ(names.size(), 32u);
+  // 30 with ground truth or timestamps + the image folders euroc/V1_01_easy_images,
+  // euroc/V1_01_easy_keyframes, kitti/06_images
+  EXPECT_EQ(names.size(), 33u);
   EXPECT_EQ(names.front(), "euroc/MH_01_easy");
   EXPECT_EQ(names.back(), "kitti/10");
   expectInputError([] { loadSequence("euroc/MH_06_impossible"); }, "euroc/MH_06_impossible", 0,

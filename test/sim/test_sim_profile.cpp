@@ -10,6 +10,7 @@
 #include <fstream>
 #include <map>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -208,24 +209,50 @@ TEST(RealisticProfileFile, FamilySelectsItsFile) {
   EXPECT_NE(kitti.loss_probability, euroc.loss_probability);
 }
 
+// `realistic-motion` reads the EuRoC / TUM-VI file calibrated on moving keyframes, KITTI's moving
+// one as `realistic` does; `realistic` itself still reads the static EuRoC file.
+TEST(RealisticProfileFile, MotionProfileSelectsTheKeyframeFile) {
+  namespace fs = std::filesystem;
+  const SimProfile motion = SimProfile::kRealisticMotion;
+  EXPECT_EQ(fs::path(realisticProfilePath(DatasetKind::kEuroc, motion)).filename(),
+            "realistic_euroc_motion.toml");
+  EXPECT_EQ(fs::path(realisticProfilePath(DatasetKind::kTumvi, motion)).filename(),
+            "realistic_euroc_motion.toml");
+  EXPECT_EQ(fs::path(realisticProfilePath(DatasetKind::kKitti, motion)).filename(),
+            "realistic_kitti.toml");
+  SimProfile parsed = SimProfile::kIdeal;
+  ASSERT_TRUE(parseSimProfile("realistic-motion", &parsed));
+  EXPECT_EQ(parsed, motion);
+  const RealisticProfile moving =
+      readRealisticProfile(realisticProfilePath(DatasetKind::kEuroc, motion));
+  const RealisticProfile still = readRealisticProfile(realisticProfilePath(DatasetKind::kEuroc));
+  EXPECT_NE(moving.scale_px, still.scale_px);
+  EXPECT_NE(moving.stereo_failure_probability, still.stereo_failure_probability);
+}
+
 // The simulation a run uses applies its family's file and records which one in the results file's
 // provenance (sim_profile), so a results file names the profile it was simulated with.
 TEST(RealisticProfileFile, SimulationRecordsItsFamilysFile) {
-  for (const auto& [dataset, file] : std::vector<std::pair<std::string, std::string>>{
-           {"kitti/04", "realistic_kitti.toml"},
-           {"euroc/V1_01_easy", "realistic_euroc.toml"},
-           {"tumvi/room1", "realistic_euroc.toml"}}) {
+  const SimProfile still = SimProfile::kRealistic, motion = SimProfile::kRealisticMotion;
+  for (const auto& [dataset, profile, file] :
+       std::vector<std::tuple<std::string, SimProfile, std::string>>{
+           {"kitti/04", still, "realistic_kitti.toml"},
+           {"euroc/V1_01_easy", still, "realistic_euroc.toml"},
+           {"tumvi/room1", still, "realistic_euroc.toml"},
+           {"euroc/V1_01_easy", motion, "realistic_euroc_motion.toml"},
+           {"tumvi/room1", motion, "realistic_euroc_motion.toml"}}) {
     TrackSourceOptions options;
     options.dataset = dataset;
     options.frontend = FrontendKind::kSimulated;
     options.max_frames = 3;
-    options.sim_profile = SimProfile::kRealistic;
+    options.sim_profile = profile;
     const TrackSource source = obtainTracks(options, loadImageSequence(dataset));
     std::string recorded;
     for (const auto& [key, value] : source.provenance) {
       if (key == "sim_profile") recorded = value;
     }
-    EXPECT_EQ(recorded.rfind("realistic (", 0), 0u) << dataset << ": " << recorded;
+    EXPECT_EQ(recorded.rfind(std::string(toString(profile)) + " (", 0), 0u)
+        << dataset << ": " << recorded;
     EXPECT_NE(recorded.find("sim_profiles/" + file + ")"), std::string::npos)
         << dataset << ": " << recorded;
   }
@@ -283,7 +310,9 @@ TEST(SimProfileConfig, KeyParsesAndRejectsUnknownNames) {
     FAIL() << "accepted an unknown profile";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("c.toml:2"), std::string::npos);
-    EXPECT_NE(std::string(e.what()).find("\"ideal\" or \"realistic\""), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("\"ideal\", \"realistic\" or \"realistic-motion\""),
+              std::string::npos)
+        << e.what();
   }
 }
 

@@ -23,8 +23,19 @@ give:
   tracks      length (frames per track id, censored by the clip), loss hazard per frame,
               the share of tracks continued from one frame to the next, features per frame,
               stereo share, depth at the first observation.
+  epipolar    the Sampson distance of every stereo match to the calibration's epipolar
+              constraint (one noise component per match, no depth needed): median, robust sigma,
+              Student-t fit;
+  consecutive the share of a frame's tracks found again in the next camera frame, over the pairs of
+              consecutive frames.
+Lags and consecutive frames count camera frames (the shortest gap between the frames is one), so
+non-consecutive keyframes work: --source NAME TRACKS gt takes the track file's frames inside the
+--gt trajectory (no run), --consecutive-residuals measures residuals, outliers and drift only on
+frames with a consecutive neighbour, and --loss-from takes the track loss, which keyframes cannot
+measure, from another profile.
 With --profile-out it writes the `realistic` simulator profile calibrated on the first source
-against the second (docs/design.md §5). Output: frontend_stats.json and frontend_stats.md in --out.
+against the second (docs/design.md §5); with --loss-from, the `realistic-motion` one with the
+origin of each number as a comment. Output: frontend_stats.json and frontend_stats.md in --out.
 """
 
 import argparse
@@ -389,6 +400,54 @@ def track_residuals(tracks, run, rig, refine):
     return res
 
 
+# ---------------------------------------------------------------- epipolar residuals
+
+
+def fundamental(rig):
+    """F with x1^T F x0 = 0 for pixels x0 of cam0 and x1 of cam1 (the calibration's T_c1_c0)."""
+    T = np.linalg.inv(rig.T_b_c1) @ rig.T_b_c0
+    R, t = T[:3, :3], T[:3, 3]
+    E = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]]) @ R
+    Kinv = [np.linalg.inv(np.array([[k[0], 0, k[2]], [0, k[1], k[3]], [0, 0, 1.0]]))
+            for k in (rig.K0, rig.K1)]
+    return Kinv[1].T @ E @ Kinv[0]
+
+
+def sampson(F, uv0, uv1):
+    """Signed Sampson distance of each stereo pair: the first-order distance of (uv0, uv1) to
+    the epipolar constraint in the 4-d space of both pixels, so with independent noise sigma per
+    pixel coordinate it is ~ N(0, sigma^2) — one noise component per pair, needing no depth."""
+    x0 = np.c_[uv0, np.ones(len(uv0))]
+    x1 = np.c_[uv1, np.ones(len(uv1))]
+    l1 = x0 @ F.T  # epipolar lines in cam1
+    l0 = x1 @ F    # in cam0
+    e = np.sum(x1 * l1, axis=1)
+    return e / np.sqrt(l1[:, 0]**2 + l1[:, 1]**2 + l0[:, 0]**2 + l0[:, 1]**2)
+
+
+def epipolar_stats(tracks, run_t, rig, outlier_px=5.0):
+    """Sampson residuals of every stereo match in the run's frames (every frame, not only the
+    multi-view tracks): their median (a calibration offset), robust sigma and Student-t fit
+    about the median, below outlier_px."""
+    keep = set(int(t) for t in run_t)
+    off = tracks["offsets"]
+    uv0, uv1 = [], []
+    for f, t in enumerate(tracks["t_ns"]):
+        if int(t) not in keep:
+            continue
+        s = slice(off[f], off[f + 1])
+        m = tracks["has_right"][s] != 0
+        uv0.append(np.stack([tracks["u0"][s][m], tracks["v0"][s][m]], -1))
+        uv1.append(np.stack([tracks["u1"][s][m], tracks["v1"][s][m]], -1))
+    d = sampson(fundamental(rig), np.concatenate(uv0), np.concatenate(uv1))
+    med = float(np.median(d))
+    inl = d[np.abs(d - med) <= outlier_px] - med
+    return {"n": int(d.size), "median_px": med, "abs_px": quantiles(np.abs(d - med)),
+            "robust_sigma_px": float(1.4826 * np.median(np.abs(d - med))),
+            "outlier_share": float(np.mean(np.abs(d - med) > outlier_px)),
+            "student_t": student_t_fit(inl)}
+
+
 # ---------------------------------------------------------------- statistics
 
 
@@ -442,12 +501,21 @@ def residual_stats(res, outlier_px):
     }
 
 
-def drift_stats(res, outlier_px, max_lag=20):
+def frame_numbers(t_ns):
+    """Camera-frame number of each frame (0 at the first): the shortest gap is one frame, a longer
+    gap counts round(gap / shortest) frames, so lags are camera frames also on keyframes."""
+    gaps = np.diff(np.asarray(t_ns, dtype=np.int64))
+    if len(gaps) == 0:
+        return np.zeros(len(t_ns), dtype=np.int64)
+    return np.r_[0, np.cumsum(np.maximum(np.round(gaps / gaps.min()), 1))].astype(np.int64)
+
+
+def drift_stats(res, frame_no, outlier_px, max_lag=20):
     """Variogram of a track's cam0 inlier residual: E[(r(k+L) - r(k))^2] per coordinate against
-    L, fitted by 2 s_w^2 + q L (least squares over L = 1..max_lag)."""
+    the lag L in camera frames, fitted by 2 s_w^2 + q L (least squares over L = 1..max_lag)."""
     bad, _ = outlier_mask(res, outlier_px)
     m = (res["cam"] == 0) & ~bad
-    tid, row, r = res["tid"][m], res["row"][m], res["r"][m]
+    tid, row, r = res["tid"][m], frame_no[res["row"][m]], res["r"][m]
     sums = np.zeros(max_lag + 1)
     counts = np.zeros(max_lag + 1)
     for t in np.unique(tid):
@@ -500,24 +568,72 @@ def track_stats(tracks, run_t):
     }
 
 
+def consecutive_tracking(tracks, run_t):
+    """Short tracking where the frames are consecutive camera frames (frame number + 1): the share
+    of a frame's tracks found again in the next frame, and the features per such frame."""
+    frame_no = frame_numbers(run_t)
+    index = {int(t): f for f, t in enumerate(tracks["t_ns"])}
+    off = tracks["offsets"]
+    ids = [set(tracks["track_id"][off[index[int(t)]]:off[index[int(t)] + 1]].tolist())
+           for t in run_t]
+    pairs = [k for k in range(len(run_t) - 1) if frame_no[k + 1] == frame_no[k] + 1]
+    kept = sum(len(ids[k] & ids[k + 1]) for k in pairs)
+    total = sum(len(ids[k]) for k in pairs)
+    return {"consecutive_pairs": len(pairs), "tracks_at_pair_starts": total,
+            "continued_share": float(kept / total) if total else float("nan")}
+
+
+def consecutive_run(run):
+    """The run's frames that have a consecutive camera frame before or after them (keyframes:
+    the residuals of tracks across a gap of a second would mix in re-detection errors)."""
+    n = frame_numbers(run[0])
+    keep = np.r_[False, np.diff(n) == 1] | np.r_[np.diff(n) == 1, False]
+    return (run[0][keep], run[1][keep], run[2][keep], run[3])
+
+
+def path_length(p):
+    return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))) if len(p) > 1 else 0.0
+
+
+def gt_frames(tracks, gt_path):
+    """The track file's frames inside the ground truth's time span (a run on keyframes is not
+    possible: they are not consecutive), for --source NAME TRACKS gt."""
+    try:
+        gt = np.loadtxt(gzip.open(gt_path, "rt") if gt_path.endswith(".gz") else gt_path, ndmin=2)
+    except (OSError, ValueError) as e:
+        fail(f"{gt_path}: not a readable TUM trajectory ({e})")
+    t0, t1 = np.round(gt[0, 0] * 1e9), np.round(gt[-1, 0] * 1e9)
+    t = tracks["t_ns"]
+    return t[(t >= t0) & (t <= t1)]
+
+
 def source_stats(name, tracks_path, run_path, rig, args):
     KS[0], KS[1] = rig.K0, rig.K1
     tracks = read_tracks(tracks_path)
-    run = read_run(run_path)
+    if run_path == "gt":
+        if not args.gt or os.path.basename(args.gt).startswith("poses"):
+            fail(f"--source {name} {tracks_path} gt: needs --gt with a TUM trajectory")
+        run = (gt_frames(tracks, args.gt), None, None, "vio")
+    else:
+        run = read_run(run_path)
     if args.gt:  # the ground truth's body poses at the run's frames replace its estimate
         read = read_kitti_poses if os.path.basename(args.gt).startswith("poses") else read_gt_poses
         run = (run[0], *read(args.gt, run[0]), "vio")
     outlier_px = args.outlier_px
-    res = track_residuals(tracks, run, rig, args.refine_poses)
+    tracked = consecutive_run(run) if args.consecutive_residuals else run
+    res = track_residuals(tracks, tracked, rig, args.refine_poses)
     if len(res["tid"]) == 0:
         fail(f"{tracks_path}: no track with three or more pixels at the run's frames")
     out = {"source": name, "tracks_file": tracks_path, "run_file": run_path,
            "poses": f"the ground truth ({args.gt})" if args.gt else "the run's per-frame estimate",
-           "pose_refinement_rounds": args.refine_poses}
+           "pose_refinement_rounds": args.refine_poses,
+           "residual_frames": len(tracked[0]), "gt_path_m": path_length(run[2])}
     out.update(track_stats(tracks, run[0]))
     out["depth_m"] = distribution(res["depth"])
     out["residuals"] = residual_stats(res, outlier_px)
-    out["drift"] = drift_stats(res, outlier_px)
+    out["drift"] = drift_stats(res, frame_numbers(tracked[0]), outlier_px)
+    out["epipolar"] = epipolar_stats(tracks, run[0], rig)
+    out["consecutive_tracking"] = consecutive_tracking(tracks, run[0])
     return out
 
 
@@ -531,6 +647,19 @@ def t_exceedance(nu, scale, threshold, n=400000):
     rng = np.random.default_rng(12345)
     xy = scale * rng.standard_t(nu, size=(n, 2))
     return float(np.mean(np.hypot(xy[:, 0], xy[:, 1]) > threshold))
+
+
+def read_loss_probability(path):
+    """[tracking] loss_probability of a profile file (tomllib is Python 3.11+: a regex on the
+    file this script writes)."""
+    try:
+        text = open(path, encoding="utf-8").read()
+    except OSError as e:
+        fail(f"{path}: cannot read ({e.strerror})")
+    m = re.search(r"^loss_probability\s*=\s*([0-9.eE+-]+)", text, re.M)
+    if not m:
+        fail(f"{path}: expected a line loss_probability = NUMBER")
+    return float(m.group(1))
 
 
 def realistic_profile(real, ideal, clip_motion_m, min_motion_m):
@@ -566,7 +695,31 @@ def realistic_profile(real, ideal, clip_motion_m, min_motion_m):
     }
 
 
+def keyframe_origins(real, ideal, loss_from):
+    """The origin of each number of a profile measured on keyframes (--loss-from), for its
+    comments: what was measured on which frames, and what was taken from elsewhere."""
+    res, epi, run = real["residuals"], real["epipolar"], real["consecutive_tracking"]
+    geometric = ideal["consecutive_tracking"]["continued_share"] / (1 - IDEAL["loss_probability"])
+    return {
+        "noise": f"Student-t fit to the inlier residuals of the {real['residual_frames']} "
+                 f"consecutive frames ({res['n_observations']} observations); the stereo "
+                 f"matches' Sampson residuals of all {real['frames']} frames give "
+                 f"nu {epi['student_t']['nu']:.3g}, scale {epi['student_t']['scale_px']:.3g} px",
+        "drift": f"variogram over the {real['residual_frames']} consecutive frames",
+        "outliers": f"residuals above {res['outlier_px']:g} px in the consecutive frames",
+        "loss": f"{loss_from} (KITTI 06 under motion): keyframes cannot measure track loss; "
+                f"their consecutive frames give {1 - run['continued_share'] / geometric:.3g} "
+                f"({run['tracks_at_pair_starts']} tracks, not used)",
+        "stereo": f"real stereo share {real['stereo_share']:.3g} of {real['frames']} frames / "
+                  f"the ideal simulation's geometric {ideal['stereo_share']:.3g} / 0.97",
+        "fill": "real / ideal features per frame ({:.0f} / {:.0f})".format(
+            real["features_per_frame"]["q50"], ideal["features_per_frame"]["q50"]),
+    }
+
+
 def profile_toml(profile, command, out):
+    if "origins" in profile:
+        return keyframe_profile_toml(profile, command, out)
     n, d, o, t = (profile[k] for k in ("noise", "drift", "outliers", "tracking"))
     notes = profile["notes"]
     loss_note = ("real continued share / the ideal simulation's geometric one"
@@ -597,6 +750,41 @@ max_px = {o['max_px']:.6g}
 loss_probability = {t['loss_probability']:.6g}  # {loss_note}
 stereo_failure_probability = {t['stereo_failure_probability']:.6g}  # real stereo share
 cell_fill_probability = {t['cell_fill_probability']:.6g}  # real / ideal features per frame
+"""
+
+
+def keyframe_profile_toml(profile, command, out):
+    n, d, o, t, why = (profile[k] for k in ("noise", "drift", "outliers", "tracking", "origins"))
+    return f"""# The simulator's `realistic-motion` profile of EuRoC / TUM-VI runs (docs/design.md §5,
+# core/sim/sim_profile.h), calibrated on real stereo keyframes under motion. Written by
+# tools/scripts/frontend_stats.py; do not edit by hand:
+#   {command}
+# Measured on the front-end's tracks at the ground-truth poses of the frames, refined with the
+# landmarks (bundle adjustment by blocks); {out}/frontend_stats.md has every
+# measurement and the ideal simulation of the same frames beside it.
+
+[noise]  # per pixel coordinate: scale * Student-t(nu)
+# {why['noise']}
+nu = {n['nu']:.6g}
+scale_px = {n['scale_px']:.6g}
+
+[drift]  # each track's pixel offset walks by step_px * N(0, 1) per coordinate and frame
+# {why['drift']}
+step_px = {d['step_px']:.6g}
+
+[outliers]  # wrong associations: {why['outliers']}, minus the t's own tail
+# ({profile['notes']['t_exceedance_per_observation']:.4g} per observation); displacement uniform in [min, max]
+probability = {o['probability']:.6g}
+min_px = {o['min_px']:.6g}
+max_px = {o['max_px']:.6g}
+
+[tracking]
+# loss: {why['loss']}
+loss_probability = {t['loss_probability']:.6g}
+# stereo: {why['stereo']}
+stereo_failure_probability = {t['stereo_failure_probability']:.6g}
+# fill: {why['fill']}
+cell_fill_probability = {t['cell_fill_probability']:.6g}
 """
 
 
@@ -648,6 +836,16 @@ def markdown(sources, command, profile):
         md_row("drift: white σ_w [px], walk step [px/frame]", g(lambda s: "{:.3g}, {:.3g}".format(
             s["drift"]["white_sigma_px"], s["drift"]["walk_step_px"]))),
         md_row("observations measured", g(lambda s: r(s)["n_observations"]), "{}"),
+        md_row("frames of the residuals", g(lambda s: s["residual_frames"]), "{}"),
+        md_row("stereo matches' Sampson distance: n, median [px]", g(lambda s: "{}, {:.3g}".format(
+            s["epipolar"]["n"], s["epipolar"]["median_px"]))),
+        md_row("Sampson about the median: robust σ [px], t ν, scale [px]", g(
+            lambda s: "{:.3g}, {:.3g}, {:.3g}".format(
+                s["epipolar"]["robust_sigma_px"], s["epipolar"]["student_t"]["nu"],
+                s["epipolar"]["student_t"]["scale_px"]))),
+        md_row("consecutive frames: pairs, continued share", g(lambda s: "{}, {:.3g}".format(
+            s["consecutive_tracking"]["consecutive_pairs"],
+            s["consecutive_tracking"]["continued_share"]))),
     ]
     if profile is not None:
         lines += ["", "## The `realistic` profile written from the first column", "", "```toml",
@@ -684,6 +882,12 @@ def parse_args():
                     "beside it): evaluate at its poses instead of the run's estimate")
     ap.add_argument("--refine-poses", type=int, default=3, metavar="N",
                     help="alternations of per-frame pose refinement and triangulation (0: none)")
+    ap.add_argument("--consecutive-residuals", action="store_true",
+                    help="measure residuals, outliers and drift only on frames with a consecutive "
+                         "camera frame beside them (keyframes); the rest on every frame")
+    ap.add_argument("--loss-from", metavar="PROFILE_TOML",
+                    help="take [tracking] loss_probability from this profile (frames that cannot "
+                         "measure track loss, e.g. keyframes: the KITTI 06 value)")
     ap.add_argument("--outlier-px", type=float, default=5.0)
     ap.add_argument("--min-motion-m", type=float, default=0.5,
                     help="below this ground-truth path length the loss hazard is not measured")
@@ -709,8 +913,12 @@ def main():
             print("frontend_stats.py: --profile-out needs two sources (real, ideal)",
                   file=sys.stderr)
             sys.exit(2)
-        motion = clip_motion(args.source[0][2])
+        motion = (sources[0]["gt_path_m"] if args.source[0][2] == "gt"
+                  else clip_motion(args.source[0][2]))
         profile = realistic_profile(sources[0], sources[1], motion, args.min_motion_m)
+        if args.loss_from:
+            profile["tracking"]["loss_probability"] = read_loss_probability(args.loss_from)
+            profile["origins"] = keyframe_origins(sources[0], sources[1], args.loss_from)
         sources[0]["realistic_profile"] = profile
         profile_text = profile_toml(profile, command, args.out)
         write_text(args.profile_out, profile_text)

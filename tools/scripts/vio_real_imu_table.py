@@ -1,0 +1,104 @@
+#!/usr/bin/python3
+"""Issue #40 §1: Table 1's √VIO-64 magnitudes, ours against the paper's, per cell of the real-IMU
+study and beside today's tables.
+
+Reads the table1.csv that `marglab tables` wrote for each cell (NAME=FOLDER: the tables folder of
+that cell's seed folders) and prints, per sequence, our ATE (mean over the seeds that finished, and
+the failures), the paper's, and paper / ours; then per family (EuRoC, TUM-VI rooms) the median of
+paper / ours over the sequences the cell has. Writes Markdown to --out.
+
+  tools/scripts/vio_real_imu_table.py --out results/vio_real_imu/summary.md \
+      "ideal, synthetic IMU, Kalibr (today)=results/paper_seeds_tables" \
+      "ideal, real IMU=results/vio_real_imu/tables/real_ideal" ...
+"""
+
+import argparse
+import csv
+import os
+import statistics
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from atomic_save import atomic_path  # noqa: E402
+
+VARIANT = "ns-qr-sqrt-f64"
+FAMILIES = {"EuRoC": "euroc/", "TUM-VI rooms": "tumvi/room"}
+
+
+def read_cell(folder):
+    """{sequence: (mean ATE or None, failed, runs, paper ATE)} of the √VIO-64 column."""
+    path = os.path.join(folder, "table1.csv")
+    try:
+        rows = list(csv.DictReader(open(path, encoding="utf-8")))
+    except OSError as e:
+        sys.exit(f"vio_real_imu_table.py: {path}: cannot read ({e.strerror})")
+    out = {}
+    for r in rows:
+        if r["variant"] != VARIANT or r["ours_state"] not in ("ok", "failed"):
+            continue  # missing, or pending in an unfinished folder
+        ours = float(r["ours"]) if r["ours"] else None
+        runs = int(r["n_runs"])
+        # a single run's cell has no failure count: its state says whether it failed
+        failed = int(r["ours_failed"]) if r["ours_failed"] else int(r["ours_state"] == "failed")
+        out[r["row"]] = (ours, failed if ours is not None else max(failed, 1), runs,
+                         float(r["paper"]))
+    if not out:
+        sys.exit(f"vio_real_imu_table.py: {path}: no {VARIANT} runs")
+    return out
+
+
+def cell_text(value):
+    if value is None:
+        return "–"
+    ours, failed, runs, paper = value
+    fail = f" (x {failed}/{runs})" if failed else ""
+    if ours is None:
+        return f"x {failed}/{runs}"
+    return f"{ours:.4f}{fail} · {paper / ours:.2f}"
+
+
+def medians(cell):
+    out = {}
+    for family, prefix in FAMILIES.items():
+        ratios = [v[3] / v[0] for k, v in cell.items() if k.startswith(prefix) and v[0]]
+        out[family] = (statistics.median(ratios), len(ratios)) if ratios else None
+    return out
+
+
+def markdown(names, cells):
+    sequences = sorted({k for c in cells for k in c if k.startswith(tuple(FAMILIES.values()))})
+    paper = {k: next(c[k][3] for c in cells if k in c) for k in sequences}
+    lines = ["| sequence | paper | " + " | ".join(names) + " |",
+             "|---|---:|" + "---:|" * len(names)]
+    for k in sequences:
+        lines.append(f"| {k} | {paper[k]:.3f} | "
+                     + " | ".join(cell_text(c.get(k)) for c in cells) + " |")
+    for family in FAMILIES:
+        meds = [medians(c)[family] for c in cells]
+        lines.append(f"| **median paper / ours, {family}** | | " + " | ".join(
+            "–" if m is None else f"**{m[0]:.2f}** ({m[1]})" for m in meds) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("cells", nargs="+", metavar="NAME=FOLDER")
+    ap.add_argument("--out", required=True)
+    args = ap.parse_args()
+    names, cells = [], []
+    for spec in args.cells:
+        name, sep, folder = spec.partition("=")
+        if not sep:
+            sys.exit(f"vio_real_imu_table.py: '{spec}': expected NAME=FOLDER")
+        names.append(name)
+        cells.append(read_cell(folder))
+    text = ("Table 1, √VIO-64: our ATE [m] (mean over the seeds that finished; x k/n: k of n "
+            "failed) · paper / ours, per cell; medians over the sequences each cell has "
+            "(their number in parentheses).\n\n" + markdown(names, cells))
+    with atomic_path(args.out) as tmp:
+        open(tmp, "w", encoding="utf-8").write(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
