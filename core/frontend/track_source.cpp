@@ -74,6 +74,12 @@ void simulate(const TrackSourceOptions& options, TrackSource* source) {
     applyRealisticProfile(readRealisticProfile(path), &simulation.tracker);
     profile += " (" + path + ")";
   }
+  applySimOverrides(options.sim_overrides, &simulation.tracker);
+  if (options.sim_overrides.any()) {
+    profile += fmt::format(", grid {:g} px, loss {:g}, stereo failure {:g}",
+                           simulation.tracker.grid_cell_px, simulation.tracker.loss_probability,
+                           simulation.tracker.stereo_failure_probability);
+  }
   source->stream = simulateSequence(seq, *source->trajectory, simulation);
   source->stats = streamFrontendStats(source->stream);
   source->frontend = "simulated";

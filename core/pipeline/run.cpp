@@ -9,12 +9,14 @@
 #include <limits>
 #include <optional>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/common/statistics.h"
 #include "core/data/sequence.h"
 #include "core/diagnostics/ate.h"
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
+#include "core/estimator/marg_rounding.h"
 #include "core/estimator/window_io.h"
 #include "core/imu/noise_profile.h"
 #include "core/pipeline/motion_check.h"
@@ -67,6 +69,7 @@ TrackSourceOptions trackSourceOptions(const RunSpec& spec) {
   source.max_frames = spec.max_frames;
   source.seed = spec.seed;
   source.sim_profile = spec.config.sim_profile;
+  source.sim_overrides = spec.config.sim_overrides;
   source.frontend_options = spec.config.frontend;
   return source;
 }
@@ -337,6 +340,18 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
   SlidingWindowEstimator<Scalar> estimator(config.estimator, spec.variant,
                                            rigFromCalib(sequence.calib), T_w_c0_first,
                                            std::move(imu), config.reporting());
+  std::vector<MargRoundingRow> rounding;
+  int current_frame = 0;
+  if (config.diagnostics.marg_rounding) {
+    estimator.setMargObserver([&](const Window<Scalar>& w, const MargPlan& plan,
+                                  const MargPrior<Scalar>& before, const MargPrior<Scalar>& after) {
+      MargRoundingRow row;
+      row.frame_index = current_frame;
+      // A stage that fails in double (a singular H_μμ) leaves the row's zeros: never the run's.
+      measureMargRounding(w, plan, before, after, spec.variant, &row).ok();
+      rounding.push_back(row);
+    });
+  }
   const bool predict =
       source.images && config.frontend.prediction == MotionPredictionSource::kEstimator;
   const SE3<double> T_i_c0 = vio ? T_b_c0 : SE3<double>();
@@ -355,6 +370,7 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
     const bool dump =
         std::find(spec.dump_windows.begin(), spec.dump_windows.end(), k) != spec.dump_windows.end();
     if (dump) estimator.captureNextWindow();
+    current_frame = k;
     const FrameResult result = estimator.processFrame(frame);
     if (std::optional<WindowSnapshot> window = estimator.takeCapturedWindow()) {
       writeCapturedWindow(std::move(*window), spec, k);
@@ -381,6 +397,11 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
                                   outcome.failure_reason, outcome.failure_kind);
   outcome.tum_path = tumPathFor(spec.output);
   writeTrajectory(spec.output, trace);
+  if (config.diagnostics.marg_rounding) {
+    AtomicFile csv(roundingPathFor(spec.output));
+    csv.write(margRoundingCsv(rounding));
+    csv.commit();
+  }
   return outcome;
 }
 
@@ -403,6 +424,11 @@ std::string tumPathFor(const std::string& results_path) {
     base.resize(base.size() - suffix.size());
   }
   return base + ".tum";
+}
+
+std::string roundingPathFor(const std::string& results_path) {
+  std::string tum = tumPathFor(results_path);
+  return tum.substr(0, tum.size() - 4) + ".rounding.csv";
 }
 
 RunSpec resolveRunSpec(const RunSpec& spec, const Sequence& sequence, bool has_ground_truth) {
@@ -583,6 +609,18 @@ std::vector<Problem> runProblems(const RunSpec& spec, const RunInputs& inputs) {
                      spec.variant.name(), psd)}));
   }
   addCaptureProblems(spec, inputs.dataset.sequence, &out);
+  const PriorStorage& storage = spec.variant.storage;
+  const bool plain_sq = spec.variant.marg == MargMethod::kSchur && hessianStorage(storage) &&
+                        storage.preconditioning == Preconditioning::kNone &&
+                        storage.psd == PsdProjection::kNone &&
+                        !spec.config.estimator.psd_hessian_prior;
+  if (spec.config.diagnostics.marg_rounding && (!plain_sq || spec.mode != RunMode::kVo)) {
+    out.push_back(spec.config.located(
+        {"diagnostics.marg_rounding",
+         fmt::format("diagnostics.marg_rounding = true with variant {} ({}): it measures a VO "
+                     "run's Schur marginalization of a plain Hessian prior (sc-sq)",
+                     spec.variant.name(), nameOf(kRunModeNames, spec.mode))}));
+  }
   return out;
 }
 

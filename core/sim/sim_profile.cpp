@@ -109,4 +109,12 @@ void applyRealisticProfile(const RealisticProfile& profile, TrackerOptions* opti
   options->cell_fill_probability = profile.cell_fill_probability;
 }
 
+void applySimOverrides(const SimOverrides& overrides, TrackerOptions* options) {
+  if (overrides.grid_cell_px >= 0) options->grid_cell_px = overrides.grid_cell_px;
+  if (overrides.loss_probability >= 0) options->loss_probability = overrides.loss_probability;
+  if (overrides.stereo_failure_probability >= 0) {
+    options->stereo_failure_probability = overrides.stereo_failure_probability;
+  }
+}
+
 }  // namespace marglab
