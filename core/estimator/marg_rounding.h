@@ -48,6 +48,8 @@ struct MargRoundingRow {
   double eig_min_ref = 0;    // smallest eigenvalue of S_a (signed)
   double gauge_min_run = 0;  // smallest eigenvalue of Gᵀ S_d G: the prior's least information
   double gauge_min_ref = 0;  //   along a rigid motion of the window; the same of S_a
+  double translation_min_ref = 0;  // the same over the window's translations alone: ≈
+                                   // gauge_min_ref when the least-informed rigid motion is one
 };
 
 // Measures one event: `window` as it was marginalized, `before` / `after` the prior. Needs a plain

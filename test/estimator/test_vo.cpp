@@ -380,7 +380,7 @@ void checkMargRounding(const char* variant_name) {
   const Variant variant = Variant::parse(variant_name);
   SlidingWindowEstimator<Scalar> estimator(testConfig(), variant, rigFromCalib(scenario.calib),
                                            scenario.truth(0));
-  int events = 0, with_poses = 0;
+  int events = 0, with_poses = 0, translation_checked = 0;
   estimator.setMargObserver([&](const Window<Scalar>& w, const MargPlan& plan,
                                 const MargPrior<Scalar>& before, const MargPrior<Scalar>& after) {
     MargRoundingRow row;
@@ -424,11 +424,19 @@ void checkMargRounding(const char* variant_name) {
     const double scale =
         Eigen::SelfAdjointEigenSolver<MatXd>(H_run).eigenvalues().cwiseAbs().maxCoeff();
     EXPECT_NEAR(row.gauge_min_run, gauge_min, 1e-12 * scale);
+    // The least information along a translation, in an SVD basis of the raw translations.
+    const MatXd T = Eigen::JacobiSVD<MatXd>(rigid.leftCols(3), Eigen::ComputeThinU).matrixU();
+    const MatXd t_block = T.transpose() * (0.5 * (H_ref + H_ref.transpose())) * T;
+    EXPECT_NEAR(row.translation_min_ref,
+                Eigen::SelfAdjointEigenSolver<MatXd>(t_block).eigenvalues()(0), 1e-12 * scale);
+    EXPECT_GE(row.translation_min_ref, row.gauge_min_ref - 1e-12 * scale);  // a subspace of it
+    ++translation_checked;
   });
   for (const TrackFrame& frame : scenario.stream.frames) {
     ASSERT_TRUE(estimator.processFrame(frame).status.ok());
   }
   EXPECT_GT(events, 20);
+  EXPECT_GT(translation_checked, 10);
   if (std::is_same_v<Scalar, float>) EXPECT_GE(with_poses, 3);  // keyframe events of 60 frames
 }
 
