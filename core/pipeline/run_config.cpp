@@ -65,6 +65,8 @@ void addSimBindings(SimProfile& profile, SimOverrides& o, Bindings* list) {
   list->push_back(numberKey(s, "loss_probability", &o.loss_probability, probability));
   list->push_back(
       numberKey(s, "stereo_failure_probability", &o.stereo_failure_probability, probability));
+  list->push_back(numberKey(s, "facade_offset_scale", &o.facade_offset_scale,
+                            orSentinel(between(0.1, 10), -1, "the dataset's world")));
 }
 
 void addDiagnosticsBindings(DiagnosticsSettings& d, Bindings* list) {

@@ -117,4 +117,10 @@ void applySimOverrides(const SimOverrides& overrides, TrackerOptions* options) {
   }
 }
 
+void applySimOverrides(const SimOverrides& overrides, WorldOptions* options) {
+  if (overrides.facade_offset_scale < 0) return;
+  options->facade_offset_min *= overrides.facade_offset_scale;
+  options->facade_offset_max *= overrides.facade_offset_scale;
+}
+
 }  // namespace marglab

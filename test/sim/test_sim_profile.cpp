@@ -304,8 +304,17 @@ TEST(SimProfileConfig, OverridesReplaceSingleTrackerSettings) {
   EXPECT_EQ(tracker.grid_cell_px, 20.0);
   EXPECT_EQ(tracker.loss_probability, 0.0);
   EXPECT_EQ(tracker.stereo_failure_probability, untouched.stereo_failure_probability);
-  for (const char* bad : {"[sim]\ngrid_cell_px = 4\n", "[sim]\nloss_probability = 1.5\n",
-                          "[sim]\nstereo_failure_probability = -0.5\n"}) {
+  WorldOptions world = defaultWorldOptions(DatasetKind::kKitti);
+  const WorldOptions street = world;
+  applySimOverrides(config.sim_overrides, &world);
+  EXPECT_EQ(world.facade_offset_max, street.facade_offset_max);
+  config.loadTomlString("[sim]\nfacade_offset_scale = 2\n", "c.toml");
+  applySimOverrides(config.sim_overrides, &world);
+  EXPECT_EQ(world.facade_offset_min, 2 * street.facade_offset_min);
+  EXPECT_EQ(world.facade_offset_max, 2 * street.facade_offset_max);
+  for (const char* bad :
+       {"[sim]\ngrid_cell_px = 4\n", "[sim]\nloss_probability = 1.5\n",
+        "[sim]\nstereo_failure_probability = -0.5\n", "[sim]\nfacade_offset_scale = 0\n"}) {
     RunConfig probe;
     try {
       probe.loadTomlString(bad, "c.toml");

@@ -13,7 +13,9 @@ runs/ID.rounding.csv (core/estimator/marg_rounding.h) and the results file:
   and ε_f32 / 10;
 - the breakdown frame (vo32_factors_table.py: first frame with position error > 10 m, or the
   failure frame) and the first frame where the run's f32 prior is indefinite along a rigid motion
-  (g_run < 0).
+  (g_run < 0); the accumulated f32 error in that block, median |g_run − g_ref| / σ_max over the
+  events; and whether the least-informed rigid motion is a translation (median over the events
+  after 100 of the least information along a translation / g, 1: a translation).
 
 Usage: vo32_rounding_table.py SWEEP_DIR   (writes SWEEP_DIR/tables/vo32_rounding.{md,csv})
 Needs numpy and h5py.
@@ -72,7 +74,9 @@ def summarize(sweep, row):
             " / ".join(f"{ratio_at(r, e):.0e}" for e in (25, 100, 200)),
             *[first_frame(frames, r["gauge_min_ref"] < level * r["sigma_max"]) or "–"
               for level in LEVELS],
-            first_frame(frames, r["gauge_min_run"] < 0) or "–"]
+            first_frame(frames, r["gauge_min_run"] < 0) or "–",
+            f"{med(np.abs(r['gauge_min_run'] - r['gauge_min_ref']) / r['sigma_max']):.0e}",
+            f"{med(r['translation_min_ref'][frames > 100] / r['gauge_min_ref'][frames > 100]):.2f}"]
 
 
 def main(argv):
@@ -86,7 +90,8 @@ def main(argv):
     header = ["group", "seq", "status", "breakdown frame", "new rel", "add rel", "schur rel",
               "gauge-block share new / add / schur", "median σ_max", "g/σ_max at event 25 / 100 / 200",
               *[f"frame g/σ_max < {level:.1e}" for level in LEVELS],
-              "frame f32 prior indefinite along a rigid motion"]
+              "frame f32 prior indefinite along a rigid motion", "|g_run − g_ref| / σ_max",
+              "translation / g"]
     out = os.path.join(sweep, "tables")
     os.makedirs(out, exist_ok=True)
     write_csv(os.path.join(out, "vo32_rounding.csv"), [header] + table)
