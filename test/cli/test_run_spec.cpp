@@ -187,10 +187,13 @@ TEST_F(RunSpecTest, MargRoundingIsRefusedWhereItCannotMeasureAndWritesItsCsv) {
   EXPECT_EQ(header.rfind("frame_index,n,n_marg,n_landmarks,total_rel,", 0), 0u) << header;
   int rows = 0;
   while (std::getline(csv, line)) ++rows;
-  EXPECT_GT(rows, 10);
-  EXPECT_EQ(rows, h5::File::openReadOnly((dir_ / "y.h5").string())
+  // One row per marginalization of the window's prior, at most one per frame; /marg counts the
+  // events of the shadow prior once it is not empty, so not more.
+  EXPECT_LE(rows, 30);
+  EXPECT_GE(rows, h5::File::openReadOnly((dir_ / "y.h5").string())
                       .openGroup("summary")
                       .attr<std::int64_t>("n_marg"));
+  EXPECT_GT(rows, 10);
 }
 
 // The results file records its spec; run from it (-o elsewhere), the numbers are the same bit for
