@@ -313,6 +313,31 @@ void writeTrajectory(const std::string& results_path, const RunTrace& trace) {
   }
 }
 
+// diagnostics.marg_rounding: one row per marginalization of the window's prior
+// (core/estimator/marg_rounding.h), written beside the results file when the run ends.
+template <typename Scalar>
+struct RoundingRecorder {
+  std::vector<MargRoundingRow> rows;
+  int frame = 0;  // the frame being processed
+
+  void attach(SlidingWindowEstimator<Scalar>* estimator, const Variant& variant) {
+    estimator->setMargObserver([this, variant](const Window<Scalar>& w, const MargPlan& plan,
+                                               const MargPrior<Scalar>& before,
+                                               const MargPrior<Scalar>& after) {
+      MargRoundingRow row;
+      row.frame_index = frame;
+      // A stage that fails in double (a singular H_μμ) leaves the row's zeros: never the run's.
+      measureMargRounding(w, plan, before, after, variant, &row).ok();
+      rows.push_back(row);
+    });
+  }
+  void write(const std::string& path) const {
+    AtomicFile csv(path);
+    csv.write(margRoundingCsv(rows));
+    csv.commit();
+  }
+};
+
 template <typename Scalar>
 RunOutcome runWith(const RunContext& context, TrackSource& source) {
   const RunSpec& spec = context.spec;
@@ -337,21 +362,11 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
   ResultsWriter writer = ResultsWriter::create(
       spec.output,
       runMetadata<Scalar>(spec, source, config, vio, imu_provenance, context.spec_toml));
+  RoundingRecorder<Scalar> rounding;  // outlives the estimator that calls it
   SlidingWindowEstimator<Scalar> estimator(config.estimator, spec.variant,
                                            rigFromCalib(sequence.calib), T_w_c0_first,
                                            std::move(imu), config.reporting());
-  std::vector<MargRoundingRow> rounding;
-  int current_frame = 0;
-  if (config.diagnostics.marg_rounding) {
-    estimator.setMargObserver([&](const Window<Scalar>& w, const MargPlan& plan,
-                                  const MargPrior<Scalar>& before, const MargPrior<Scalar>& after) {
-      MargRoundingRow row;
-      row.frame_index = current_frame;
-      // A stage that fails in double (a singular H_μμ) leaves the row's zeros: never the run's.
-      measureMargRounding(w, plan, before, after, spec.variant, &row).ok();
-      rounding.push_back(row);
-    });
-  }
+  if (config.diagnostics.marg_rounding) rounding.attach(&estimator, spec.variant);
   const bool predict =
       source.images && config.frontend.prediction == MotionPredictionSource::kEstimator;
   const SE3<double> T_i_c0 = vio ? T_b_c0 : SE3<double>();
@@ -370,7 +385,7 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
     const bool dump =
         std::find(spec.dump_windows.begin(), spec.dump_windows.end(), k) != spec.dump_windows.end();
     if (dump) estimator.captureNextWindow();
-    current_frame = k;
+    rounding.frame = k;
     const FrameResult result = estimator.processFrame(frame);
     if (std::optional<WindowSnapshot> window = estimator.takeCapturedWindow()) {
       writeCapturedWindow(std::move(*window), spec, k);
@@ -397,11 +412,7 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
                                   outcome.failure_reason, outcome.failure_kind);
   outcome.tum_path = tumPathFor(spec.output);
   writeTrajectory(spec.output, trace);
-  if (config.diagnostics.marg_rounding) {
-    AtomicFile csv(roundingPathFor(spec.output));
-    csv.write(margRoundingCsv(rounding));
-    csv.commit();
-  }
+  if (config.diagnostics.marg_rounding) rounding.write(roundingPathFor(spec.output));
   return outcome;
 }
 
