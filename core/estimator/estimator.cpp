@@ -325,10 +325,13 @@ Status SlidingWindowEstimator<Scalar>::marginalize(int64_t current, FrameResult*
 template <typename Scalar>
 Status SlidingWindowEstimator<Scalar>::marginalizePlan(const MargPlan& plan, bool keyframe_event,
                                                        FrameResult* result) {
+  std::optional<MargPrior<Scalar>> before;
+  if (marg_observer_) before = window_.prior;
   const auto t0 = Clock::now();
   Status status = marginalizer_->marginalize(window_, plan, &window_.prior, nullptr);
   result->t_marg_s = secondsSince(t0);
   if (!status.ok()) return status;
+  if (marg_observer_) marg_observer_(window_, plan, *before, window_.prior);
   window_.dropMarginalizedFactors(plan);
   window_.fixFirstEstimates();
   if (keyframe_event && policy_.keepsLandmarks(window_)) {

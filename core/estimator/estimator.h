@@ -36,6 +36,7 @@
 // Figs. 1, 4–6 analyse. Its cost is timed separately from t_marg.
 
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -127,6 +128,14 @@ class SlidingWindowEstimator {
   std::vector<int64_t> stateIds() const { return window_.stateIds(); }
   bool isKeyframe(int64_t frame_id) const { return window_.frames.at(frame_id).is_keyframe; }
 
+  // Called after each marginalization of the window's prior, before the window drops what it
+  // marginalized: the window as it was marginalized, the plan, the prior before and after (for
+  // measuring the marginalization's rounding, marg_rounding.h). Unset (default): not called.
+  using MargObserver =
+      std::function<void(const Window<Scalar>&, const MargPlan&, const MargPrior<Scalar>& before,
+                         const MargPrior<Scalar>& after)>;
+  void setMargObserver(MargObserver observer) { marg_observer_ = std::move(observer); }
+
   // Window capture: the next processFrame() stores its window right before optimizing, with the
   // step the optimizer took (takeCapturedWindow() hands it over once).
   void captureNextWindow() { capture_next_ = true; }
@@ -169,6 +178,7 @@ class SlidingWindowEstimator {
   LevenbergMarquardt<Scalar> lm_;
   bool capture_next_ = false;
   std::optional<WindowSnapshot> captured_;
+  MargObserver marg_observer_;
 };
 
 }  // namespace marglab

@@ -126,6 +126,30 @@ MargProblem<Scalar> gatherProblem(const Window<Scalar>& w, const MargPlan& plan,
   return p;
 }
 
+// Whether the Schur system takes the old prior's term (kOmit: the new factors alone, for
+// measuring what each stage of the marginalization rounds; marg_rounding.h).
+enum class PriorTerm { kAdd, kOmit };
+
+// The Hessian system over [marginalized | kept] of a gathered problem: the landmarks' Schur
+// complements, the direct rows, then the old prior at its current δ (in this order: its rounding
+// is the run's).
+template <typename Scalar>
+Status assemble(const MargProblem<Scalar>& p, const MargPrior<Scalar>& prior, PriorTerm term,
+                MatX<Scalar>* H, VecX<Scalar>* b) {
+  *H = MatX<Scalar>::Zero(p.n, p.n);
+  *b = VecX<Scalar>::Zero(p.n);
+  for (const LandmarkJacobians<Scalar>& lin : p.lins) {
+    LandmarkBlockSc<Scalar> block;
+    Status s = block.setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, p.column_of));
+    if (!s.ok()) return s;
+    // A landmark whose H_ll is singular carries no usable pose information: skip it.
+    block.addToReducedSystem(*H, *b).ok();
+  }
+  for (const RowBlock<Scalar>& d : p.direct) addRows(d, d.vars, p.column_of, *H, *b);
+  if (term == PriorTerm::kAdd && !prior.empty()) addPrior(prior, p.old_delta, p.column_of, *H, *b);
+  return Status::Ok();
+}
+
 template <typename Scalar>
 class QrMarginalizer final : public Marginalizer<Scalar> {
  public:
@@ -197,17 +221,9 @@ class SchurMarginalizer final : public Marginalizer<Scalar> {
   Status marginalize(const Window<Scalar>& w, const MargPlan& plan, MargPrior<Scalar>* prior,
                      int* /*qr_rank*/) const override {
     MargProblem<Scalar> p = gatherProblem(w, plan, *prior, storage_);
-    MatX<Scalar> H = MatX<Scalar>::Zero(p.n, p.n);
-    VecX<Scalar> b = VecX<Scalar>::Zero(p.n);
-    for (const LandmarkJacobians<Scalar>& lin : p.lins) {
-      LandmarkBlockSc<Scalar> block;
-      Status s = block.setFromJacobians(lin.J_p, lin.J_l, lin.r, blockMap(lin, p.column_of));
-      if (!s.ok()) return s;
-      // A landmark whose H_ll is singular carries no usable pose information: skip it.
-      block.addToReducedSystem(H, b).ok();
-    }
-    for (const RowBlock<Scalar>& d : p.direct) addRows(d, d.vars, p.column_of, H, b);
-    if (!prior->empty()) addPrior(*prior, p.old_delta, p.column_of, H, b);
+    MatX<Scalar> H;
+    VecX<Scalar> b;
+    if (Status s = assemble(p, *prior, PriorTerm::kAdd, &H, &b); !s.ok()) return s;
     const Preconditioning kind = preconditioningOf(storage_);
     Status s;
     if (kind == Preconditioning::kNone) {
@@ -314,6 +330,17 @@ std::unique_ptr<Marginalizer<Scalar>> makeMarginalizer(MargMethod method,
 }
 
 template <typename Scalar>
+Status schurSystem(const Window<Scalar>& window, const MargPlan& plan,
+                   const MargPrior<Scalar>& prior, bool add_prior, SchurSystem<Scalar>* out) {
+  MargProblem<Scalar> p = gatherProblem(window, plan, prior, prior.storage);
+  Status s = assemble(p, prior, add_prior ? PriorTerm::kAdd : PriorTerm::kOmit, &out->H, &out->b);
+  out->n_marg = p.n_marg;
+  out->new_delta = std::move(p.new_delta);
+  out->layout = std::move(p.next);
+  return s;
+}
+
+template <typename Scalar>
 Status trialMarginalization(const Window<Scalar>& window, MargPrior<Scalar> prior,
                             const MargPlan& plan, MargMethod method, MatXd* H_m) {
   const PriorStorage storage =
@@ -344,7 +371,9 @@ Status trialMarginalization(const Window<Scalar>& window, MargPrior<Scalar> prio
   template std::unique_ptr<Marginalizer<S>> makeMarginalizer<S>(MargMethod, const PriorStorage&, \
                                                                 const EstimatorSettings&);       \
   template Status trialMarginalization<S>(const Window<S>&, MargPrior<S>, const MargPlan&,       \
-                                          MargMethod, MatXd*);
+                                          MargMethod, MatXd*);                                   \
+  template Status schurSystem<S>(const Window<S>&, const MargPlan&, const MargPrior<S>&, bool,   \
+                                 SchurSystem<S>*);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

@@ -53,6 +53,23 @@ template <typename Scalar>
 Status trialMarginalization(const Window<Scalar>& window, MargPrior<Scalar> prior,
                             const MargPlan& plan, MargMethod method, MatXd* H_m);
 
+// The Schur marginalization's Hessian system over [marginalized | kept] before the marginalized
+// variables are eliminated — the landmarks' Schur complements, the direct rows and, with
+// add_prior, the old prior at its current δ — exactly as SchurMarginalizer forms it (same
+// operations, same order); the new prior's layout (anchored at the kept variables' first
+// estimates) and its δ. For measuring the rounding of each stage (marg_rounding.h).
+template <typename Scalar>
+struct SchurSystem {
+  MatX<Scalar> H;
+  VecX<Scalar> b;
+  int n_marg = 0;
+  MargPrior<Scalar> layout;  // blocks only
+  VecX<Scalar> new_delta;
+};
+template <typename Scalar>
+Status schurSystem(const Window<Scalar>& window, const MargPlan& plan,
+                   const MargPrior<Scalar>& prior, bool add_prior, SchurSystem<Scalar>* out);
+
 // The relative floor below which the new prior's LDLT pivots are set to 0 (hessianToSqrtLdlt):
 // NumericTraits' n·ε for the gauge-exact projection g, else 0 (only negative pivots, which no
 // square root can keep).

@@ -74,6 +74,14 @@ void simulate(const TrackSourceOptions& options, TrackSource* source) {
     applyRealisticProfile(readRealisticProfile(path), &simulation.tracker);
     profile += " (" + path + ")";
   }
+  applySimOverrides(options.sim_overrides, &simulation.tracker);
+  applySimOverrides(options.sim_overrides, &simulation.world);
+  if (options.sim_overrides.any()) {
+    profile += fmt::format(", grid {:g} px, loss {:g}, stereo failure {:g}, facades {:g}-{:g} m",
+                           simulation.tracker.grid_cell_px, simulation.tracker.loss_probability,
+                           simulation.tracker.stereo_failure_probability,
+                           simulation.world.facade_offset_min, simulation.world.facade_offset_max);
+  }
   source->stream = simulateSequence(seq, *source->trajectory, simulation);
   source->stats = streamFrontendStats(source->stream);
   source->frontend = "simulated";

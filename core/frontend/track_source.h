@@ -55,6 +55,7 @@ struct TrackSourceOptions {
   int max_frames = 0;       // estimator frames; 0: all
   std::uint64_t seed = 1;   // simulation seed
   SimProfile sim_profile = SimProfile::kIdeal;  // the simulation's measurement model
+  SimOverrides sim_overrides;                   // single settings replaced on top of it
   FrontendOptions frontend_options;  // [frontend]; dataset-default sentinels resolved here
 };
 

@@ -9,12 +9,14 @@
 #include <limits>
 #include <optional>
 
+#include "core/common/atomic_file.h"
 #include "core/common/error.h"
 #include "core/common/statistics.h"
 #include "core/data/sequence.h"
 #include "core/diagnostics/ate.h"
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
+#include "core/estimator/marg_rounding.h"
 #include "core/estimator/window_io.h"
 #include "core/imu/noise_profile.h"
 #include "core/pipeline/motion_check.h"
@@ -67,6 +69,7 @@ TrackSourceOptions trackSourceOptions(const RunSpec& spec) {
   source.max_frames = spec.max_frames;
   source.seed = spec.seed;
   source.sim_profile = spec.config.sim_profile;
+  source.sim_overrides = spec.config.sim_overrides;
   source.frontend_options = spec.config.frontend;
   return source;
 }
@@ -315,6 +318,31 @@ void writeTrajectory(const std::string& results_path, const RunTrace& trace) {
   }
 }
 
+// diagnostics.marg_rounding: one row per marginalization of the window's prior
+// (core/estimator/marg_rounding.h), written beside the results file when the run ends.
+template <typename Scalar>
+struct RoundingRecorder {
+  std::vector<MargRoundingRow> rows;
+  int frame = 0;  // the frame being processed
+
+  void attach(SlidingWindowEstimator<Scalar>* estimator, const Variant& variant) {
+    estimator->setMargObserver([this, variant](const Window<Scalar>& w, const MargPlan& plan,
+                                               const MargPrior<Scalar>& before,
+                                               const MargPrior<Scalar>& after) {
+      MargRoundingRow row;
+      row.frame_index = frame;
+      // A stage that fails in double (a singular H_μμ) leaves the row's zeros: never the run's.
+      measureMargRounding(w, plan, before, after, variant, &row).ok();
+      rows.push_back(row);
+    });
+  }
+  void write(const std::string& path) const {
+    AtomicFile csv(path);
+    csv.write(margRoundingCsv(rows));
+    csv.commit();
+  }
+};
+
 template <typename Scalar>
 RunOutcome runWith(const RunContext& context, TrackSource& source) {
   const RunSpec& spec = context.spec;
@@ -339,9 +367,11 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
   ResultsWriter writer = ResultsWriter::create(
       spec.output,
       runMetadata<Scalar>(spec, source, config, vio, imu_provenance, context.spec_toml));
+  RoundingRecorder<Scalar> rounding;  // outlives the estimator that calls it
   SlidingWindowEstimator<Scalar> estimator(config.estimator, spec.variant,
                                            rigFromCalib(sequence.calib), T_w_c0_first,
                                            std::move(imu), config.reporting());
+  if (config.diagnostics.marg_rounding) rounding.attach(&estimator, spec.variant);
   const bool predict =
       source.images && config.frontend.prediction == MotionPredictionSource::kEstimator;
   const SE3<double> T_i_c0 = vio ? T_b_c0 : SE3<double>();
@@ -360,6 +390,7 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
     const bool dump =
         std::find(spec.dump_windows.begin(), spec.dump_windows.end(), k) != spec.dump_windows.end();
     if (dump) estimator.captureNextWindow();
+    rounding.frame = k;
     const FrameResult result = estimator.processFrame(frame);
     if (std::optional<WindowSnapshot> window = estimator.takeCapturedWindow()) {
       writeCapturedWindow(std::move(*window), spec, k);
@@ -386,6 +417,7 @@ RunOutcome runWith(const RunContext& context, TrackSource& source) {
                                   outcome.failure_reason, outcome.failure_kind);
   outcome.tum_path = tumPathFor(spec.output);
   writeTrajectory(spec.output, trace);
+  if (config.diagnostics.marg_rounding) rounding.write(roundingPathFor(spec.output));
   return outcome;
 }
 
@@ -408,6 +440,11 @@ std::string tumPathFor(const std::string& results_path) {
     base.resize(base.size() - suffix.size());
   }
   return base + ".tum";
+}
+
+std::string roundingPathFor(const std::string& results_path) {
+  std::string tum = tumPathFor(results_path);
+  return tum.substr(0, tum.size() - 4) + ".rounding.csv";
 }
 
 RunSpec resolveRunSpec(const RunSpec& spec, const Sequence& sequence, bool has_ground_truth) {
@@ -588,6 +625,18 @@ std::vector<Problem> runProblems(const RunSpec& spec, const RunInputs& inputs) {
                      spec.variant.name(), psd)}));
   }
   addCaptureProblems(spec, inputs.dataset.sequence, &out);
+  const PriorStorage& storage = spec.variant.storage;
+  const bool plain_sq = spec.variant.marg == MargMethod::kSchur && hessianStorage(storage) &&
+                        storage.preconditioning == Preconditioning::kNone &&
+                        storage.psd == PsdProjection::kNone &&
+                        !spec.config.estimator.psd_hessian_prior;
+  if (spec.config.diagnostics.marg_rounding && (!plain_sq || spec.mode != RunMode::kVo)) {
+    out.push_back(spec.config.located(
+        {"diagnostics.marg_rounding",
+         fmt::format("diagnostics.marg_rounding = true with variant {} ({}): it measures a VO "
+                     "run's Schur marginalization of a plain Hessian prior (sc-sq)",
+                     spec.variant.name(), nameOf(kRunModeNames, spec.mode))}));
+  }
   return out;
 }
 

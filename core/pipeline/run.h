@@ -119,6 +119,8 @@ StereoRig<double> rigFromCalib(const StereoCalib& calib);
 
 // The TUM path written next to a results file.
 std::string tumPathFor(const std::string& results_path);
+// The marginalization rounding CSV (diagnostics.marg_rounding) next to a results file.
+std::string roundingPathFor(const std::string& results_path);
 
 // The file name of a captured window: "euroc-MH_01_easy_ns-qr-sqrt-f32_000060.win.gz".
 std::string windowFileName(const std::string& dataset, const std::string& variant, int frame);

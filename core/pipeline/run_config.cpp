@@ -55,6 +55,22 @@ void addFailureBindings(FailureSettings& f, Bindings* list) {
   list->push_back(numberKey(s, "motion_floor_m", &f.motion_floor_m, above(0)));
 }
 
+// [sim]: the measurement profile and single settings replaced on top of it (sim_profile.h).
+void addSimBindings(SimProfile& profile, ImuSampleTime& imu_sample_time, SimOverrides& o,
+                    Bindings* list) {
+  const char* s = "sim";
+  list->push_back(choice(s, "profile", &profile, kSimProfileNames));
+  list->push_back(choice(s, "imu_sample_time", &imu_sample_time, kImuSampleTimeNames));
+  list->push_back(numberKey(s, "grid_cell_px", &o.grid_cell_px,
+                            orSentinel(between(8, 10000), -1, "the dataset default")));
+  const Rule probability = orSentinel(between(0, 1), -1, "the profile's");
+  list->push_back(numberKey(s, "loss_probability", &o.loss_probability, probability));
+  list->push_back(
+      numberKey(s, "stereo_failure_probability", &o.stereo_failure_probability, probability));
+  list->push_back(numberKey(s, "facade_offset_scale", &o.facade_offset_scale,
+                            orSentinel(between(0.1, 10), -1, "the dataset's world")));
+}
+
 void addDiagnosticsBindings(DiagnosticsSettings& d, Bindings* list) {
   list->push_back(flagKey("diagnostics", "enabled", &d.enabled));
   list->push_back(integerKey("diagnostics", "store_prior_every", &d.store_prior_every,
@@ -62,6 +78,7 @@ void addDiagnosticsBindings(DiagnosticsSettings& d, Bindings* list) {
   Binding seed{"diagnostics", "seed", nullptr, nullptr, nullptr, &d.seed};
   seed.rule = atLeast(0);  // and a TOML integer, i.e. at most 2^63 − 1
   list->push_back(seed);
+  list->push_back(flagKey("diagnostics", "marg_rounding", &d.marg_rounding));
 }
 
 }  // namespace
@@ -75,8 +92,7 @@ Bindings RunConfig::bindings() {
   addFrontendBindings(frontend, &list);
   addCalibrationBindings(calibration, &list);
   addFailureBindings(failure, &list);
-  list.push_back(choice("sim", "profile", &sim_profile, kSimProfileNames));
-  list.push_back(choice("sim", "imu_sample_time", &sim_imu_sample_time, kImuSampleTimeNames));
+  addSimBindings(sim_profile, sim_imu_sample_time, sim_overrides, &list);
   addDiagnosticsBindings(diagnostics, &list);
   return list;
 }

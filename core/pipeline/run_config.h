@@ -64,6 +64,10 @@ struct DiagnosticsSettings {
   bool enabled = true;
   int store_prior_every = 25;
   std::uint64_t seed = 7;
+  // Per marginalization, the rounding each stage injects against the same marginalization in
+  // double (core/estimator/marg_rounding.h), written to <results>.rounding.csv; VO, sc
+  // marginalization, sq storage only. Off: the run is unchanged.
+  bool marg_rounding = false;
 };
 
 // A correction of the dataset's stereo calibration, applied where the calibration is loaded
@@ -92,6 +96,7 @@ struct RunConfig {
   FailureSettings failure;
   SimProfile sim_profile = SimProfile::kIdeal;
   ImuSampleTime sim_imu_sample_time = ImuSampleTime::kStart;
+  SimOverrides sim_overrides;  // [sim] grid_cell_px, loss_probability, … (sim_profile.h)
   DiagnosticsSettings diagnostics;
 
   // Where each key ("section.key") was last set by loadToml, set or setOrigin; absent: the

@@ -111,4 +111,18 @@ void applyRealisticProfile(const RealisticProfile& profile, TrackerOptions* opti
   options->cell_fill_probability = profile.cell_fill_probability;
 }
 
+void applySimOverrides(const SimOverrides& overrides, TrackerOptions* options) {
+  if (overrides.grid_cell_px >= 0) options->grid_cell_px = overrides.grid_cell_px;
+  if (overrides.loss_probability >= 0) options->loss_probability = overrides.loss_probability;
+  if (overrides.stereo_failure_probability >= 0) {
+    options->stereo_failure_probability = overrides.stereo_failure_probability;
+  }
+}
+
+void applySimOverrides(const SimOverrides& overrides, WorldOptions* options) {
+  if (overrides.facade_offset_scale < 0) return;
+  options->facade_offset_min *= overrides.facade_offset_scale;
+  options->facade_offset_max *= overrides.facade_offset_scale;
+}
+
 }  // namespace marglab

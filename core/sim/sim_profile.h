@@ -76,4 +76,25 @@ std::string realisticProfilePath(DatasetKind kind, SimProfile profile = SimProfi
 // the file (the ideal profile is TrackerOptions as they are).
 void applyRealisticProfile(const RealisticProfile& profile, TrackerOptions* options);
 
+// Single simulator settings replaced on top of the profile, for one-factor studies (config keys
+// sim.grid_cell_px, sim.loss_probability, sim.stereo_failure_probability; README "Where we
+// depart", item 6): the grid decides the features per frame, the loss the track length, the
+// stereo failure the stereo share, sim.facade_offset_scale (street worlds: KITTI) the depth of
+// the facades beside the road (their lateral offsets, 5–12 m, times the scale). −1 (the
+// default): the profile's or the dataset's value.
+struct SimOverrides {
+  double grid_cell_px = -1;
+  double loss_probability = -1;
+  double stereo_failure_probability = -1;
+  double facade_offset_scale = -1;
+  bool any() const {
+    return grid_cell_px >= 0 || loss_probability >= 0 || stereo_failure_probability >= 0 ||
+           facade_offset_scale >= 0;
+  }
+};
+
+// The overrides that are set, written into the tracker and world options.
+void applySimOverrides(const SimOverrides& overrides, TrackerOptions* options);
+void applySimOverrides(const SimOverrides& overrides, WorldOptions* options);
+
 }  // namespace marglab

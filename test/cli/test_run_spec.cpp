@@ -163,6 +163,39 @@ TEST_F(RunSpecTest, RelationErrorIsRefusedBeforeAnyWork) {
   EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
 }
 
+// diagnostics.marg_rounding: refused before any work where it cannot measure (not sc-sq); on a
+// VO-32 run, one CSV row per marginalization beside the results file.
+TEST_F(RunSpecTest, MargRoundingIsRefusedWhereItCannotMeasureAndWritesItsCsv) {
+  const auto refused = runCli(
+      "run --dataset kitti/10 --variant ns-qr-sqrt-f32 --frames 5 --set "
+      "diagnostics.marg_rounding=true -o " +
+      quote(dir_ / "x.h5"));
+  EXPECT_EQ(refused.exit_code, 2) << refused.output;
+  EXPECT_NE(refused.output.find("--set: diagnostics.marg_rounding = true with variant "
+                                "ns-qr-sqrt-f32"),
+            std::string::npos)
+      << refused.output;
+  EXPECT_FALSE(fs::exists(dir_ / "x.h5"));
+  const auto ok = runCli(
+      "run --dataset kitti/10 --variant sc-sc-sq-f32 --frames 30 --set "
+      "diagnostics.marg_rounding=true -o " +
+      quote(dir_ / "y.h5"));
+  ASSERT_EQ(ok.exit_code, 0) << ok.output;
+  std::ifstream csv(dir_ / "y.rounding.csv");
+  std::string header, line;
+  ASSERT_TRUE(std::getline(csv, header));
+  EXPECT_EQ(header.rfind("frame_index,n,n_marg,n_landmarks,total_rel,", 0), 0u) << header;
+  int rows = 0;
+  while (std::getline(csv, line)) ++rows;
+  // One row per marginalization of the window's prior, at most one per frame; /marg counts the
+  // events of the shadow prior once it is not empty, so not more.
+  EXPECT_LE(rows, 30);
+  EXPECT_GE(rows, h5::File::openReadOnly((dir_ / "y.h5").string())
+                      .openGroup("summary")
+                      .attr<std::int64_t>("n_marg"));
+  EXPECT_GT(rows, 10);
+}
+
 // The results file records its spec; run from it (-o elsewhere), the numbers are the same bit for
 // bit.
 TEST_F(RunSpecTest, RunRepeatedFromItsSpecIsBitIdentical) {

@@ -5,11 +5,15 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
 #include <cmath>
+#include <type_traits>
 
 #include "core/diagnostics/diagnostics.h"
 #include "core/estimator/estimator.h"
 #include "core/estimator/marg_policy.h"
+#include "core/estimator/marg_rounding.h"
+#include "core/estimator/window_snapshot.h"
 #include "core/pipeline/run.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
@@ -363,6 +367,102 @@ TEST(VoGauge, GaugeFreePriorHasASixDimensionalNullspace) {
     EXPECT_LT(std::abs(diagnostics.dEm[d]), 1e-6 * std::abs(diagnostics.dEm[kGaugeRandom]))
         << kGaugeDirectionNames[d] << ": " << diagnostics.dEm.transpose();
   }
+}
+
+// diagnostics.marg_rounding (marg_rounding.h) against independent computations, every event of a
+// noisy run in each precision: the reference marginal through the Marginalizer itself
+// (trialMarginalization on the window widened to double, the old prior promoted) gives the run's
+// total error; the gauge information does not depend on the basis of the rigid motions (an SVD's
+// instead of the QR's); f64 injects nothing.
+template <typename Scalar>
+void checkMargRounding(const char* variant_name) {
+  const Scenario scenario(60, true);
+  const Variant variant = Variant::parse(variant_name);
+  SlidingWindowEstimator<Scalar> estimator(testConfig(), variant, rigFromCalib(scenario.calib),
+                                           scenario.truth(0));
+  int events = 0, with_poses = 0, translation_checked = 0;
+  estimator.setMargObserver([&](const Window<Scalar>& w, const MargPlan& plan,
+                                const MargPrior<Scalar>& before, const MargPrior<Scalar>& after) {
+    MargRoundingRow row;
+    ASSERT_TRUE(measureMargRounding(w, plan, before, after, variant, &row).ok());
+    ++events;
+    const Window<double> wd = restoredWindow<double>(snapshotOf(w), variant, w.config());
+    MargPrior<double> before64;
+    before64.storage = before.storage;
+    for (const auto& block : before.blocks) {
+      before64.addBlock(block.var, block.T0.template cast<double>(),
+                        block.sb0.template cast<double>());
+    }
+    before64.setHessian(before.hessian.H.template cast<double>(),
+                        before.hessian.b.template cast<double>(), before.hessian.c);
+    MatXd H_ref;
+    ASSERT_TRUE(trialMarginalization(wd, before64, plan, MargMethod::kSchur, &H_ref).ok());
+    const MatXd H_run = after.hessian.H.template cast<double>();
+    const double total = (H_run - H_ref).norm() / H_ref.norm();
+    // Both are f64 computations of the same marginal (1e-12: far below any f32 rounding).
+    EXPECT_NEAR(row.total.rel_fro, total, 1e-12 + 1e-6 * total);
+    if (std::is_same_v<Scalar, double>) {
+      EXPECT_EQ(row.total.rel_fro, 0.0);
+      EXPECT_EQ(row.schur.rel_fro + row.add_prior.rel_fro + row.new_factors.rel_fro, 0.0);
+    } else if (plan.vars.size() > 0) {
+      ++with_poses;
+      EXPECT_GT(row.total.rel_fro, 0.0);  // f32 rounds
+      // Stored in f32, the marginal is at least its own rounding away, and the stages add up.
+      EXPECT_GE(row.total.rel_fro,
+                0.5 * row.floor_rel_fro);  // the stages may cancel part of the floor
+      EXPECT_LE(row.total.rel_fro,
+                row.new_factors.rel_fro + row.add_prior.rel_fro + row.schur.rel_fro + 1e-12);
+    }
+    // The gauge block in another orthonormal basis of the same 6 rigid motions.
+    PriorLayout layout;
+    GaugeState state;
+    after.gaugeLayout(&layout, &state);
+    const MatXd rigid = gaugeDirections(layout, after.cols(), state, 0).leftCols(6);
+    const MatXd G = Eigen::JacobiSVD<MatXd>(rigid, Eigen::ComputeThinU).matrixU();
+    const MatXd block = G.transpose() * (0.5 * (H_run + H_run.transpose())) * G;
+    const double gauge_min = Eigen::SelfAdjointEigenSolver<MatXd>(block).eigenvalues()(0);
+    const double scale =
+        Eigen::SelfAdjointEigenSolver<MatXd>(H_run).eigenvalues().cwiseAbs().maxCoeff();
+    EXPECT_NEAR(row.gauge_min_run, gauge_min, 1e-12 * scale);
+    // The least information along a translation, in an SVD basis of the raw translations.
+    const MatXd T = Eigen::JacobiSVD<MatXd>(rigid.leftCols(3), Eigen::ComputeThinU).matrixU();
+    const MatXd t_block = T.transpose() * (0.5 * (H_ref + H_ref.transpose())) * T;
+    EXPECT_NEAR(row.translation_min_ref,
+                Eigen::SelfAdjointEigenSolver<MatXd>(t_block).eigenvalues()(0), 1e-12 * scale);
+    EXPECT_GE(row.translation_min_ref, row.gauge_min_ref - 1e-12 * scale);  // a subspace of it
+    ++translation_checked;
+  });
+  for (const TrackFrame& frame : scenario.stream.frames) {
+    ASSERT_TRUE(estimator.processFrame(frame).status.ok());
+  }
+  EXPECT_GT(events, 20);
+  EXPECT_GT(translation_checked, 10);
+  if (std::is_same_v<Scalar, float>) EXPECT_GE(with_poses, 3);  // keyframe events of 60 frames
+}
+
+TEST(VoMargRounding, MatchesTheMarginalizerInDoubleF32) {
+  checkMargRounding<float>("sc-sc-sq-f32");
+}
+TEST(VoMargRounding, InjectsNothingInF64) { checkMargRounding<double>("sc-sc-sq-f64"); }
+
+// A run that is not a VO Schur marginalization of a plain Hessian prior is refused.
+TEST(VoMargRounding, OtherStoragesAreRefused) {
+  const Scenario scenario(10);
+  SlidingWindowEstimator<double> estimator(testConfig(), Variant::parse("sc-sc-sqrt-f64"),
+                                           rigFromCalib(scenario.calib), scenario.truth(0));
+  int refused = 0;
+  estimator.setMargObserver([&](const Window<double>& w, const MargPlan& plan,
+                                const MargPrior<double>& before, const MargPrior<double>& after) {
+    MargRoundingRow row;
+    refused +=
+        measureMargRounding(w, plan, before, after, Variant::parse("sc-sc-sqrt-f64"), &row).ok()
+            ? 0
+            : 1;
+  });
+  for (const TrackFrame& frame : scenario.stream.frames) {
+    ASSERT_TRUE(estimator.processFrame(frame).status.ok());
+  }
+  EXPECT_GT(refused, 0);
 }
 
 }  // namespace

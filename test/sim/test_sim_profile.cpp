@@ -316,5 +316,43 @@ TEST(SimProfileConfig, KeyParsesAndRejectsUnknownNames) {
   }
 }
 
+// [sim] grid_cell_px, loss_probability, stereo_failure_probability replace single tracker
+// settings on top of the profile (−1: keep), and are range-checked with the file and line.
+TEST(SimProfileConfig, OverridesReplaceSingleTrackerSettings) {
+  RunConfig config;
+  EXPECT_FALSE(config.sim_overrides.any());
+  TrackerOptions tracker;
+  const TrackerOptions untouched = tracker;
+  applySimOverrides(config.sim_overrides, &tracker);
+  EXPECT_EQ(tracker.grid_cell_px, untouched.grid_cell_px);
+  EXPECT_EQ(tracker.loss_probability, untouched.loss_probability);
+  EXPECT_EQ(tracker.stereo_failure_probability, untouched.stereo_failure_probability);
+  config.loadTomlString("[sim]\ngrid_cell_px = 20\nloss_probability = 0\n", "c.toml");
+  EXPECT_TRUE(config.sim_overrides.any());
+  applySimOverrides(config.sim_overrides, &tracker);
+  EXPECT_EQ(tracker.grid_cell_px, 20.0);
+  EXPECT_EQ(tracker.loss_probability, 0.0);
+  EXPECT_EQ(tracker.stereo_failure_probability, untouched.stereo_failure_probability);
+  WorldOptions world = defaultWorldOptions(DatasetKind::kKitti);
+  const WorldOptions street = world;
+  applySimOverrides(config.sim_overrides, &world);
+  EXPECT_EQ(world.facade_offset_max, street.facade_offset_max);
+  config.loadTomlString("[sim]\nfacade_offset_scale = 2\n", "c.toml");
+  applySimOverrides(config.sim_overrides, &world);
+  EXPECT_EQ(world.facade_offset_min, 2 * street.facade_offset_min);
+  EXPECT_EQ(world.facade_offset_max, 2 * street.facade_offset_max);
+  for (const char* bad :
+       {"[sim]\ngrid_cell_px = 4\n", "[sim]\nloss_probability = 1.5\n",
+        "[sim]\nstereo_failure_probability = -0.5\n", "[sim]\nfacade_offset_scale = 0\n"}) {
+    RunConfig probe;
+    try {
+      probe.loadTomlString(bad, "c.toml");
+      FAIL() << "accepted " << bad;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("c.toml:2"), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace marglab
