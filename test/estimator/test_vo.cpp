@@ -437,7 +437,9 @@ void checkMargRounding(const char* variant_name) {
   }
   EXPECT_GT(events, 20);
   EXPECT_GT(translation_checked, 10);
-  if (std::is_same_v<Scalar, float>) EXPECT_GE(with_poses, 3);  // keyframe events of 60 frames
+  if (std::is_same_v<Scalar, float>) {
+    EXPECT_GE(with_poses, 3);  // keyframe events of 60 frames
+  }
 }
 
 TEST(VoMargRounding, MatchesTheMarginalizerInDoubleF32) {
