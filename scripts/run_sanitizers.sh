@@ -31,8 +31,13 @@ MODULES="common;data;diagnostics;estimator;experiment;geometry;imu;io;linalg;pip
 # frames, 30-150x slower under ASan at -O1 than in the release build — minutes each). The library
 # code they run is the one the unit tests, the parsers and the fuzzers exercise; one whole run
 # stays in (REPRESENTATIVE): the NFR Schur-complement run, where UBSan once found a null reference
-# bound inside Eigen for a landmark without a pose block.
-LONG_TESTS="^([A-Za-z0-9]+/)?(SlurmSweep|SlurmOutcome|SweepEndToEnd|SweepKill|StrategyTables|NfrStrategy|DenseStrategyTest|Vio[A-Z][A-Za-z]*|Vo[A-Z][A-Za-z]*)\\."
+# bound inside Eigen for a landmark without a pose block. Also left out: profile_provenance, which
+# checks the shipped simulator profiles against the front-end's statistics on the shipped frames,
+# digit for digit. Those digits are the release (GCC) build's; the front-end of this clang -O1
+# build tracks the frames slightly differently (a stereo share moves in its third digit, 0.1232 →
+# 0.12134): another build's floating point, as the same-build reproducibility rule allows. It also
+# runs the CLI through Python, like the end-to-end tests above.
+LONG_TESTS="^([A-Za-z0-9]+/)?(SlurmSweep|SlurmOutcome|SweepEndToEnd|SweepKill|StrategyTables|NfrStrategy|DenseStrategyTest|Vio[A-Z][A-Za-z]*|Vo[A-Z][A-Za-z]*)\\.|^profile_provenance$"
 REPRESENTATIVE="^NfrStrategy\\.EveryKeyframeEventIsSparsifiedSchurF64$"
 
 # ccache keys on paths relative to the checkout, so a clean clone elsewhere (CI) hits the cache.
