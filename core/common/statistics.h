@@ -7,6 +7,9 @@
 
 namespace marglab {
 
+// The arithmetic mean, summed in order; NaN for an empty sample.
+double mean(const std::vector<double>& values);
+
 // The median: for an even count the mean of the two middle values (as numpy's median); NaN for an
 // empty sample.
 double median(std::vector<double> values);

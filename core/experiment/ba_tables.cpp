@@ -44,7 +44,6 @@ struct Group {
   std::map<std::string, std::map<std::uint64_t, Instance>> problems;  // problem → seed → runs
 };
 
-double mean(const std::vector<double>& v) { return meanOf(v); }
 double maximum(const std::vector<double>& v) {
   return v.empty() ? kNaN : *std::max_element(v.begin(), v.end());
 }

@@ -16,6 +16,7 @@
 #include <tuple>
 #include <utility>
 
+#include "core/common/statistics.h"
 #include "core/estimator/estimator_settings.h"
 #include "core/experiment/table_cells.h"
 #include "core/experiment/table_specs.h"
@@ -448,13 +449,13 @@ class Builder {
           sums[m] += v.back();
           if (metrics[m].per != nullptr) pers[m] += metrics[m].per(RunView{*r, files_});
         }
-        per_sequence[m].push_back(meanOf(v));
+        per_sequence[m].push_back(mean(v));
       }
     }
     std::vector<TableCell> cells(metrics.size(), cell);
     for (std::size_t m = 0; m < metrics.size(); ++m) {
       if (cell.state != TableCell::State::kValue) continue;
-      cells[m].numbers = {metrics[m].per != nullptr ? sums[m] / pers[m] : meanOf(per_sequence[m])};
+      cells[m].numbers = {metrics[m].per != nullptr ? sums[m] / pers[m] : mean(per_sequence[m])};
     }
     return cells;
   }
@@ -621,9 +622,9 @@ class Builder {
       for (const auto& [seed, x] : m) v.push_back(x);
       return v;
     };
-    row.mean_64 = ate_64.empty() ? kNaN : meanOf(values(ate_64));
+    row.mean_64 = ate_64.empty() ? kNaN : mean(values(ate_64));
     row.std_64 = sampleStdOf(values(ate_64));
-    row.mean_32 = ate_32.empty() ? kNaN : meanOf(values(ate_32));
+    row.mean_32 = ate_32.empty() ? kNaN : mean(values(ate_32));
     row.std_32 = sampleStdOf(values(ate_32));
     row.delta = std::abs(row.mean_32 - row.mean_64);
     row.relative = row.delta / row.mean_64;
@@ -631,7 +632,7 @@ class Builder {
     for (const auto& [seed, x] : ate_32) {
       if (ate_64.count(seed)) paired.push_back(std::abs(x - ate_64.at(seed)));
     }
-    row.paired = paired.empty() ? kNaN : meanOf(paired);
+    row.paired = paired.empty() ? kNaN : mean(paired);
     row.verdict = !std::isfinite(row.std_64) || ate_32.empty()  ? "–"
                   : row.failed_32 > 0 || row.delta > row.std_64 ? "no"
                                                                 : "yes";

@@ -2,6 +2,7 @@
 // the paper's cell beside it, the best value of a row.
 
 #include "core/experiment/table_cells.h"
+#include "core/common/statistics.h"
 
 #include <algorithm>
 #include <cmath>
@@ -104,7 +105,7 @@ TableCell meanCell(const Selection& sel, const std::vector<RunValue>& quantities
   for (const RunValue value : quantities) {
     std::vector<double> v;
     for (const RunRecord* r : sel.runs) v.push_back(value(RunView{*r, files}));
-    cell.numbers.push_back(meanOf(v));
+    cell.numbers.push_back(mean(v));
   }
   return cell;
 }
@@ -130,7 +131,7 @@ TableCell seedCell(const Selection& sel, const std::vector<RunValue>& quantities
   for (const RunValue value : quantities) {
     std::vector<double> v;
     for (const RunRecord* r : ok) v.push_back(value(RunView{*r, files}));
-    cell.numbers.push_back(meanOf(v));
+    cell.numbers.push_back(mean(v));
     cell.spread.push_back(sampleStdOf(v));
   }
   return cell;

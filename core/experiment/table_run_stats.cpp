@@ -9,6 +9,7 @@
 #include <set>
 
 #include "core/common/error.h"
+#include "core/common/statistics.h"
 #include "core/experiment/table_specs.h"
 #include "core/io/results_file.h"
 
@@ -19,7 +20,7 @@ namespace {
 Moments moments(const std::vector<double>& v) {
   Moments m;
   if (v.empty()) return m;
-  m.mean = meanOf(v);
+  m.mean = mean(v);
   double squares = 0, deviations = 0;
   for (double x : v) {
     squares += x * x;
@@ -64,16 +65,9 @@ std::set<std::int64_t> keyframeMarginalizations(const ResultsReader& reader,
 
 }  // namespace
 
-double meanOf(const std::vector<double>& v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  double s = 0;
-  for (double x : v) s += x;
-  return s / static_cast<double>(v.size());
-}
-
 double sampleStdOf(const std::vector<double>& v) {
   if (v.size() < 2) return std::numeric_limits<double>::quiet_NaN();
-  const double m = meanOf(v);
+  const double m = mean(v);
   double deviations = 0;
   for (double x : v) deviations += (x - m) * (x - m);
   return std::sqrt(deviations / static_cast<double>(v.size() - 1));
@@ -94,8 +88,8 @@ RunFileStats readRunFileStats(const std::string& path) {
     ++s.recovered;
     if (std::isfinite(e.kld)) kld.push_back(e.kld);
   }
-  s.kld_mean = meanOf(kld);
-  s.nnz_ratio = meanOf(ratio);
+  s.kld_mean = mean(kld);
+  s.nnz_ratio = mean(ratio);
   std::vector<double> marg;
   for (const std::int64_t i : keyframeMarginalizations(reader, frames, events, path)) {
     if (i >= 0 && static_cast<std::size_t>(i) < frames.size()) {

@@ -16,8 +16,8 @@
 
 namespace marglab::experiment {
 
-// Mean (NaN for none) and sample standard deviation (n − 1; NaN for fewer than two) of values.
-double meanOf(const std::vector<double>& v);
+// Sample standard deviation (n − 1; NaN for fewer than two) of values (their mean:
+// core/common/statistics.h).
 double sampleStdOf(const std::vector<double>& v);
 
 // The moments of one per-frame series of a run (Hsiung et al.'s Table II statistics).

@@ -193,12 +193,6 @@ std::vector<DisparitySample> motionStereoSamples(const TrackStream& stream,
 
 namespace {
 
-double mean(const std::vector<double>& v) {
-  double sum = 0;
-  for (double x : v) sum += x;
-  return sum / static_cast<double>(v.size());
-}
-
 double standardError(const std::vector<double>& v) {
   const double m = mean(v);
   double ss = 0;

@@ -11,6 +11,11 @@
 namespace marglab {
 namespace {
 
+TEST(Statistics, MeanOfASampleAndNanForNone) {
+  EXPECT_EQ(mean({1.0, 2.0, 6.0}), 3.0);
+  EXPECT_TRUE(std::isnan(mean({})));
+}
+
 TEST(Statistics, MedianAveragesTheMiddlePairOfAnEvenCount) {
   EXPECT_EQ(median({3.0, 1.0, 2.0}), 2.0);
   EXPECT_EQ(median({4.0, 1.0, 3.0, 2.0}), 2.5);

@@ -15,6 +15,7 @@
 
 #include "common/cli_runner.h"
 #include "common/temp_dir.h"
+#include "core/common/statistics.h"
 #include "core/experiment/sweep_common.h"
 #include "core/experiment/sweep_index.h"
 #include "core/experiment/tables.h"
@@ -26,7 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 using test::readText;
 
-double meanOf(const std::vector<double>& v) {
+double mean(const std::vector<double>& v) {
   double s = 0;
   for (double x : v) s += x;
   return s / static_cast<double>(v.size());
@@ -34,7 +35,7 @@ double meanOf(const std::vector<double>& v) {
 
 // Sample standard deviation, two-pass.
 double sampleStdOf(const std::vector<double>& v) {
-  const double m = meanOf(v);
+  const double m = mean(v);
   double s = 0;
   for (double x : v) s += (x - m) * (x - m);
   return std::sqrt(s / static_cast<double>(v.size() - 1));
@@ -145,7 +146,7 @@ TEST_F(SeedTables, CellsAreMeanStdAndFailureCountsOfTheResultsFiles) {
   for (const auto& [key, values] : ate) {
     SCOPED_TRACE(key);
     const std::string k = "table1|" + key;
-    EXPECT_DOUBLE_EQ(std::stod(csv.at(k, "ours")), meanOf(values));
+    EXPECT_DOUBLE_EQ(std::stod(csv.at(k, "ours")), mean(values));
     EXPECT_NEAR(std::stod(csv.at(k, "ours_std")), sampleStdOf(values), 1e-15);
     EXPECT_EQ(csv.at(k, "ours_state"), "ok");
   }
@@ -165,7 +166,7 @@ TEST_F(SeedTables, CellsAreMeanStdAndFailureCountsOfTheResultsFiles) {
   // Markdown: mean ± std with the row's 4 decimals, and the failure counts.
   const std::string md = readText(tables / "table1.md");
   const std::vector<double>& room32 = ate.at(room + "|ns-qr-sqrt-f32");
-  EXPECT_NE(md.find(fmt::format("{:.4f} ± {:.4f} x 1/3", meanOf(room32), sampleStdOf(room32))),
+  EXPECT_NE(md.find(fmt::format("{:.4f} ± {:.4f} x 1/3", mean(room32), sampleStdOf(room32))),
             std::string::npos)
       << md;
   EXPECT_NE(md.find("| x 3/3 |"), std::string::npos) << md;
@@ -191,7 +192,7 @@ TEST_F(SeedTables, PreconditionedTableHasTheNewStoragesBesideTheReferences) {
   const fs::path tables = writeTablesOf(SeedStats::kAuto);
 
   const Csv csv = readCsv(tables / "preconditioned.csv", {"row", "variant"});
-  EXPECT_DOUBLE_EQ(std::stod(csv.at(mh + "|sc-sc-sqp-f32", "ours")), meanOf(sqp));
+  EXPECT_DOUBLE_EQ(std::stod(csv.at(mh + "|sc-sc-sqp-f32", "ours")), mean(sqp));
   EXPECT_NEAR(std::stod(csv.at(mh + "|sc-sc-sqp-f32", "ours_std")), sampleStdOf(sqp), 1e-15);
   EXPECT_EQ(csv.at(mh + "|sc-sc-sqp-f32", "ours_failed"), "1");
   EXPECT_EQ(csv.at(kitti + "|sc-sc-sqrtp-f32", "ours_state"), "ok");
@@ -208,7 +209,7 @@ TEST_F(SeedTables, PreconditionedTableHasTheNewStoragesBesideTheReferences) {
             std::string::npos)
       << md;
   EXPECT_EQ(md.find("paper |"), std::string::npos) << md;
-  EXPECT_NE(md.find(fmt::format("{:.4f} ± {:.4f} x 1/3", meanOf(sqp), sampleStdOf(sqp))),
+  EXPECT_NE(md.find(fmt::format("{:.4f} ± {:.4f} x 1/3", mean(sqp), sampleStdOf(sqp))),
             std::string::npos)
       << md;
   const std::string tex = readText(tables / "preconditioned.tex");
@@ -237,13 +238,13 @@ TEST_F(SeedTables, ClaimTableComparesTheF32DifferenceWithTheF64Spread) {
       v32.push_back(ate.at(d + "|32").at(seed));
       paired.push_back(std::abs(ate.at(d + "|32").at(seed) - x));
     }
-    const double delta = std::abs(meanOf(v32) - meanOf(v64));
-    EXPECT_DOUBLE_EQ(std::stod(csv.at(d, "mean_f64")), meanOf(v64));
+    const double delta = std::abs(mean(v32) - mean(v64));
+    EXPECT_DOUBLE_EQ(std::stod(csv.at(d, "mean_f64")), mean(v64));
     EXPECT_NEAR(std::stod(csv.at(d, "std_f64")), sampleStdOf(v64), 1e-15);
-    EXPECT_DOUBLE_EQ(std::stod(csv.at(d, "mean_f32")), meanOf(v32));
+    EXPECT_DOUBLE_EQ(std::stod(csv.at(d, "mean_f32")), mean(v32));
     EXPECT_NEAR(std::stod(csv.at(d, "delta")), delta, 1e-15);
-    EXPECT_NEAR(std::stod(csv.at(d, "relative")), delta / meanOf(v64), 1e-12);
-    EXPECT_NEAR(std::stod(csv.at(d, "paired")), meanOf(paired), 1e-15);
+    EXPECT_NEAR(std::stod(csv.at(d, "relative")), delta / mean(v64), 1e-12);
+    EXPECT_NEAR(std::stod(csv.at(d, "paired")), mean(paired), 1e-15);
     EXPECT_EQ(csv.at(d, "seeds_f64"), "3");
     EXPECT_EQ(csv.at(d, "within"), delta <= sampleStdOf(v64) ? "yes" : "no");
   }
@@ -260,7 +261,7 @@ TEST_F(SeedTables, OffKeepsSingleValuesAndOnWorksWithOneSeed) {
   addRun(mh, "ns-qr-sqrt-f32", 2, 0.1, RunStatus::kFailed);
   const fs::path off = writeTablesOf(SeedStats::kOff);
   Csv csv = readCsv(off / "tables.csv", {"table", "row", "variant"});
-  EXPECT_DOUBLE_EQ(std::stod(csv.at("table1|" + mh + "|ns-qr-sqrt-f64", "ours")), meanOf(v));
+  EXPECT_DOUBLE_EQ(std::stod(csv.at("table1|" + mh + "|ns-qr-sqrt-f64", "ours")), mean(v));
   EXPECT_EQ(csv.at("table1|" + mh + "|ns-qr-sqrt-f64", "ours_std"), "");
   // Without seed statistics any failed seed fails the cell, as before.
   EXPECT_EQ(csv.at("table1|" + mh + "|ns-qr-sqrt-f32", "ours_state"), "failed");

@@ -16,6 +16,7 @@
 
 #include "common/cli_runner.h"
 #include "common/temp_dir.h"
+#include "core/common/statistics.h"
 #include "core/experiment/sweep_index.h"
 #include "core/experiment/tables.h"
 #include "core/io/results_file.h"
@@ -35,7 +36,7 @@ struct Expected {
   std::vector<double> t_opt, t_marg_kf;  // per frame; per keyframe marginalization
 };
 
-double meanOf(const std::vector<double>& v) {
+double mean(const std::vector<double>& v) {
   double s = 0;
   for (double x : v) s += x;
   return s / static_cast<double>(v.size());
@@ -46,7 +47,7 @@ double rmseOf(const std::vector<double>& v) {
   return std::sqrt(s / static_cast<double>(v.size()));
 }
 double stdOf(const std::vector<double>& v) {
-  const double m = meanOf(v);
+  const double m = mean(v);
   double s = 0;
   for (double x : v) s += (x - m) * (x - m);
   return std::sqrt(s / static_cast<double>(v.size()));
@@ -99,8 +100,8 @@ Expected writeRun(const std::string& path, const std::string& dataset, const std
     if (s.recovered) kld.push_back(s.kld);
     ratio.push_back(static_cast<double>(s.nnz_sparse) / static_cast<double>(s.nnz_dense));
   }
-  e.kld = kld.empty() ? 0 : meanOf(kld);
-  e.nnz_ratio = ratio.empty() ? 0 : meanOf(ratio);
+  e.kld = kld.empty() ? 0 : mean(kld);
+  e.nnz_ratio = ratio.empty() ? 0 : mean(ratio);
   e.ate =
       w.finish(RunSummary{}, status, status == RunStatus::kOk ? -1 : kFrames - 1, "test").ate_rmse;
   return e;
@@ -243,10 +244,10 @@ TEST_F(StrategyTables, ValuesEqualTheResultsFiles) {
     SCOPED_TRACE(key);
     const Expected& e = expected_.at(key);
     const std::string prefix = "sparsify_table2|" + key + "|";
-    EXPECT_DOUBLE_EQ(number(prefix + "opt_mean|time_s"), meanOf(e.t_opt));
+    EXPECT_DOUBLE_EQ(number(prefix + "opt_mean|time_s"), mean(e.t_opt));
     EXPECT_DOUBLE_EQ(number(prefix + "opt_rmse|time_s"), rmseOf(e.t_opt));
     EXPECT_NEAR(number(prefix + "opt_std|time_s"), stdOf(e.t_opt), 1e-15);
-    EXPECT_DOUBLE_EQ(number(prefix + "marg_mean|time_s"), meanOf(e.t_marg_kf));
+    EXPECT_DOUBLE_EQ(number(prefix + "marg_mean|time_s"), mean(e.t_marg_kf));
     EXPECT_DOUBLE_EQ(number(prefix + "marg_rmse|time_s"), rmseOf(e.t_marg_kf));
     EXPECT_NEAR(number(prefix + "marg_std|time_s"), stdOf(e.t_marg_kf), 1e-15);
   }
