@@ -36,6 +36,7 @@ set(MARGLAB_ISA_KERNEL_SOURCES
     ${CMAKE_CURRENT_SOURCE_DIR}/estimator/window_landmark.cpp
     ${CMAKE_CURRENT_SOURCE_DIR}/ba/snavely_residual.cpp
     ${CMAKE_CURRENT_SOURCE_DIR}/linalg/landmark_block.cpp
+    ${CMAKE_CURRENT_SOURCE_DIR}/linalg/landmark_block_implicit.cpp
     ${CMAKE_CURRENT_SOURCE_DIR}/linalg/landmark_block_sc.cpp
     ${CMAKE_CURRENT_SOURCE_DIR}/linalg/rcs_solve.cpp)
 set(MARGLAB_ISA_FLAGS_sse2 "")

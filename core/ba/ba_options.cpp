@@ -10,8 +10,9 @@
 namespace marglab {
 namespace {
 
-constexpr std::array<const char*, 7> kSolverNames = {
-    "ns-f32", "ns-f64", "sc-f32", "sc-f64", "ceres-implicit", "ceres-explicit", "ceres-sparse"};
+constexpr std::array<const char*, 9> kSolverNames = {
+    "ns-f32", "ns-f64",         "nsx-f32",        "nsx-f64",     "sc-f32",
+    "sc-f64", "ceres-implicit", "ceres-explicit", "ceres-sparse"};
 
 void require(bool ok, const std::string& message, std::vector<Problem>* problems) {
   if (!ok) problems->push_back({ProblemKind::kUsage, "", 0, message});
@@ -49,7 +50,9 @@ BaSolver parseBaSolver(const std::string& name) {
 bool isCeres(BaSolver solver) { return solver >= BaSolver::kCeresImplicit; }
 
 const char* precisionOf(BaSolver solver) {
-  return solver == BaSolver::kNsF32 || solver == BaSolver::kScF32 ? "f32" : "f64";
+  return solver == BaSolver::kNsF32 || solver == BaSolver::kNsxF32 || solver == BaSolver::kScF32
+             ? "f32"
+             : "f64";
 }
 
 std::vector<Problem> validate(const BaOptions& o) {

@@ -20,8 +20,10 @@
 namespace marglab {
 
 enum class BaSolver {
-  kNsF32,
+  kNsF32,  // nullspace projection, kept implicit (core/linalg/landmark_block_implicit.h)
   kNsF64,
+  kNsxF32,  // nullspace projection, the reduced rows explicit (rootba's storage, the estimator's)
+  kNsxF64,
   kScF32,
   kScF64,
   kCeresImplicit,

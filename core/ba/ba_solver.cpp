@@ -176,11 +176,15 @@ BaResult solveBundleAdjustment(const BalProblem& problem, const BaOptions& optio
   switch (options.solver) {
     case BaSolver::kNsF64:
       return runLm<double>(problem, options, BaElimination::kNullspace, solution);
+    case BaSolver::kNsxF64:
+      return runLm<double>(problem, options, BaElimination::kNullspaceExplicit, solution);
     case BaSolver::kScF64:
       return runLm<double>(problem, options, BaElimination::kSchur, solution);
 #if defined(MARGLAB_WITH_FLOAT)
     case BaSolver::kNsF32:
       return runLm<float>(problem, options, BaElimination::kNullspace, solution);
+    case BaSolver::kNsxF32:
+      return runLm<float>(problem, options, BaElimination::kNullspaceExplicit, solution);
     case BaSolver::kScF32:
       return runLm<float>(problem, options, BaElimination::kSchur, solution);
 #endif

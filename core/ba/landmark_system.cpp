@@ -12,6 +12,7 @@
 #include "core/common/scalar.h"
 #include "core/common/thread_pool.h"
 #include "core/linalg/landmark_block.h"
+#include "core/linalg/landmark_block_implicit.h"
 
 #if !defined(MARGLAB_ISA_NS)
 #error "compiled per ISA only: core/isa_kernels.cmake defines MARGLAB_ISA_NS"
@@ -50,15 +51,15 @@ class LandmarkSystem final : public BaLinearSystem<typename Block::Scalar> {
   struct LocalScratch {
     VecX<Scalar> x, t, y;
   };
-  // local(block, scratch) writes the block's 9n entries to scratch.y.head(9n), for every block in
-  // parallel; then out_c += the camera's slots, in landmark order.
+  // local(block, scratch, y) writes the block's 9n entries to y (its segment of local_), for every
+  // block in parallel; then out_c += the camera's slots, in landmark order.
   template <typename LocalFn>
   void gatherOverCameras(const LocalFn& local, VecX<Scalar>* out) const;
   VecX<Scalar> nullspaceGradient() const;
   void addNullspaceCameraBlocks(std::vector<Mat<Scalar, 9, 9>>* D) const;
   void addNullspaceProduct(const VecX<Scalar>& x, VecX<Scalar>* Ax) const;
   Status reducedSystemInChunks(MatX<Scalar>* S, VecX<Scalar>* g) const;
-  Status setBlock(int point, const std::vector<ObservationRows>& rows, Block* block);
+  Status setBlock(size_t b, const std::vector<ObservationRows>& rows);
   // The 9×9 camera blocks of S + λI (ns: from the reduced rows; sc: from S).
   std::vector<Mat<Scalar, 9, 9>> cameraBlocks(Scalar lambda, const MatX<Scalar>& S) const;
   Status backSubstitute(const VecX<Scalar>& x, BaStep<Scalar>* step) const;
@@ -70,9 +71,11 @@ class LandmarkSystem final : public BaLinearSystem<typename Block::Scalar> {
   std::vector<std::vector<int>> point_observations_;  // observation indices of each point
   std::vector<int> point_block_;                      // block index of a point, −1 when fixed
   std::vector<int> block_point_;                      // point of each block
+  std::vector<PoseBlockMap> block_maps_;              // cameras of each block
   std::vector<Eigen::Index> local_offset_;            // of each block in local_
   Eigen::Index max_track_ = 0;                        // the most observations of a block
   std::vector<std::vector<CameraSlot>> camera_slots_;
+  std::vector<ObservationRows> rows_;  // of the last linearization, storage kept
   mutable VecX<Scalar> local_;  // the blocks' local vectors (9n each), reused by every product
   mutable std::vector<MatX<Scalar>> chunk_S_;  // sc: the reduction chunks 1, 2, ... (0 adds to S)
   mutable std::vector<VecX<Scalar>> chunk_g_;
@@ -90,7 +93,11 @@ struct LandmarkSystem<Block>::ObservationRows {
 };
 
 template <typename Block>
-constexpr bool kIsNullspace = std::is_same_v<Block, LandmarkBlockNs<typename Block::Scalar>>;
+constexpr bool kIsImplicit =
+    std::is_same_v<Block, LandmarkBlockNsImplicit<typename Block::Scalar, kBalCameraDim>>;
+template <typename Block>
+constexpr bool kIsNullspace =
+    kIsImplicit<Block> || std::is_same_v<Block, LandmarkBlockNs<typename Block::Scalar>>;
 
 // 1 / (ε + ‖column‖), ε of the scalar (rootba's jacobi_scaling_epsilon = 0 default).
 template <typename Scalar, typename Derived>
@@ -147,7 +154,10 @@ void LandmarkSystem<Block>::indexBlocks() {
     point_block_[l] = block;
     block_point_.push_back(static_cast<int>(l));
     local_offset_.push_back(offset);
+    PoseBlockMap& map = block_maps_.emplace_back();
+    map.pose_dim = kBalCameraDim;
     for (size_t j = 0; j < obs.size(); ++j) {
+      map.rcs_offset.push_back(kBalCameraDim * problem_.observations[obs[j]].camera);
       camera_slots_[problem_.observations[obs[j]].camera].push_back(
           {block, static_cast<int>(j), offset + kBalCameraDim * static_cast<Eigen::Index>(j)});
     }
@@ -159,15 +169,14 @@ void LandmarkSystem<Block>::indexBlocks() {
 
 template <typename Block>
 Status LandmarkSystem<Block>::linearize(const BalState<Scalar>& state, const RobustLoss& loss) {
-  std::vector<ObservationRows> rows(problem_.observations.size());
+  std::vector<ObservationRows>& rows = rows_;
+  rows.resize(problem_.observations.size());
   Status status = observationRows(state, loss, &rows);
   if (!status.ok()) return status;
   cameraColumnScaling(rows);
-  blocks_.clear();
-  blocks_.resize(block_point_.size());
+  blocks_.resize(block_point_.size());  // every block is set anew; their storage is kept
   point_scaling_.assign(problem_.points.size(), Vec3<Scalar>::Zero());
-  return forEachIndex(*pool_, blocks_.size(),
-                      [&](size_t b) { return setBlock(block_point_[b], rows, &blocks_[b]); });
+  return forEachIndex(*pool_, blocks_.size(), [&](size_t b) { return setBlock(b, rows); });
 }
 
 template <typename Block>
@@ -202,28 +211,43 @@ void LandmarkSystem<Block>::cameraColumnScaling(const std::vector<ObservationRow
 }
 
 template <typename Block>
-Status LandmarkSystem<Block>::setBlock(int point, const std::vector<ObservationRows>& rows,
-                                       Block* block) {
+Status LandmarkSystem<Block>::setBlock(size_t b, const std::vector<ObservationRows>& rows) {
+  const int point = block_point_[b];
   const std::vector<int>& obs = point_observations_[point];
   const int n = static_cast<int>(obs.size());
-  MatX<Scalar> J_p = MatX<Scalar>::Zero(2 * n, kBalCameraDim * n);
-  Mat<Scalar, Eigen::Dynamic, 3> J_l(2 * n, 3);
-  VecX<Scalar> r(2 * n);
-  PoseBlockMap map;
-  map.pose_dim = kBalCameraDim;
+  const Eigen::Index m = 2 * n;
+  // The implicit block takes each observation's 2 × 9 rows stacked; the explicit one the dense
+  // J_p over the landmark's cameras. Per-thread buffers for the longest track, kept.
+  const Eigen::Index max_cols = kIsImplicit<Block> ? kBalCameraDim : kBalCameraDim * max_track_;
+  thread_local MatX<Scalar> J_p_buffer;
+  thread_local Mat<Scalar, Eigen::Dynamic, 3> J_l_buffer;
+  thread_local VecX<Scalar> r_buffer;
+  if (J_p_buffer.rows() < 2 * max_track_ || J_p_buffer.cols() < max_cols) {
+    J_p_buffer.resize(2 * max_track_, max_cols);
+    J_l_buffer.resize(2 * max_track_, 3);
+    r_buffer.resize(2 * max_track_);
+  }
+  auto J_p = J_p_buffer.topLeftCorner(m, kIsImplicit<Block> ? kBalCameraDim : kBalCameraDim * n);
+  auto J_l = J_l_buffer.topRows(m);
+  auto r = r_buffer.head(m);
+  J_p.setZero();
   for (int j = 0; j < n; ++j) {
     const int camera = problem_.observations[obs[j]].camera;
-    J_p.template block<2, kBalCameraDim>(2 * j, kBalCameraDim * j) =
+    J_p.template block<2, kBalCameraDim>(2 * j, kIsImplicit<Block> ? 0 : kBalCameraDim * j) =
         rows[obs[j]].J_camera *
         camera_scaling_.template segment<kBalCameraDim>(kBalCameraDim * camera).asDiagonal();
     J_l.template middleRows<2>(2 * j) = rows[obs[j]].J_point;
     r.template segment<2>(2 * j) = rows[obs[j]].r;
-    map.rcs_offset.push_back(kBalCameraDim * camera);
   }
   point_scaling_[point] =
       inverseColumnScale<Scalar>(J_l.colwise().squaredNorm().array()).transpose();
-  J_l = J_l * point_scaling_[point].asDiagonal();
-  return block->setFromJacobians(J_p, J_l, r, std::move(map));
+  J_l *= point_scaling_[point].asDiagonal();
+  if constexpr (kIsImplicit<Block>) {
+    return blocks_[b].setFromJacobians(J_p, J_l, r, block_maps_[b]);
+  } else {
+    return blocks_[b].setFromJacobians(MatX<Scalar>(J_p), Mat<Scalar, Eigen::Dynamic, 3>(J_l),
+                                       VecX<Scalar>(r), block_maps_[b]);
+  }
 }
 
 template <typename Block>
@@ -235,8 +259,9 @@ void LandmarkSystem<Block>::gatherOverCameras(const LocalFn& local, VecX<Scalar>
     for (size_t b = begin; b < end; ++b) {
       const Eigen::Index n =
           kBalCameraDim * static_cast<Eigen::Index>(blocks_[b].map().rcs_offset.size());
-      local(blocks_[b], scratch);
-      local_.segment(local_offset_[b], n) = scratch.y.head(n);
+      // The explicit block's products go through the scratch (aligned, as Eigen's kernels have
+      // always seen them); the implicit one writes its slots in place.
+      local(blocks_[b], scratch, local_.segment(local_offset_[b], n));
     }
   });
   pool_->forChunks(camera_slots_.size(), [&](size_t begin, size_t end, int) {
@@ -254,9 +279,13 @@ template <typename Block>
 VecX<typename Block::Scalar> LandmarkSystem<Block>::nullspaceGradient() const {
   VecX<Scalar> g = VecX<Scalar>::Zero(camera_scaling_.size());
   gatherOverCameras(
-      [](const Block& block, LocalScratch& s) {
-        s.y.head(block.reducedJp().cols()).noalias() =
-            block.reducedJp().transpose() * block.reducedR();
+      [](const Block& block, LocalScratch& s, auto y) {
+        if constexpr (kIsImplicit<Block>) {
+          block.reducedGradient(y.data());
+        } else {
+          s.y.head(y.size()).noalias() = block.reducedJp().transpose() * block.reducedR();
+          y = s.y.head(y.size());
+        }
       },
       &g);
   return g;
@@ -269,9 +298,13 @@ void LandmarkSystem<Block>::addNullspaceCameraBlocks(std::vector<Mat<Scalar, 9, 
   pool_->forChunks(camera_slots_.size(), [&](size_t begin, size_t end, int) {
     for (size_t c = begin; c < end; ++c) {
       for (const CameraSlot& slot : camera_slots_[c]) {
-        const auto Jr = blocks_[static_cast<size_t>(slot.block)].reducedJp();
-        const auto Jr_j = Jr.middleCols(kBalCameraDim * slot.slot, kBalCameraDim);
-        (*D)[c].noalias() += Jr_j.transpose() * Jr_j;
+        const Block& block = blocks_[static_cast<size_t>(slot.block)];
+        if constexpr (kIsImplicit<Block>) {
+          (*D)[c] += block.reducedCameraBlock(slot.slot);
+        } else {
+          const auto Jr_j = block.reducedJp().middleCols(kBalCameraDim * slot.slot, kBalCameraDim);
+          (*D)[c].noalias() += Jr_j.transpose() * Jr_j;
+        }
       }
     }
   });
@@ -281,15 +314,20 @@ void LandmarkSystem<Block>::addNullspaceCameraBlocks(std::vector<Mat<Scalar, 9, 
 template <typename Block>
 void LandmarkSystem<Block>::addNullspaceProduct(const VecX<Scalar>& x, VecX<Scalar>* Ax) const {
   gatherOverCameras(
-      [&x](const Block& block, LocalScratch& s) {
-        const std::vector<int>& offsets = block.map().rcs_offset;
-        const auto Jr = block.reducedJp();
-        for (size_t j = 0; j < offsets.size(); ++j) {
-          s.x.template segment<kBalCameraDim>(kBalCameraDim * j) =
-              x.template segment<kBalCameraDim>(offsets[j]);
+      [&x](const Block& block, LocalScratch& s, auto y) {
+        if constexpr (kIsImplicit<Block>) {
+          block.reducedProduct(x, s.t.data(), y.data());
+        } else {
+          const std::vector<int>& offsets = block.map().rcs_offset;
+          for (size_t j = 0; j < offsets.size(); ++j) {
+            s.x.template segment<kBalCameraDim>(kBalCameraDim * j) =
+                x.template segment<kBalCameraDim>(offsets[j]);
+          }
+          const auto Jr = block.reducedJp();
+          s.t.head(Jr.rows()).noalias() = Jr * s.x.head(Jr.cols());
+          s.y.head(Jr.cols()).noalias() = Jr.transpose() * s.t.head(Jr.rows());
+          y = s.y.head(y.size());
         }
-        s.t.head(Jr.rows()).noalias() = Jr * s.x.head(Jr.cols());
-        s.y.head(Jr.cols()).noalias() = Jr.transpose() * s.t.head(Jr.rows());
       },
       Ax);
 }
@@ -436,6 +474,10 @@ template <typename Scalar>
 std::unique_ptr<BaLinearSystem<Scalar>> makeSystem(const BalProblem& problem,
                                                    BaElimination elimination, ThreadPool& pool) {
   if (elimination == BaElimination::kNullspace) {
+    return std::make_unique<LandmarkSystem<LandmarkBlockNsImplicit<Scalar, kBalCameraDim>>>(problem,
+                                                                                            &pool);
+  }
+  if (elimination == BaElimination::kNullspaceExplicit) {
     return std::make_unique<LandmarkSystem<LandmarkBlockNs<Scalar>>>(problem, &pool);
   }
   return std::make_unique<LandmarkSystem<LandmarkBlockSc<Scalar>>>(problem, &pool);

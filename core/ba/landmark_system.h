@@ -47,7 +47,10 @@ struct BaStep {
   CgSummary cg;
 };
 
-enum class BaElimination { kNullspace, kSchur };
+// kNullspace: the projection kept implicit (LandmarkBlockNsImplicit, O(m) products per landmark);
+// kNullspaceExplicit: the reduced rows Q2ᵀJ_p formed in place (LandmarkBlockNs, rootba's storage
+// and the estimator's block, O(m²)); kSchur: LandmarkBlockSc.
+enum class BaElimination { kNullspace, kNullspaceExplicit, kSchur };
 
 // The linear system of one LM linearization (above). Made by makeBaLinearSystem: its code is
 // compiled per ISA (landmark_system.cpp, with the landmark blocks it uses; core/isa_kernels.cmake)

@@ -52,7 +52,9 @@ BalState<To> castState(const BalState<From>& state) {
 // the cost falls by more than 1 %; a converged run stops once a step gains less than 1e-6), and
 // the f32 / f64 gap is not the rounding of the cost's evaluation: evaluating the f64 end point in
 // float moves its cost by less than a tenth of the gap, and the f32 end point evaluated in double
-// keeps the gap. Over rootba's seed and the four of results/bal.
+// keeps the gap. Over rootba's seed and the four of results/bal, with the explicit reduced rows
+// (nsx, rootba's storage) the finding was made with; the implicit storage's f32 run ends nearer
+// f64 on some seeds (seed 2: a gap of twice the float evaluation's rounding).
 TEST(BaDubrovnik3, FiftyIterationsEndOnUnconvergedTrajectories) {
   for (const std::uint64_t seed : {38401, 1, 2, 3, 4}) {
     const BalProblem problem = dubrovnikUnderProtocol(seed);
@@ -60,9 +62,9 @@ TEST(BaDubrovnik3, FiftyIterationsEndOnUnconvergedTrajectories) {
     options.iterations = 50;
     options.huber_px = 1;
     BalState<double> x64, x32;
-    options.solver = BaSolver::kNsF64;
+    options.solver = BaSolver::kNsxF64;
     const BaResult r64 = solveBundleAdjustment(problem, options, &x64);
-    options.solver = BaSolver::kNsF32;
+    options.solver = BaSolver::kNsxF32;
     const BaResult r32 = solveBundleAdjustment(problem, options, &x32);
     for (const BaResult* r : {&r64, &r32}) {
       EXPECT_EQ(r->status, "max_iterations") << seed;

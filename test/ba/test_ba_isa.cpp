@@ -83,7 +83,9 @@ void expectIsasAgree(BaElimination elimination) {
     const double step_error = (other.step - reference.step).norm() / reference.step.norm();
     testing::Test::RecordProperty(
         fmt::format("{}_{}_{}_step_error", isaName(isa), NumericTraits<Scalar>::name(),
-                    elimination == BaElimination::kNullspace ? "ns" : "sc"),
+                    elimination == BaElimination::kNullspace           ? "ns"
+                    : elimination == BaElimination::kNullspaceExplicit ? "nsx"
+                                                                       : "sc"),
         fmt::format("{:.3e} (kappa {:.2e})", step_error, kappa));
     EXPECT_LE(S_error, system_tol) << isaName(isa);
     EXPECT_LE(g_error, system_tol) << isaName(isa);
@@ -96,10 +98,16 @@ void expectIsasAgree(BaElimination elimination) {
 TEST(BaIsa, CopiesAgreeToRoundingNullspaceF64) {
   expectIsasAgree<double>(BaElimination::kNullspace);
 }
+TEST(BaIsa, CopiesAgreeToRoundingNullspaceExplicitF64) {
+  expectIsasAgree<double>(BaElimination::kNullspaceExplicit);
+}
 TEST(BaIsa, CopiesAgreeToRoundingSchurF64) { expectIsasAgree<double>(BaElimination::kSchur); }
 #if defined(MARGLAB_WITH_FLOAT)
 TEST(BaIsa, CopiesAgreeToRoundingNullspaceF32) {
   expectIsasAgree<float>(BaElimination::kNullspace);
+}
+TEST(BaIsa, CopiesAgreeToRoundingNullspaceExplicitF32) {
+  expectIsasAgree<float>(BaElimination::kNullspaceExplicit);
 }
 TEST(BaIsa, CopiesAgreeToRoundingSchurF32) { expectIsasAgree<float>(BaElimination::kSchur); }
 #endif

@@ -33,15 +33,16 @@ VecX<double> stacked(const BaStep<double>& step) {
   return v;
 }
 
-// Both eliminations of the same linearization, damped with the same λ. The reduced systems differ
-// by the rounding of two algorithms that are equal in exact arithmetic: a few ε relative to the
-// largest entry, amplified by the conditioning of the 3×3 landmark blocks (≈ 1 after the Jacobian
-// scaling) — 1e-9 leaves the margin of ~10⁵ ε that rootba's equivalence test also uses.
-TEST(LandmarkSystem, NullspaceAndSchurGiveTheSameReducedSystemAndStep) {
+// Each nullspace storage (implicit, explicit rows) against the Schur complement, on the same
+// linearization damped with the same λ. The reduced systems differ by the rounding of algorithms
+// that are equal in exact arithmetic: a few ε relative to the largest entry, amplified by the
+// conditioning of the 3×3 landmark blocks (≈ 1 after the Jacobian scaling) — 1e-9 leaves the margin
+// of ~10⁵ ε that rootba's equivalence test also uses.
+void expectNullspaceEqualsSchur(BaElimination nullspace) {
   const BalProblem problem = shipped("ladybug-problem-49-7776-pre-shrink-1800.txt.bz2");
   const BalState<double> state = BalState<double>::fromProblem(problem);
   ThreadPool pool(1);
-  const auto ns = makeBaLinearSystem<double>(problem, BaElimination::kNullspace, pool);
+  const auto ns = makeBaLinearSystem<double>(problem, nullspace, pool);
   const auto sc = makeBaLinearSystem<double>(problem, BaElimination::kSchur, pool);
   ASSERT_TRUE(ns->linearize(state, RobustLoss{}).ok());
   ASSERT_TRUE(sc->linearize(state, RobustLoss{1.0}).ok());  // a different loss: relinearized below
@@ -56,14 +57,22 @@ TEST(LandmarkSystem, NullspaceAndSchurGiveTheSameReducedSystemAndStep) {
   ASSERT_TRUE(sc->denseReducedSystem(&S_sc, &g_sc).ok());
   const double S_error = (S_ns - S_sc).norm() / S_sc.norm();
   const double step_error = relativeError(stacked(step_ns), stacked(step_sc));
-  RecordProperty("reduced_system_relative_error", fmt::format("{:.3e}", S_error));
-  RecordProperty("step_relative_error", fmt::format("{:.3e}", step_error));
+  testing::Test::RecordProperty("reduced_system_relative_error", fmt::format("{:.3e}", S_error));
+  testing::Test::RecordProperty("step_relative_error", fmt::format("{:.3e}", step_error));
   EXPECT_LT(S_error, 1e-9);
   EXPECT_LT(relativeError(g_ns, g_sc), 1e-9);
   EXPECT_EQ(step_ns.cg.iterations, step_sc.cg.iterations);
   EXPECT_LT(step_error, 1e-9);
   EXPECT_NEAR(step_ns.model_change / step_sc.model_change, 1.0, 1e-9);
   EXPECT_LT(step_ns.model_change, 0);
+}
+
+TEST(LandmarkSystem, NullspaceAndSchurGiveTheSameReducedSystemAndStep) {
+  expectNullspaceEqualsSchur(BaElimination::kNullspace);
+}
+
+TEST(LandmarkSystem, ExplicitNullspaceRowsAndSchurGiveTheSameReducedSystemAndStep) {
+  expectNullspaceEqualsSchur(BaElimination::kNullspaceExplicit);
 }
 
 // CG on a random SPD system with condition number 10⁴, run to convergence, against LDLT: both
@@ -181,7 +190,7 @@ TEST(BundleAdjustment, ThreadCountDoesNotChangeTheNumbers) {
   BalProblem problem = shipped("ladybug-problem-49-7776-pre-shrink-1800.txt.bz2");
   normalizeBalProblem(&problem, 100);
   perturbBalProblem(&problem, 0.01, 38401);
-  for (const std::string name : {"ns-f32", "ns-f64", "sc-f32", "sc-f64"}) {
+  for (const std::string name : {"ns-f32", "ns-f64", "nsx-f32", "nsx-f64", "sc-f32", "sc-f64"}) {
     BaOptions options;
     options.solver = parseBaSolver(name);
     options.iterations = 8;

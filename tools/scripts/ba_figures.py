@@ -23,11 +23,13 @@ import h5py
 import marglab_results as mr
 
 TAUS = (0.1, 0.01, 0.001)
-SOLVERS = ("ns-f32", "ns-f64", "sc-f32", "sc-f64", "ceres-implicit", "ceres-explicit",
-           "ceres-sparse")
+SOLVERS = ("ns-f32", "ns-f64", "nsx-f32", "nsx-f64", "sc-f32", "sc-f64", "ceres-implicit",
+           "ceres-explicit", "ceres-sparse")
 STYLE = {
     "ns-f32": dict(color="tab:green", ls="-", lw=1.6),
     "ns-f64": dict(color="tab:blue", ls="-", lw=1.3),
+    "nsx-f32": dict(color="tab:olive", ls=(0, (5, 1)), lw=1.3),
+    "nsx-f64": dict(color="tab:cyan", ls=(0, (5, 1)), lw=1.2),
     "sc-f32": dict(color="tab:red", ls="--", lw=1.4),
     "sc-f64": dict(color="tab:orange", ls="--", lw=1.2),
     "ceres-implicit": dict(color="0.2", ls=":", lw=1.3),

@@ -74,7 +74,7 @@ def main():
     if not runs:
         sys.exit(f"{args.sweep}: no runs of groups r<round>_t<threads>")
     problems = sorted({r["problem"] for r in runs})
-    solvers = [s for s in ("ns-f32", "ns-f64", "sc-f32", "sc-f64", *CERES)
+    solvers = [s for s in ("ns-f32", "ns-f64", "nsx-f32", "nsx-f64", "sc-f32", "sc-f64", *CERES)
                if any(r["solver"] == s for r in runs)]
     threads = sorted({r["threads"] for r in runs})
     rounds = sorted({r["round"] for r in runs})
