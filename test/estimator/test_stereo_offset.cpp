@@ -8,10 +8,12 @@
 #include <cmath>
 #include <limits>
 
+#include "core/common/error.h"
 #include "core/estimator/estimator.h"
 #include "core/estimator/window.h"
 #include "core/geometry/stereographic.h"
 #include "core/pipeline/run.h"
+#include "core/pipeline/run_config.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
 #include "test/geometry/geometry_test_utils.h"
@@ -186,6 +188,43 @@ TEST(StereoOffsetRun, NoiseFreeTracksRecoverAnInjectedOffset) {
   EXPECT_NEAR(on.offset, 0.6, 10 * EstimatorSettings{}.stop_max_step);
   EXPECT_LT(on.max_position_error, 1e-3);    // the truth to a millimetre, as test_vo's runs
   EXPECT_GT(off.max_position_error, 10e-3);  // the offset does bias the run without it
+}
+
+// The keys: off by default, the prior's σ in (0, 100] px, and only with strategy "discard".
+TEST(StereoOffsetConfig, KeysRangesAndTheStrategyRelation) {
+  RunConfig config;
+  EXPECT_FALSE(config.estimator.estimate_right_cx_offset);
+  config.loadTomlString("[estimator]\nestimate_right_cx_offset = true\n", "test.toml");
+  EXPECT_TRUE(config.estimator.estimate_right_cx_offset);
+  EXPECT_NO_THROW(config.validate());
+  RunConfig round_trip;
+  round_trip.loadTomlString(config.toToml(), "round_trip.toml");
+  EXPECT_TRUE(round_trip.estimator.estimate_right_cx_offset);
+  for (const char* bad : {"0", "-1", "101"}) {
+    RunConfig range = config;
+    try {
+      range.loadTomlString(std::string("[estimator]\nright_cx_offset_prior_px = ") + bad + "\n",
+                           "bad.toml");
+      range.validate();
+      FAIL() << "right_cx_offset_prior_px = " << bad << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("bad.toml:2"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("right_cx_offset_prior_px"), std::string::npos)
+          << e.what();
+    }
+  }
+  for (const char* strategy : {"dense", "nfr"}) {
+    RunConfig relation = config;
+    relation.loadTomlString(std::string("[marginalization]\nstrategy = \"") + strategy + "\"\n",
+                            "bad.toml");
+    try {
+      relation.validate();
+      FAIL() << "estimate_right_cx_offset accepted with strategy " << strategy;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("estimate_right_cx_offset"), std::string::npos)
+          << e.what();
+    }
+  }
 }
 
 }  // namespace
