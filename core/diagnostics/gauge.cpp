@@ -11,7 +11,10 @@
 
 namespace marglab {
 
-int variableDimension(PriorVariableKind kind) { return kind == PriorVariableKind::kPose ? 6 : 3; }
+int variableDimension(PriorVariableKind kind) {
+  if (kind == PriorVariableKind::kCalibration) return 1;
+  return kind == PriorVariableKind::kPose ? 6 : 3;
+}
 
 const char* variableKindName(PriorVariableKind kind) {
   switch (kind) {
@@ -25,6 +28,8 @@ const char* variableKindName(PriorVariableKind kind) {
       return "bias_accel";
     case PriorVariableKind::kPoint:
       return "point";
+    case PriorVariableKind::kCalibration:
+      return "calibration";
   }
   return "unknown";
 }

@@ -51,11 +51,13 @@ enum class PriorVariableKind : int {
   kVelocity = 1,
   kGyroBias = 2,
   kAccelBias = 3,
-  kPoint = 4
+  kPoint = 4,
+  kCalibration = 5  // a scalar the rigid motions leave unchanged (the stereo cx offset)
 };
-int variableDimension(PriorVariableKind kind);  // 6, 3, 3, 3, 3
+int variableDimension(PriorVariableKind kind);  // 6, 3, 3, 3, 3, 1
 const char* variableKindName(
-    PriorVariableKind kind);  // "pose", "velocity", "bias_gyro", "bias_accel", "point"
+    PriorVariableKind kind);  // "pose", "velocity", "bias_gyro", "bias_accel", "point",
+                              // "calibration"
 
 // One block of the prior's columns: [offset, offset + variableDimension(kind)).
 struct PriorVariable {

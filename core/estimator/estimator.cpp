@@ -71,6 +71,9 @@ FrameResult SlidingWindowEstimator<Scalar>::processFrame(const TrackFrame& track
   result.lm_iterations = lm.lm_iterations;
   result.cost_initial = lm.cost_initial;
   result.cost_final = lm.cost_final;
+  if (window_.estimatesStereoOffset()) {
+    result.right_cx_offset_px = static_cast<double>(window_.stereoOffset());
+  }
   if (capture_next_) {
     captured_->after = stepOf(window_, lm.lm_iterations, lm.cost_initial, lm.cost_final);
     capture_next_ = false;
@@ -236,6 +239,12 @@ void SlidingWindowEstimator<Scalar>::initializeGaugePrior(int64_t frame_id) {
   } else {
     weights.setConstant(config_.gauge_prior_weight);
   }
+  if (window_.estimatesStereoOffset()) {
+    // The stereo offset's prior 1/σ_c² (its starting value 0: the loaded calibration).
+    weights.conservativeResize(weights.size() + 1);
+    weights[weights.size() - 1] =
+        1.0 / (config_.right_cx_offset_prior_px * config_.right_cx_offset_prior_px);
+  }
   const int n = static_cast<int>(weights.size());
   const int m = static_cast<int>((weights.array() > 0).count());
   MargPrior<Scalar>& prior = window_.prior;
@@ -243,6 +252,10 @@ void SlidingWindowEstimator<Scalar>::initializeGaugePrior(int64_t frame_id) {
   prior.addBlock({frame_id, StateBlock::kPose}, first.T_w_i, first.speed_bias);
   if (first.has_speed_bias) {
     prior.addBlock({frame_id, StateBlock::kSpeedBias}, first.T_w_i, first.speed_bias);
+  }
+  if (window_.estimatesStereoOffset()) {
+    prior.addBlock(kStereoOffsetVar, first.T_w_i, first.speed_bias);
+    prior.blocks.back().c0 = window_.stereoOffset();
   }
   MatX<Scalar> J = MatX<Scalar>::Zero(m, n), H = MatX<Scalar>::Zero(n, n);
   for (int c = 0, row = 0; c < n; ++c) {

@@ -46,6 +46,10 @@ Bindings EstimatorSettings::bindings() {
       flagKey(m, "psd_hessian_prior", &psd_hessian_prior),
       choice(m, "lost_landmarks", &lost_landmarks, kLostLandmarkMargNames),
       choice("imu", "noise_profile", &imu_noise_profile, kImuNoiseProfileNames),
+      flagKey("estimator", "estimate_right_cx_offset", &estimate_right_cx_offset),
+      // Above 0 (the prior keeps the offset determined before the camera moves); at most 100 px.
+      numberKey("estimator", "right_cx_offset_prior_px", &right_cx_offset_prior_px,
+                Rule{0, 100, true}),
   };
 }
 
@@ -107,6 +111,16 @@ std::vector<ConfigProblem> estimatorRelationProblems(const EstimatorSettings& s,
                                "nfr_topology \"paper\" (the deflation acts on unary factors on "
                                "every pose of the blanket)",
                                toString(s.marg_strategy), toString(s.nfr_topology)),
+                   keys});
+  }
+  if (s.estimate_right_cx_offset && s.marg_strategy != MargStrategy::kDiscard) {
+    const std::vector<std::string> keys = {"estimator.estimate_right_cx_offset",
+                                           "marginalization.strategy"};
+    out.push_back({relationKey(origins, "estimator.estimate_right_cx_offset", keys),
+                   fmt::format("estimator.estimate_right_cx_offset = true with strategy = \"{}\": "
+                               "expected strategy \"discard\" (the stereo offset is not a "
+                               "variable of the dense or nfr priors' factors)",
+                               toString(s.marg_strategy)),
                    keys});
   }
   return out;

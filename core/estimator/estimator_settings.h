@@ -27,6 +27,9 @@
 //                   lost_landmarks ("at-once"|"with-state", see LostLandmarkMarg)
 //   [imu]           noise_profile ("kalibr"|"basalt": the IMU densities of VIO runs, for the
 //                   synthetic IMU and the estimator's weights; see core/imu/noise_profile.h)
+//   [estimator]     estimate_right_cx_offset (true: the right camera's cx offset is a window
+//                   variable, window.h; strategy "discard" only), right_cx_offset_prior_px (its
+//                   prior's σ in pixels)
 //
 // Validation (docs/design.md §9): every key has a range (estimatorBindings); the relations between
 // keys (lambda_min ≤ lambda_init ≤ lambda_max; a relative qr_threshold below 1;
@@ -177,6 +180,10 @@ struct EstimatorSettings {
   LostLandmarkMarg lost_landmarks = LostLandmarkMarg::kAtOnce;
   // imu
   ImuNoiseProfile imu_noise_profile = ImuNoiseProfile::kKalibr;
+  // estimator: the right camera's cx offset as a window variable (window.h), with a prior of
+  // standard deviation right_cx_offset_prior_px around the loaded calibration.
+  bool estimate_right_cx_offset = false;
+  double right_cx_offset_prior_px = 1.0;
 
   // Every key with its range, bound to this struct's fields (the TOML layout above).
   Bindings bindings();

@@ -148,6 +148,10 @@ Scalar LevenbergMarquardt<Scalar>::applyStep(const Linearization<Scalar>& lin,
     backup->reduced[track] = p_w;
     p_w += delta.template segment<kPointDim>(column_of.at({track, StateBlock::kLandmark}));
   }
+  backup->stereo_offset = window->stereoOffset();
+  if (window->estimatesStereoOffset()) {
+    window->setStereoOffset(window->stereoOffset() + delta[column_of.at(kStereoOffsetVar)]);
+  }
   return max_step;
 }
 
@@ -160,6 +164,7 @@ void LevenbergMarquardt<Scalar>::undoStep(const Linearization<Scalar>& lin, Step
     window->landmarks.at(lins[l].track_id).param = backup.params[l];
   }
   for (const auto& [track, p_w] : backup.reduced) window->landmarks.at(track).param = p_w;
+  if (window->estimatesStereoOffset()) window->setStereoOffset(backup.stereo_offset);
 }
 
 template <typename Scalar>
@@ -169,6 +174,9 @@ Status LevenbergMarquardt<Scalar>::checkFinite(const Window<Scalar>& window) {
         !frame.T_w_i.unitQuaternion().coeffs().allFinite() || !frame.speed_bias.allFinite()) {
       return Status::Error(Status::Code::kNotFinite, "a state turned non-finite");
     }
+  }
+  if (!std::isfinite(window.stereoOffset())) {
+    return Status::Error(Status::Code::kNotFinite, "the stereo offset turned non-finite");
   }
   return Status::Ok();
 }

@@ -79,6 +79,7 @@ class LevenbergMarquardt {
     std::map<int64_t, typename Window<Scalar>::Frame> frames;
     std::vector<Vec3S> params;         // eliminated landmarks, in the linearization's order
     std::map<int64_t, Vec3S> reduced;  // landmarks of a dense prior
+    Scalar stereo_offset = 0;
   };
 
   // λ trials on one linearization until the energy decreases (*cost updated) or λ reaches λ_max.

@@ -40,10 +40,13 @@ int MargPrior<Scalar>::indexOf(const VarKey& var) const {
 template <typename Scalar>
 VecX<Scalar> MargPrior<Scalar>::delta(const std::function<SE3<Scalar>(int64_t)>& pose_of,
                                       const std::function<Vec9S(int64_t)>& speed_bias_of,
-                                      const std::function<Vec3<Scalar>(int64_t)>& point_of) const {
+                                      const std::function<Vec3<Scalar>(int64_t)>& point_of,
+                                      Scalar stereo_offset) const {
   VecX<Scalar> d(cols());
   for (const Block& block : blocks) {
-    if (block.var.block == StateBlock::kPose) {
+    if (block.var.block == StateBlock::kStereoOffset) {
+      d[block.offset] = stereo_offset - block.c0;
+    } else if (block.var.block == StateBlock::kPose) {
       d.template segment<kPoseDim>(block.offset) = boxMinus(pose_of(block.var.frame_id), block.T0);
     } else if (block.var.block == StateBlock::kLandmark) {
       d.template segment<kPointDim>(block.offset) = point_of(block.var.frame_id) - block.p0;
@@ -155,6 +158,8 @@ void MargPrior<Scalar>::gaugeLayout(PriorLayout* layout, GaugeState* state) cons
       layout->push_back({PriorVariableKind::kGyroBias, id, o + 3});
       layout->push_back({PriorVariableKind::kAccelBias, id, o + 6});
       state->v_w[id] = block.sb0.template head<3>().template cast<double>();
+    } else if (block.var.block == StateBlock::kStereoOffset) {
+      layout->push_back({PriorVariableKind::kCalibration, id, o});
     } else {
       layout->push_back({PriorVariableKind::kPoint, id, o});
       state->p_w[id] = block.p0.template cast<double>();

@@ -26,14 +26,26 @@
 namespace marglab {
 
 // The two kinds of state block of a frame: its pose, and (VIO, latest states only) velocity and
-// biases together; and a landmark kept as a world point in a dense prior (its id is the track id).
-enum class StateBlock : int { kPose = 0, kSpeedBias = 1, kLandmark = 2 };
+// biases together; a landmark kept as a world point in a dense prior (its id is the track id);
+// and the window's one calibration variable, the right camera's cx offset in pixels
+// ([estimator] estimate_right_cx_offset, window.h; additive, key kStereoOffsetVar).
+enum class StateBlock : int { kPose = 0, kSpeedBias = 1, kLandmark = 2, kStereoOffset = 3 };
 constexpr int kPoseDim = 6;
 constexpr int kSpeedBiasDim = 9;
 constexpr int kPointDim = 3;
+constexpr int kStereoOffsetDim = 1;
 constexpr int stateBlockDim(StateBlock block) {
-  return block == StateBlock::kPose ? kPoseDim
-                                    : (block == StateBlock::kSpeedBias ? kSpeedBiasDim : kPointDim);
+  switch (block) {
+    case StateBlock::kPose:
+      return kPoseDim;
+    case StateBlock::kSpeedBias:
+      return kSpeedBiasDim;
+    case StateBlock::kLandmark:
+      return kPointDim;
+    case StateBlock::kStereoOffset:
+      return kStereoOffsetDim;
+  }
+  return 0;
 }
 
 // One variable of the window: a block of one frame (frame_id), or a landmark (frame_id holds its
@@ -46,6 +58,8 @@ struct VarKey {
   }
   bool operator==(const VarKey& o) const { return frame_id == o.frame_id && block == o.block; }
 };
+// The stereo cx offset: one per window, no frame.
+inline constexpr VarKey kStereoOffsetVar{-1, StateBlock::kStereoOffset};
 
 // The preconditioning a storage applies before its factorizations.
 constexpr Preconditioning preconditioningOf(const PriorStorage& storage) {
@@ -61,6 +75,7 @@ struct MargPrior {
     SE3<Scalar> T0;                          // linearization point of a pose block
     Vec9S sb0 = Vec9S::Zero();               // linearization point of a speed-bias block
     Vec3<Scalar> p0 = Vec3<Scalar>::Zero();  // linearization point p_w of a landmark block
+    Scalar c0 = 0;                           // linearization point of the stereo offset
   };
 
   PriorStorage storage;
@@ -80,10 +95,11 @@ struct MargPrior {
   int indexOf(const VarKey& var) const;
 
   // δ = x ⊟ x⁰ stacked over the layout, current values looked up by frame / track id (point_of
-  // is needed only with landmark blocks).
+  // is needed only with landmark blocks, stereo_offset only with the stereo offset's block).
   VecX<Scalar> delta(const std::function<SE3<Scalar>(int64_t)>& pose_of,
                      const std::function<Vec9S(int64_t)>& speed_bias_of,
-                     const std::function<Vec3<Scalar>(int64_t)>& point_of = {}) const;
+                     const std::function<Vec3<Scalar>(int64_t)>& point_of = {},
+                     Scalar stereo_offset = 0) const;
   bool scaled() const { return !scaling.empty(); }
   // The stored expansion at δ = 0: Hessian JᵀJ | H_m and gradient Jᵀr | b_m (unscaled).
   MatX<Scalar> hessianAtAnchor() const;

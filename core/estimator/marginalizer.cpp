@@ -81,6 +81,7 @@ void layoutColumns(const Window<Scalar>& w, const MargPlan& plan, const MargPrio
   std::set<VarKey> keep;
   for (const auto& lin : p->lins) {
     for (int64_t f : lin.frames) keep.insert({f, StateBlock::kPose});
+    if (lin.stereo_offset) keep.insert(kStereoOffsetVar);
   }
   for (const RowBlock<Scalar>& rows : p->direct) {
     for (const auto& [var, offset] : rows.vars) keep.insert(var);
@@ -100,6 +101,14 @@ void layoutColumns(const Window<Scalar>& w, const MargPlan& plan, const MargPrio
     if (var.block == StateBlock::kLandmark) {
       p->next.addBlock(var, SE3<Scalar>(), Vec<Scalar, kSpeedBiasDim>::Zero(),
                        w.landmarks.at(var.frame_id).jacobianPoint());
+      continue;
+    }
+    if (var.block == StateBlock::kStereoOffset) {
+      // Additive with a constant Jacobian: any anchor is exact; the old prior's if it had one.
+      p->next.addBlock(var, SE3<Scalar>(), Vec<Scalar, kSpeedBiasDim>::Zero());
+      const int old_index = prior.indexOf(var);
+      p->next.blocks.back().c0 =
+          old_index >= 0 ? prior.blocks[static_cast<size_t>(old_index)].c0 : w.stereoOffset();
       continue;
     }
     const auto& frame = w.frames.at(var.frame_id);

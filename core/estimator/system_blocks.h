@@ -75,6 +75,10 @@ PoseBlockMap blockMap(const LandmarkJacobians<Scalar>& lin, const ColumnMap& col
   PoseBlockMap map;
   map.pose_dim = kPoseDim;
   for (int64_t f : lin.frames) map.rcs_offset.push_back(column_of.at({f, StateBlock::kPose}));
+  if (lin.stereo_offset) {
+    map.extra_cols = kStereoOffsetDim;
+    map.extra_rcs_offset = column_of.at(kStereoOffsetVar);
+  }
   return map;
 }
 

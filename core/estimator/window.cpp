@@ -38,6 +38,12 @@ Window<Scalar>::Window(const EstimatorSettings& config, const StereoRig<double>&
 }
 
 template <typename Scalar>
+void Window<Scalar>::setStereoOffset(Scalar c) {
+  stereo_offset_ = c;
+  rig_.cam1.cx = static_cast<Scalar>(rig_input_.cam1.cx) + c;
+}
+
+template <typename Scalar>
 typename Window<Scalar>::SE3S Window<Scalar>::jacobianPoseOf(int64_t frame_id) const {
   const Frame& frame = frames.at(frame_id);
   return frame.linearized ? frame.T_w_i_lin : frame.T_w_i;
@@ -99,6 +105,10 @@ int Window<Scalar>::windowColumns(ColumnMap* column_of) const {
     (*column_of)[{track, StateBlock::kLandmark}] = col;
     col += kPointDim;
   }
+  if (estimatesStereoOffset()) {
+    (*column_of)[kStereoOffsetVar] = col;
+    col += kStereoOffsetDim;
+  }
   return col;
 }
 
@@ -106,7 +116,7 @@ template <typename Scalar>
 VecX<Scalar> Window<Scalar>::priorDelta(const MargPrior<Scalar>& p) const {
   return p.delta([this](int64_t f) { return poseOf(f); },
                  [this](int64_t f) { return speedBiasOf(f); },
-                 [this](int64_t track) { return landmarks.at(track).param; });
+                 [this](int64_t track) { return landmarks.at(track).param; }, stereo_offset_);
 }
 
 template <typename Scalar>
@@ -342,6 +352,7 @@ bool Window<Scalar>::landmarkRows(int64_t track_id, const std::set<int64_t>& sys
     out->vars.push_back({{lin.frames[i], StateBlock::kPose}, kPoseDim * static_cast<int>(i)});
   }
   const Eigen::Index n_p = lin.J_p.cols();
+  if (lin.stereo_offset) out->vars.push_back({kStereoOffsetVar, static_cast<int>(n_p) - 1});
   out->vars.push_back({{track_id, StateBlock::kLandmark}, static_cast<int>(n_p)});
   out->J.resize(lin.r.size(), n_p + kPointDim);
   out->J << lin.J_p, lin.J_l;
@@ -413,6 +424,8 @@ void Window<Scalar>::dropMarginalizedFactors(const MargPlan& plan) {
 template <typename Scalar>
 void Window<Scalar>::fixFirstEstimates() {
   for (const auto& block : prior.blocks) {
+    // The stereo offset's Jacobian is constant: no first estimate to keep.
+    if (block.var.block == StateBlock::kStereoOffset) continue;
     if (block.var.block == StateBlock::kLandmark) {
       Landmark& lm = landmarks.at(block.var.frame_id);
       if (!lm.linearized) {

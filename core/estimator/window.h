@@ -13,8 +13,15 @@
 // (core/imu/imu_factor.h) + Σ recovered ½‖W (h(x) ⊟ z)‖² (core/sparsify, strategy nfr) + E_m(x)
 // (marg_prior.h).
 //
+// Calibration. With [estimator] estimate_right_cx_offset the window has one more variable, the
+// offset c (pixels) added to the right camera's cx: the rectified pair's disparity offset
+// (docs/design.md §3, "The stereo cx offset"). Every right-camera row's u residual moves by
+// ∂r_u/∂c = √w/σ; c lies in every marginalization prior from the first frame's gauge prior on
+// (weight 1/σ_c²) and is never marginalized.
+//
 // Columns. The reduced system orders its variables as frames by id, pose then speed-bias, then the
-// landmarks of a dense prior (they are not eliminated per landmark: the prior couples them).
+// landmarks of a dense prior (they are not eliminated per landmark: the prior couples them), then
+// the stereo offset (PoseBlockMap's extra column of every landmark block).
 
 #include <algorithm>
 #include <array>
@@ -202,7 +209,11 @@ class Window {
   bool isVio() const { return imu_.has_value(); }
   const std::optional<ImuSetup>& imu() const { return imu_; }
   const StereoRig<double>& rigInput() const { return rig_input_; }
+  // The rig at the current stereo offset (cam1's cx + c).
   const StereoRig<Scalar>& rig() const { return rig_; }
+  bool estimatesStereoOffset() const { return config_.estimate_right_cx_offset; }
+  Scalar stereoOffset() const { return stereo_offset_; }
+  void setStereoOffset(Scalar c);
   const SE3S& T_i_c(int cam) const { return T_i_c_[cam]; }
   const EstimatorSettings& config() const { return config_; }
   // config_.lm_threads workers; shared by copies of the window, which are never evaluated
@@ -278,6 +289,7 @@ class Window {
   ReprojectionNoise<Scalar> noise_;
   StereoRig<double> rig_input_;  // as given (window capture)
   StereoRig<Scalar> rig_;
+  Scalar stereo_offset_ = 0;
   std::array<SE3S, 2> T_i_c_;       // body to cam0 / cam1 (VO: I, T_c0_c1)
   std::array<SE3S, 2> T_c_h_host_;  // host cam0 to cam0 / cam1 of the same frame
   std::array<SE3S, 2> T_c_i_;       // T_i_c_ inverted (world-point landmarks)

@@ -37,6 +37,7 @@ void Window<Scalar>::observationRows(const Landmark& lm, const std::set<int64_t>
         continue;
       }
       row.target = in_host ? -1 : frame_id;
+      row.cam = cam;
       if (!lm.world() && !in_host) {
         // Through the relative pose onto the host and target increments.
         const Mat<Scalar, 2, 6> D_r_T = row.J_t;
@@ -69,7 +70,7 @@ bool Window<Scalar>::linearizeLandmark(int64_t track_id, const Landmark& lm,
     extra.push_back({f.frame, std::move(block.J), std::move(block.r)});
   }
   if (m < min_rows) return false;
-  stackLandmarkRows<Scalar>(track_id, lm.host, rows, extra, out);
+  stackLandmarkRows<Scalar>(track_id, lm.host, rows, extra, out, estimatesStereoOffset());
   return true;
 }
 

@@ -41,6 +41,9 @@ struct FrameRecord {
   double cost_final = 0.0;
   double t_opt_s = 0.0;
   double t_marg_s = 0.0;
+  // The right camera's cx offset after this frame's optimization ([estimator]
+  // estimate_right_cx_offset); NaN when it is not estimated, and in older files.
+  double right_cx_offset_px = std::numeric_limits<double>::quiet_NaN();
   Eigen::Vector3d p_est = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_est = Eigen::Quaterniond::Identity();
   Eigen::Vector3d p_gt = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());

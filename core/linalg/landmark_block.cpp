@@ -172,6 +172,7 @@ VecX<Scalar> gatherLocal(const PoseBlockMap& map, const VecX<Scalar>& delta_rcs)
     local.segment(j * map.pose_dim, map.pose_dim) =
         delta_rcs.segment(map.rcs_offset[j], map.pose_dim);
   }
+  local.tail(map.extra_cols) = delta_rcs.segment(map.extra_rcs_offset, map.extra_cols);
   return local;
 }
 
@@ -230,12 +231,12 @@ Status LandmarkBlockNs<Scalar>::addToReducedSystem(MatX<HScalar>& H, VecX<HScala
     return Status::Error(Status::Code::kRankDeficient,
                          "landmark elimination: R1 is singular (landmark not observable)");
   }
-  if (map_.pose_dim == 6) {
+  if (map_.pose_dim == 6 && map_.extra_cols == 0) {
     addPoseBlockPairs(storage_.data() + 3 * storage_.cols(), storage_.cols(), reduced_rows_,
                       n_p_ + 3, map_.rcs_offset, H, b);
     return Status::Ok();
   }
-  // Other pose sizes: Eigen's symmetric rank update (lower triangle) into a per-thread local
+  // Other layouts: Eigen's symmetric rank update (lower triangle) into a per-thread local
   // system that keeps its storage, scattered block by block.
   const auto Jr = reducedJp();
   thread_local MatX<Scalar> H_loc;
@@ -256,6 +257,8 @@ void LandmarkBlockNs<Scalar>::copyReducedRows(Eigen::Ref<MatX<Scalar>> stacked, 
     stacked.block(row, map_.rcs_offset[j], reduced_rows_, pd) =
         storage_.block(3, j * pd, reduced_rows_, pd);
   }
+  stacked.block(row, map_.extra_rcs_offset, reduced_rows_, map_.extra_cols) =
+      storage_.block(3, map_.poseCols(), reduced_rows_, map_.extra_cols);
   stacked.col(stacked.cols() - 1).segment(row, reduced_rows_) = reducedR();
 }
 

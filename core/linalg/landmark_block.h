@@ -34,11 +34,18 @@
 namespace marglab {
 
 // Maps the landmark's local pose blocks to the reduced camera system: local block j (columns
-// j·pose_dim .. (j+1)·pose_dim) goes to columns rcs_offset[j] .. rcs_offset[j] + pose_dim.
+// j·pose_dim .. (j+1)·pose_dim) goes to columns rcs_offset[j] .. rcs_offset[j] + pose_dim. A
+// variable every landmark may share (a calibration, e.g. the stereo cx offset of
+// core/estimator/window.h) is a trailing group of extra_cols local columns after the pose blocks,
+// at columns extra_rcs_offset .. extra_rcs_offset + extra_cols of the reduced system; none by
+// default.
 struct PoseBlockMap {
   int pose_dim = 6;
   std::vector<int> rcs_offset;
-  int localCols() const { return pose_dim * static_cast<int>(rcs_offset.size()); }
+  int extra_cols = 0;
+  int extra_rcs_offset = 0;
+  int poseCols() const { return pose_dim * static_cast<int>(rcs_offset.size()); }
+  int localCols() const { return poseCols() + extra_cols; }
 };
 
 // The landmark-block interface both eliminations implement (core/estimator/linearization.h runs
@@ -70,8 +77,8 @@ class LandmarkBlockNs {
   auto reducedR() const { return storage_.col(n_p_ + 3).segment(3, reduced_rows_); }
   // H += (Q2ᵀJ_p)ᵀ(Q2ᵀJ_p), b += (Q2ᵀJ_p)ᵀQ2ᵀr on the reduced camera system (upper and lower),
   // formed in Scalar and accumulated in HScalar, only over the pose blocks the landmark touches,
-  // one block row of its Gram matrix at a time (6-column pose blocks; other sizes: a rank update
-  // scattered by blocks). Fails (adds nothing) when R1 is singular.
+  // one block row of its Gram matrix at a time (6-column pose blocks without extra columns; other
+  // layouts: a rank update scattered by blocks). Fails (adds nothing) when R1 is singular.
   template <typename HScalar>
   Status addToReducedSystem(MatX<HScalar>& H, VecX<HScalar>& b) const;
   // Copies the reduced rows into rows [row, row + numReducedRows()) of a stacked square-root

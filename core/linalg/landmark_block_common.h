@@ -64,6 +64,28 @@ void scatterReducedBlocks(const PoseBlockMap& map, const MatX<Scalar>& H_loc_low
   }
 }
 
+// The trailing extra columns (PoseBlockMap): their rows of the local lower triangle against the
+// pose blocks (both triangles of H) and against themselves.
+template <typename Scalar, typename HScalar>
+void scatterReducedExtra(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
+                         const VecX<Scalar>& b_loc, MatX<HScalar>& H, VecX<HScalar>& b) {
+  const int pd = map.pose_dim;
+  const int e0 = map.poseCols();
+  const int ne = map.extra_cols;
+  const int oe = map.extra_rcs_offset;
+  b.segment(oe, ne) += b_loc.segment(e0, ne).template cast<HScalar>();
+  const MatX<Scalar> H_ee =
+      H_loc_lower.block(e0, e0, ne, ne).template selfadjointView<Eigen::Lower>();
+  H.block(oe, oe, ne, ne) += H_ee.template cast<HScalar>();
+  for (size_t j = 0; j < map.rcs_offset.size(); ++j) {
+    const int oj = map.rcs_offset[j];
+    const auto block =
+        H_loc_lower.block(e0, static_cast<int>(j) * pd, ne, pd).template cast<HScalar>();
+    H.block(oe, oj, ne, pd) += block;
+    H.block(oj, oe, pd, ne) += block.transpose();
+  }
+}
+
 template <typename Scalar, typename HScalar>
 void scatterReduced(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
                     const VecX<Scalar>& b_loc, MatX<HScalar>& H, VecX<HScalar>& b) {
@@ -72,6 +94,7 @@ void scatterReduced(const PoseBlockMap& map, const MatX<Scalar>& H_loc_lower,
   } else {
     scatterReducedBlocks<Eigen::Dynamic>(map, H_loc_lower, b_loc, H, b);
   }
+  if (map.extra_cols > 0) scatterReducedExtra(map, H_loc_lower, b_loc, H, b);
 }
 
 // The landmark's local pose increment gathered into a per-thread buffer that keeps its capacity
@@ -85,6 +108,8 @@ Eigen::Map<const VecX<Scalar>> gatherLocalScratch(const PoseBlockMap& map,
   for (size_t j = 0; j < map.rcs_offset.size(); ++j) {
     for (int i = 0; i < pd; ++i) buffer[j * pd + i] = delta_rcs[map.rcs_offset[j] + i];
   }
+  const size_t e0 = static_cast<size_t>(map.poseCols());
+  for (int i = 0; i < map.extra_cols; ++i) buffer[e0 + i] = delta_rcs[map.extra_rcs_offset + i];
   return Eigen::Map<const VecX<Scalar>>(buffer.data(), map.localCols());
 }
 

@@ -625,6 +625,13 @@ std::vector<Problem> runProblems(const RunSpec& spec, const RunInputs& inputs) {
                      spec.variant.name(), psd)}));
   }
   addCaptureProblems(spec, inputs.dataset.sequence, &out);
+  // A window file (window_io.h) has no field for the stereo offset: its replay would differ.
+  if (spec.config.estimator.estimate_right_cx_offset && !spec.dump_windows.empty()) {
+    out.push_back(spec.config.located(
+        {"estimator.estimate_right_cx_offset",
+         "estimator.estimate_right_cx_offset = true with window capture (dump_windows): a window "
+         "file does not record the stereo offset; capture without it"}));
+  }
   const PriorStorage& storage = spec.variant.storage;
   const bool plain_sq = spec.variant.marg == MargMethod::kSchur && hessianStorage(storage) &&
                         storage.preconditioning == Preconditioning::kNone &&

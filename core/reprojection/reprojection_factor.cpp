@@ -16,7 +16,7 @@ template <typename Scalar>
 void stackLandmarkRows(int64_t track_id, int64_t host,
                        const std::vector<ReprojectionRows<Scalar>>& rows,
                        const std::vector<PoseLandmarkRows<Scalar>>& extra,
-                       LandmarkJacobians<Scalar>* out) {
+                       LandmarkJacobians<Scalar>* out, bool stereo_offset) {
   const bool hosted = host >= 0;
   std::vector<int64_t>& frames = out->frames;
   frames.clear();
@@ -38,13 +38,19 @@ void stackLandmarkRows(int64_t track_id, int64_t host,
   Eigen::Index m = 2 * static_cast<Eigen::Index>(rows.size());
   for (const PoseLandmarkRows<Scalar>& e : extra) m += e.r.size();
   out->track_id = track_id;
-  out->J_p.setZero(m, kPoseCols * static_cast<Eigen::Index>(frames.size()));
+  out->stereo_offset = stereo_offset && std::any_of(rows.begin(), rows.end(),
+                                                    [](const ReprojectionRows<Scalar>& row) {
+                                                      return row.cam == 1;
+                                                    });
+  const Eigen::Index offset_col = kPoseCols * static_cast<Eigen::Index>(frames.size());
+  out->J_p.setZero(m, offset_col + (out->stereo_offset ? 1 : 0));
   out->J_l.resize(m, 3);
   out->r.resize(m);
   const int host_col = frames.empty() || !hosted ? 0 : local(host);
   for (size_t i = 0; i < rows.size(); ++i) {
     out->J_l.template middleRows<2>(2 * i) = rows[i].J_l;
     out->r.template segment<2>(2 * i) = rows[i].r;
+    if (out->stereo_offset && rows[i].cam == 1) out->J_p(2 * i, offset_col) = rows[i].scale;
     if (rows[i].target < 0) continue;
     if (hosted) out->J_p.template block<2, kPoseCols>(2 * i, host_col) += rows[i].J_h;
     out->J_p.template block<2, kPoseCols>(2 * i, local(rows[i].target)) += rows[i].J_t;
@@ -62,7 +68,7 @@ void stackLandmarkRows(int64_t track_id, int64_t host,
 #define MARGLAB_INST(S)                                                                         \
   template void stackLandmarkRows<S>(int64_t, int64_t, const std::vector<ReprojectionRows<S>>&, \
                                      const std::vector<PoseLandmarkRows<S>>&,                   \
-                                     LandmarkJacobians<S>*);
+                                     LandmarkJacobians<S>*, bool);
 MARGLAB_INSTANTIATE(MARGLAB_INST)
 #undef MARGLAB_INST
 

@@ -52,9 +52,11 @@ struct ReprojectionNoise {
 template <typename Scalar>
 struct ReprojectionRows {
   int64_t target = -1;  // −1: no pose Jacobian (observation in the host frame)
+  int cam = 0;
   Mat<Scalar, 2, 6> J_h, J_t;
   Mat<Scalar, 2, 3> J_l;
   Vec<Scalar, 2> r;
+  Scalar scale = 0;  // √w/σ: also ∂r_u/∂c_x, the Jacobian of the u row w.r.t. the camera's cx
 };
 
 // The point in the target camera and its Jacobians, at the first estimates (jac) and the current
@@ -132,6 +134,7 @@ inline bool linearizeReprojection(const PinholeCamera<Scalar>& camera,
   // IRLS weight of the Huber norm, applied as √w/σ to both rows.
   const Scalar scale = std::sqrt(e <= k ? Scalar(1) : k / e) / sigma;
   rows->r *= scale;
+  rows->scale = scale;
   rows->J_l = scale * D_uv_q * point.D_q_l;
   rows->J_t = scale * D_uv_q * point.D_q_T;
   return true;
@@ -150,6 +153,8 @@ template <typename Scalar>
 struct LandmarkJacobians {
   int64_t track_id = -1;
   std::vector<int64_t> frames;  // local pose blocks, in id order
+  // J_p's last column is the right camera's cx offset (after the pose blocks; window.h).
+  bool stereo_offset = false;
   MatX<Scalar> J_p;
   Mat<Scalar, Eigen::Dynamic, 3> J_l;
   VecX<Scalar> r;
@@ -166,10 +171,12 @@ struct PoseLandmarkRows {
 
 // Stacks the observation rows (then the extra rows) of landmark track_id into out: frames are the
 // host (hosted landmarks with a pose row) and every target with a pose Jacobian, in id order.
+// With stereo_offset and a right-camera row, J_p gets a last column: ∂r/∂c, c the offset added to
+// cx of the right camera, √w/σ on its rows' u rows (every row, the host frame's included).
 template <typename Scalar>
 void stackLandmarkRows(int64_t track_id, int64_t host,
                        const std::vector<ReprojectionRows<Scalar>>& rows,
                        const std::vector<PoseLandmarkRows<Scalar>>& extra,
-                       LandmarkJacobians<Scalar>* out);
+                       LandmarkJacobians<Scalar>* out, bool stereo_offset = false);
 
 }  // namespace marglab

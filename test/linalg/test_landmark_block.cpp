@@ -354,5 +354,67 @@ TYPED_TEST(LandmarkBlockTest, LinearizedCostChangeIsTheUndampedModel) {
               tol);
 }
 
+// A trailing column every landmark shares (PoseBlockMap::extra_cols, the stereo cx offset of the
+// estimator): both eliminations, the copied reduced rows and the back-substitution against the
+// dense Schur complement of the full system [poses | extra | landmark] in double. The extra
+// column sits at the end of the reduced system; its rows are nonzero in half of the landmark's
+// observation rows (the right camera's u rows).
+TYPED_TEST(LandmarkBlockTest, SharedExtraColumnIsEliminatedLikeAPoseColumn) {
+  using Scalar = TypeParam;
+  std::mt19937_64 rng(39);
+  const int n_rcs = kRcsSize + 1;
+  for (LandmarkData lm : makeLandmarks(rng, 6)) {
+    const int m = static_cast<int>(lm.r.size());
+    lm.map.extra_cols = 1;
+    lm.map.extra_rcs_offset = kRcsSize;
+    MatXd J_p(m, lm.map.localCols());
+    J_p << lm.J_p, VecXd::Zero(m);
+    for (int i = 0; i < m; i += 4) J_p(i, lm.map.poseCols()) = 1.0 + 0.1 * i;
+    // Independent: the full system and its Schur complement on the landmark, in double.
+    MatXd J_full = MatXd::Zero(m, n_rcs + 3);
+    for (size_t j = 0; j < lm.map.rcs_offset.size(); ++j) {
+      J_full.block(0, lm.map.rcs_offset[j], m, kPoseDim) = J_p.block(0, j * kPoseDim, m, kPoseDim);
+    }
+    J_full.col(kRcsSize) = J_p.col(lm.map.poseCols());
+    J_full.rightCols(3) = lm.J_l;
+    const MatXd H = J_full.transpose() * J_full;
+    const VecXd g = J_full.transpose() * lm.r;
+    const Eigen::Matrix3d H_ll_inv = H.bottomRightCorner(3, 3).inverse();
+    const MatXd H_red = H.topLeftCorner(n_rcs, n_rcs) -
+                        H.topRightCorner(n_rcs, 3) * H_ll_inv * H.bottomLeftCorner(3, n_rcs);
+    const VecXd b_red = g.head(n_rcs) - H.topRightCorner(n_rcs, 3) * H_ll_inv * g.tail(3);
+    const Eigen::Vector3d s = Eigen::JacobiSVD<MatXd>(lm.J_l).singularValues();
+    const double tol = 10.0 * m * eps<Scalar>() * (s[0] * s[0]) / (s[2] * s[2]) *
+                       std::max(1.0, H.norm() / H_red.norm());
+    LandmarkBlockNs<Scalar> ns;
+    LandmarkBlockSc<Scalar> sc;
+    const MatX<Scalar> J_s = J_p.cast<Scalar>();
+    ASSERT_TRUE(ns.setFromJacobians(J_s, lm.J_l.cast<Scalar>(), lm.r.cast<Scalar>(), lm.map).ok());
+    ASSERT_TRUE(sc.setFromJacobians(J_s, lm.J_l.cast<Scalar>(), lm.r.cast<Scalar>(), lm.map).ok());
+    MatX<Scalar> H_ns = MatX<Scalar>::Zero(n_rcs, n_rcs), H_sc = H_ns;
+    VecX<Scalar> b_ns = VecX<Scalar>::Zero(n_rcs), b_sc = b_ns;
+    ASSERT_TRUE(ns.addToReducedSystem(H_ns, b_ns).ok());
+    ASSERT_TRUE(sc.addToReducedSystem(H_sc, b_sc).ok());
+    EXPECT_LE(relError(H_ns, H_red), tol);
+    EXPECT_LE(relError(H_sc, H_red), tol);
+    EXPECT_LE(relError(b_ns, b_red), tol);
+    EXPECT_LE(relError(b_sc, b_red), tol);
+    EXPECT_GT(std::abs(H_red(kRcsSize, kRcsSize)), 0.0);  // the column carries information
+    MatX<Scalar> stacked = MatX<Scalar>::Zero(ns.numReducedRows(), n_rcs + 1);
+    ns.copyReducedRows(stacked, 0);
+    const MatXd Js = stacked.leftCols(n_rcs).template cast<double>();
+    EXPECT_LE(relError(MatXd(Js.transpose() * Js), H_red), tol);
+    // Back-substitution: δl = −H_ll⁻¹ (g_l + H_lp δp) for any δp, the extra column included.
+    const VecXd delta = test::randomGaussian(rng, n_rcs, 1);
+    const Eigen::Vector3d expected = -H_ll_inv * (g.tail(3) + H.bottomLeftCorner(3, n_rcs) * delta);
+    Vec3<Scalar> dl_ns, dl_sc;
+    ASSERT_TRUE(ns.backSubstitute(delta.cast<Scalar>(), &dl_ns).ok());
+    ASSERT_TRUE(sc.backSubstitute(delta.cast<Scalar>(), &dl_sc).ok());
+    EXPECT_LE(relError(dl_ns, expected), tol);
+    EXPECT_LE(relError(dl_sc, expected), tol);
+    EXPECT_EQ(gatherLocal(lm.map, delta)(lm.map.poseCols()), delta(kRcsSize));
+  }
+}
+
 }  // namespace
 }  // namespace marglab
