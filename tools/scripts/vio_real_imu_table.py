@@ -7,13 +7,21 @@ that cell's seed folders) and prints, per sequence, our ATE (mean over the seeds
 the failures), the paper's, and paper / ours; then per family (EuRoC, TUM-VI rooms) the median of
 paper / ours over the sequences the cell has. Writes Markdown to --out.
 
+With --compare START=MIDPOINT (two cells' seed folders, comma-separated, e.g. the synthetic IMU
+sampled at the start and at the midpoint of its hold) it adds, per sequence, both ATEs beside the
+paper's, midpoint / start on every seed both finished, and whether the midpoint run lies closer to
+the paper's ATE (|log paper / ours| smaller); per family, the medians and how many sequences moved
+toward the paper.
+
   tools/scripts/vio_real_imu_table.py --out results/vio_real_imu/summary.md \
       "ideal, synthetic IMU, Kalibr (today)=results/paper_seeds_tables" \
-      "ideal, real IMU=results/vio_real_imu/tables/real_ideal" ...
+      "ideal, real IMU=results/vio_real_imu/tables/real_ideal" ... \
+      --compare "R/synthetic_ideal_s1,R/synthetic_ideal_s2=R/synthetic_ideal_midpoint_s1,..."
 """
 
 import argparse
 import csv
+import math
 import os
 import statistics
 import sys
@@ -80,10 +88,75 @@ def markdown(names, cells):
     return "\n".join(lines) + "\n"
 
 
+def read_seed_runs(folders):
+    """{sequence: {seed: ATE or None (failed)}} of the √VIO-64 runs in the sweep folders' index."""
+    out = {}
+    for folder in folders:
+        path = os.path.join(folder, "index.csv")
+        try:
+            rows = list(csv.DictReader(open(path, encoding="utf-8")))
+        except OSError as e:
+            sys.exit(f"vio_real_imu_table.py: {path}: cannot read ({e.strerror})")
+        for r in rows:
+            if r["variant"] != VARIANT or r["status"] not in ("ok", "failed"):
+                continue  # pending or crashed: not a result
+            ate = float(r["ate_rmse"]) if r["status"] == "ok" else None
+            out.setdefault(r["dataset"], {})[int(r["seed"])] = ate
+    if not out:
+        sys.exit(f"vio_real_imu_table.py: {', '.join(folders)}: no {VARIANT} runs")
+    return out
+
+
+def mean_text(runs):
+    ok = [a for a in runs.values() if a is not None]
+    failed = len(runs) - len(ok)
+    if not ok:
+        return None, f"x {failed}/{len(runs)}"
+    fail = f" (x {failed}/{len(runs)})" if failed else ""
+    return statistics.fmean(ok), f"{statistics.fmean(ok):.4f}{fail}"
+
+
+def compare_markdown(start, midpoint, paper):
+    """Per sequence: start and midpoint ATE, paper / ours, midpoint / start per seed, toward?"""
+    lines = ["| sequence | paper | start: ATE · paper / ours | midpoint: ATE · paper / ours "
+             "| midpoint / start, per seed | closer to the paper |",
+             "|---|---:|---:|---:|---:|:---:|"]
+    moved = {f: [] for f in FAMILIES}
+    ratios = {f: ([], []) for f in FAMILIES}
+    for k in sorted(set(start) & set(midpoint)):
+        if k not in paper:
+            continue
+        (a, a_text), (b, b_text) = mean_text(start[k]), mean_text(midpoint[k])
+        seeds = sorted(s for s in set(start[k]) & set(midpoint[k])
+                       if start[k][s] is not None and midpoint[k][s] is not None)
+        per_seed = ", ".join(f"{midpoint[k][s] / start[k][s]:.2f}" for s in seeds) or "–"
+        closer = "–"
+        family = next(f for f, p in FAMILIES.items() if k.startswith(p))
+        if a is not None and b is not None:
+            toward = abs(math.log(paper[k] / b)) < abs(math.log(paper[k] / a))
+            closer = "yes" if toward else "no"
+            moved[family].append(toward)
+            ratios[family][0].append(paper[k] / a)
+            ratios[family][1].append(paper[k] / b)
+        a_cell = a_text + (f" · {paper[k] / a:.2f}" if a else "")
+        b_cell = b_text + (f" · {paper[k] / b:.2f}" if b else "")
+        lines.append(f"| {k} | {paper[k]:.3f} | {a_cell} | {b_cell} | {per_seed} | {closer} |")
+    for family in FAMILIES:
+        ra, rb = ratios[family]
+        if not ra:
+            continue
+        lines.append(f"| **median paper / ours, {family}** | | **{statistics.median(ra):.2f}** "
+                     f"({len(ra)}) | **{statistics.median(rb):.2f}** ({len(rb)}) | "
+                     f"| {sum(moved[family])} of {len(moved[family])} |")
+    return "\n".join(lines) + "\n"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("cells", nargs="+", metavar="NAME=FOLDER")
     ap.add_argument("--out", required=True)
+    ap.add_argument("--compare", metavar="START=MIDPOINT",
+                    help="two cells' seed folders (comma-separated), start and midpoint IMU")
     args = ap.parse_args()
     names, cells = [], []
     for spec in args.cells:
@@ -95,6 +168,18 @@ def main():
     text = ("Table 1, √VIO-64: our ATE [m] (mean over the seeds that finished; x k/n: k of n "
             "failed) · paper / ours, per cell; medians over the sequences each cell has "
             "(their number in parentheses).\n\n" + markdown(names, cells))
+    if args.compare:
+        start, sep, midpoint = args.compare.partition("=")
+        if not sep or not start or not midpoint:
+            sys.exit(f"vio_real_imu_table.py: --compare '{args.compare}': expected "
+                     "START=MIDPOINT (comma-separated seed folders)")
+        paper = {k: v[3] for c in cells for k, v in c.items()}
+        text += ("\nThe synthetic IMU sampled at the start of its hold (today's default) and at "
+                 "its midpoint, the same runs otherwise: our ATE (mean over the seeds that "
+                 "finished) · paper / ours; midpoint / start on each seed both finished; closer "
+                 "to the paper: |log(paper / ours)| smaller with midpoint.\n\n"
+                 + compare_markdown(read_seed_runs(start.split(",")),
+                                    read_seed_runs(midpoint.split(",")), paper))
     with atomic_path(args.out) as tmp:
         open(tmp, "w", encoding="utf-8").write(text)
     print(text)
