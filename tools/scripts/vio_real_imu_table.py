@@ -7,22 +7,25 @@ that cell's seed folders) and prints, per sequence, our ATE (mean over the seeds
 the failures), the paper's, and paper / ours; then per family (EuRoC, TUM-VI rooms) the median of
 paper / ours over the sequences the cell has. Writes Markdown to --out.
 
-With --compare START=MIDPOINT (two cells' seed folders, comma-separated, e.g. the synthetic IMU
-sampled at the start and at the midpoint of its hold) it adds, per sequence, both ATEs beside the
-paper's, midpoint / start on every seed both finished, and whether the midpoint run lies closer to
-the paper's ATE (|log paper / ours| smaller); per family, the medians and how many sequences moved
-toward the paper.
+With --compare LABEL A=FOLDERS B=FOLDERS (repeatable; FOLDERS: one cell's seed folders,
+comma-separated, e.g. the synthetic IMU sampled at the start and at the midpoint of its hold) it
+adds a table per sequence: both cells' ATEs beside the paper's, B / A on every seed both finished,
+and whether B's mean lies closer to the paper's ATE (|log paper / ours| smaller); per family the
+medians of paper / ours with their range, and how many sequences moved toward the paper. A run on
+a copied folder named <name>_imu<D>ms (tumvi_rooms.py shift-imu) counts for its sequence; the
+copies with D = 0 are controls and left out.
 
   tools/scripts/vio_real_imu_table.py --out results/vio_real_imu/summary.md \
       "ideal, synthetic IMU, Kalibr (today)=results/paper_seeds_tables" \
       "ideal, real IMU=results/vio_real_imu/tables/real_ideal" ... \
-      --compare "R/synthetic_ideal_s1,R/synthetic_ideal_s2=R/synthetic_ideal_midpoint_s1,..."
+      --compare "ideal profile" start=R/synthetic_ideal_s1,... midpoint=R/synthetic_ideal_midpoint_s1,...
 """
 
 import argparse
 import csv
 import math
 import os
+import re
 import statistics
 import sys
 
@@ -88,6 +91,16 @@ def markdown(names, cells):
     return "\n".join(lines) + "\n"
 
 
+def sequence_of(dataset):
+    """The shipped sequence a run's dataset stands for (None: a control copy, left out)."""
+    m = re.fullmatch(r"(?:.*/)?(euroc|tumvi)/(\w+?)(?:_imu(-?[\d.]+)ms)?", dataset)
+    if not m:
+        return dataset
+    if m.group(3) is not None and float(m.group(3)) == 0:
+        return None
+    return f"{m.group(1)}/{m.group(2)}"
+
+
 def read_seed_runs(folders):
     """{sequence: {seed: ATE or None (failed)}} of the √VIO-64 runs in the sweep folders' index."""
     out = {}
@@ -98,10 +111,11 @@ def read_seed_runs(folders):
         except OSError as e:
             sys.exit(f"vio_real_imu_table.py: {path}: cannot read ({e.strerror})")
         for r in rows:
-            if r["variant"] != VARIANT or r["status"] not in ("ok", "failed"):
+            sequence = sequence_of(r["dataset"])
+            if r["variant"] != VARIANT or r["status"] not in ("ok", "failed") or not sequence:
                 continue  # pending or crashed: not a result
             ate = float(r["ate_rmse"]) if r["status"] == "ok" else None
-            out.setdefault(r["dataset"], {})[int(r["seed"])] = ate
+            out.setdefault(sequence, {})[int(r["seed"])] = ate
     if not out:
         sys.exit(f"vio_real_imu_table.py: {', '.join(folders)}: no {VARIANT} runs")
     return out
@@ -116,20 +130,20 @@ def mean_text(runs):
     return statistics.fmean(ok), f"{statistics.fmean(ok):.4f}{fail}"
 
 
-def compare_markdown(start, midpoint, paper):
-    """Per sequence: start and midpoint ATE, paper / ours, midpoint / start per seed, toward?"""
-    lines = ["| sequence | paper | start: ATE · paper / ours | midpoint: ATE · paper / ours "
-             "| midpoint / start, per seed | closer to the paper |",
+def compare_markdown(names, a_runs, b_runs, paper):
+    """Per sequence: A's and B's ATE, paper / ours, B / A per seed, B closer to the paper?"""
+    a_name, b_name = names
+    lines = [f"| sequence | paper | {a_name}: ATE · paper / ours | {b_name}: ATE · paper / ours "
+             f"| {b_name} / {a_name}, per seed | closer to the paper |",
              "|---|---:|---:|---:|---:|:---:|"]
     moved = {f: [] for f in FAMILIES}
     ratios = {f: ([], []) for f in FAMILIES}
-    for k in sorted(set(start) & set(midpoint)):
-        if k not in paper:
-            continue
-        (a, a_text), (b, b_text) = mean_text(start[k]), mean_text(midpoint[k])
-        seeds = sorted(s for s in set(start[k]) & set(midpoint[k])
-                       if start[k][s] is not None and midpoint[k][s] is not None)
-        per_seed = ", ".join(f"{midpoint[k][s] / start[k][s]:.2f}" for s in seeds) or "–"
+    shared = set(a_runs) & set(b_runs) & set(paper)
+    for k in sorted(k for k in shared if k.startswith(tuple(FAMILIES.values()))):
+        (a, a_text), (b, b_text) = mean_text(a_runs[k]), mean_text(b_runs[k])
+        seeds = sorted(s for s in set(a_runs[k]) & set(b_runs[k])
+                       if a_runs[k][s] is not None and b_runs[k][s] is not None)
+        per_seed = ", ".join(f"{b_runs[k][s] / a_runs[k][s]:.2f}" for s in seeds) or "–"
         closer = "–"
         family = next(f for f, p in FAMILIES.items() if k.startswith(p))
         if a is not None and b is not None:
@@ -145,18 +159,27 @@ def compare_markdown(start, midpoint, paper):
         ra, rb = ratios[family]
         if not ra:
             continue
-        lines.append(f"| **median paper / ours, {family}** | | **{statistics.median(ra):.2f}** "
-                     f"({len(ra)}) | **{statistics.median(rb):.2f}** ({len(rb)}) | "
+        lines.append(f"| **median paper / ours, {family}** (range) | | "
+                     f"**{statistics.median(ra):.2f}** ({min(ra):.2f}–{max(ra):.2f}) | "
+                     f"**{statistics.median(rb):.2f}** ({min(rb):.2f}–{max(rb):.2f}) | "
                      f"| {sum(moved[family])} of {len(moved[family])} |")
     return "\n".join(lines) + "\n"
+
+
+def parse_runs(spec):
+    name, sep, folders = spec.partition("=")
+    if not sep or not name or not folders:
+        sys.exit(f"vio_real_imu_table.py: --compare '{spec}': expected NAME=FOLDER,FOLDER,...")
+    return name, read_seed_runs(folders.split(","))
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("cells", nargs="+", metavar="NAME=FOLDER")
     ap.add_argument("--out", required=True)
-    ap.add_argument("--compare", metavar="START=MIDPOINT",
-                    help="two cells' seed folders (comma-separated), start and midpoint IMU")
+    ap.add_argument("--compare", nargs=3, action="append", default=[],
+                    metavar=("LABEL", "A=FOLDERS", "B=FOLDERS"),
+                    help="two cells' seed folders (comma-separated) side by side, per seed")
     args = ap.parse_args()
     names, cells = [], []
     for spec in args.cells:
@@ -168,18 +191,13 @@ def main():
     text = ("Table 1, √VIO-64: our ATE [m] (mean over the seeds that finished; x k/n: k of n "
             "failed) · paper / ours, per cell; medians over the sequences each cell has "
             "(their number in parentheses).\n\n" + markdown(names, cells))
-    if args.compare:
-        start, sep, midpoint = args.compare.partition("=")
-        if not sep or not start or not midpoint:
-            sys.exit(f"vio_real_imu_table.py: --compare '{args.compare}': expected "
-                     "START=MIDPOINT (comma-separated seed folders)")
-        paper = {k: v[3] for c in cells for k, v in c.items()}
-        text += ("\nThe synthetic IMU sampled at the start of its hold (today's default) and at "
-                 "its midpoint, the same runs otherwise: our ATE (mean over the seeds that "
-                 "finished) · paper / ours; midpoint / start on each seed both finished; closer "
-                 "to the paper: |log(paper / ours)| smaller with midpoint.\n\n"
-                 + compare_markdown(read_seed_runs(start.split(",")),
-                                    read_seed_runs(midpoint.split(",")), paper))
+    paper = {k: v[3] for c in cells for k, v in c.items()}
+    for label, a_spec, b_spec in args.compare:
+        (a_name, a_runs), (b_name, b_runs) = parse_runs(a_spec), parse_runs(b_spec)
+        text += (f"\n{label}: our ATE (mean over the seeds that finished) · paper / ours; "
+                 f"{b_name} / {a_name} on each seed both finished; closer to the paper: "
+                 f"|log(paper / ours)| smaller with {b_name}.\n\n"
+                 + compare_markdown((a_name, b_name), a_runs, b_runs, paper))
     with atomic_path(args.out) as tmp:
         open(tmp, "w", encoding="utf-8").write(text)
     print(text)
