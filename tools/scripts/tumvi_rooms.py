@@ -14,6 +14,16 @@ ground truth and IMU.
                           change it made: the simulation then runs along a trajectory without the
                           mocap's sample-to-sample noise (marglab run --dataset
                           OUT/<family>/<name>_smooth<S>ms).
+  imu-offset SEQ...       per sequence, where in time the real gyro's samples lie against the
+                          ground truth: over 50 ms windows, the ground truth's rotation
+                          log(R_a^T R_b) against the gyro integrated over [a + τ, b + τ] (samples
+                          read as instantaneous, linear in between), the τ of least rms residual and
+                          the residual at τ = -2.5, 0, +2.5 ms (half the 200 Hz IMU's period).
+  shift-imu SEQ OUT --ms D
+                          a copy of the shipped sequence's folder whose IMU timestamps are moved by
+                          D ms (OUT/<family>/<name>_imu<D>ms): with D = -2.5 the estimator's hold
+                          [t_k, t_k + Δt) of the real IMU is centred on each sample's instant, the
+                          real-IMU counterpart of sim.imu_sample_time = "midpoint".
 """
 
 import argparse
@@ -115,6 +125,70 @@ def smooth(seq, out, sigma_ms):
           f"{np.sqrt(np.mean(dq**2)):.3f} deg rms")
 
 
+def so3_log(R):
+    """Rotation vectors of the rotation matrices R (n, 3, 3), angles below π."""
+    theta = np.arccos(np.clip((np.trace(R, axis1=1, axis2=2) - 1) / 2, -1, 1))
+    scale = np.where(theta < 1e-9, 0.5, theta / (2 * np.sin(np.maximum(theta, 1e-9))))
+    v = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1)
+    return v * scale[:, None]
+
+
+def imu_offset_row(seq, window_s=0.05, step_ms=0.25):
+    gt, imu = load(seq, "gt_tum.txt.gz"), load(seq, "imu0_asl.csv.gz")
+    t, R = gt[:, 0], quat_to_R(gt[:, 4:8])
+    period = np.median(np.diff(t))
+    n = int(round(window_s / period))
+    a = np.arange(0, len(t) - n, n)
+    ti, dt_fine = imu[:, 0] * 1e-9, 2.5e-4
+    a = a[((t[a + n] - t[a]) < 1.5 * n * period) & (t[a] > ti[0] + 0.05) & (t[a + n] < ti[-1] - 0.05)]
+    rot_gt = so3_log(np.einsum("nji,njk->nik", R[a], R[a + n]))  # windows without a GT gap
+    fine = np.arange(ti[0], ti[-1], dt_fine)
+    g = np.stack([np.interp(fine, ti, imu[:, 1 + c]) for c in range(3)], -1)
+    cum = np.vstack([np.zeros(3), np.cumsum(0.5 * (g[1:] + g[:-1]) * dt_fine, axis=0)])
+    taus = np.arange(-10, 10 + step_ms / 2, step_ms)
+    rms = []
+    for tau in taus * 1e-3:
+        d = np.stack([np.interp(t[a + n] + tau, fine, cum[:, c]) - np.interp(t[a] + tau, fine, cum[:, c])
+                      for c in range(3)], -1) - rot_gt
+        d -= d.mean(0)  # the gyro bias over a window
+        rms.append(np.sqrt(np.mean(np.sum(d**2, 1))))
+    rms = np.array(rms)
+    k = int(np.clip(np.argmin(rms), 1, len(rms) - 2))
+    y0, y1, y2 = rms[k - 1:k + 2]
+    best = taus[k] + step_ms * (y0 - y2) / (2 * (y0 - 2 * y1 + y2))  # parabola through the minimum
+    at = [1e3 * rms[np.argmin(abs(taus - x))] for x in (-2.5, 0, 2.5)]
+    return (f"| {seq} | {len(a)} | {best:+.2f} | {at[0]:.2f} / {at[1]:.2f} / {at[2]:.2f} |")
+
+
+def imu_offset(seqs):
+    print("| sequence | 50 ms windows | gyro sample stamped t = rate at t + τ: τ [ms] | "
+          "rms residual per window at τ = -2.5 / 0 / +2.5 ms [mrad] |")
+    print("|---|---:|---:|---:|")
+    for seq in seqs:
+        print(imu_offset_row(seq))
+
+
+def shift_imu(seq, out, ms):
+    family = os.path.dirname(seq)
+    folder = os.path.join(out, family, os.path.basename(seq) + f"_imu{ms:g}ms")
+    shutil.copytree(os.path.join(ROOT, "datasets", seq), folder)
+    if not os.path.exists(os.path.join(out, family, "calib")):
+        shutil.copytree(os.path.join(ROOT, "datasets", family, "calib"),
+                        os.path.join(out, family, "calib"))
+    shift_ns = int(round(ms * 1e6))
+    path = os.path.join(folder, "imu0_asl.csv.gz")
+    with gzip.open(path, "rt") as f:
+        lines = f.read().splitlines()
+    with gzip.open(path, "wt") as f:
+        for line in lines:  # integer nanoseconds: a float would round them to 256 ns
+            if line.startswith("#") or not line.strip():
+                f.write(line + "\n")
+                continue
+            stamp, rest = line.split(",", 1)
+            f.write(f"{int(stamp) + shift_ns},{rest}\n")
+    print(f"{folder}: IMU timestamps moved by {ms:g} ms")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="verb", required=True)
@@ -124,9 +198,19 @@ def main():
     m.add_argument("seq")
     m.add_argument("out")
     m.add_argument("--sigma-ms", type=float, default=10.0)
+    o = sub.add_parser("imu-offset")
+    o.add_argument("seqs", nargs="+")
+    h = sub.add_parser("shift-imu")
+    h.add_argument("seq")
+    h.add_argument("out")
+    h.add_argument("--ms", type=float, required=True)
     args = ap.parse_args()
     if args.verb == "stats":
         stats(args.seqs)
+    elif args.verb == "imu-offset":
+        imu_offset(args.seqs)
+    elif args.verb == "shift-imu":
+        shift_imu(args.seq, args.out, args.ms)
     else:
         smooth(args.seq, args.out, args.sigma_ms)
 
