@@ -268,12 +268,14 @@ TableDef precisionTable(const Group& g) {
       "f32 against f64: (final_f32 − final_f64) / final_f64, mean / max |·|, {} "
       "({})",
       g.name, g.protocol);
-  d.columns = {"ns", "sc"};
+  d.columns = {"ns", "nsx", "sc"};
   d.run_of = [](const Instance& instance, const std::string& method) {
     return solverRun(instance, method + "-f32");
   };
   d.sample = [](const Instance& instance, const BaRunData& run, bool* failed) {
-    const BaRunData* twin = solverRun(instance, run.solver.substr(0, 2) + "-f64");
+    // The f64 twin of "<method>-f32".
+    const std::string method = run.solver.substr(0, run.solver.rfind('-'));
+    const BaRunData* twin = solverRun(instance, method + "-f64");
     if (twin == nullptr) return std::vector<double>{};
     *failed = run.failed || twin->failed;
     const double r = (run.file.final_cost - twin->file.final_cost) / twin->file.final_cost;

@@ -117,7 +117,8 @@ TEST(BaTables, StepsConditioningAndANeverReachedThreshold) {
   std::vector<BaRunData> runs = {
       run("sc-f32", 1, {100, 100, 100, 40, 40}, {true, false, false, true, false},
           {"", "H_ll not positive definite", "", "", ""}),
-      run("sc-f64", 1, {100, 30, 20, 10, 10}), run("ceres-implicit", 1, {100, 30, 20, 10, 10})};
+      run("sc-f64", 1, {100, 30, 20, 10, 10}), run("ceres-implicit", 1, {100, 30, 20, 10, 10}),
+      run("nsx-f32", 1, {100, 30, 20, 12, 12}), run("nsx-f64", 1, {100, 30, 20, 16, 16})};
   std::vector<std::string> skipped;
   const std::vector<Table> tables = buildBaTables(runs, &skipped);
   const TableCell& steps = cellOf(tableOf(tables, "ba_g_steps"), "sc-f32");
@@ -133,8 +134,10 @@ TEST(BaTables, StepsConditioningAndANeverReachedThreshold) {
   EXPECT_EQ(never.state, TableCell::State::kFailed);
   EXPECT_EQ(never.n_failed, 1);
   EXPECT_EQ(formatCell(never, 0, 3, ""), "x");
-  // The f32-vs-f64 table: sc (40 − 10)/10; no ns runs.
+  // The f32-vs-f64 table: sc (40 − 10)/10; nsx paired with nsx-f64, (12 − 16)/16; no ns runs.
   EXPECT_DOUBLE_EQ(cellOf(tableOf(tables, "ba_g_precision"), "sc").numbers[0], 3.0);
+  EXPECT_DOUBLE_EQ(cellOf(tableOf(tables, "ba_g_precision"), "nsx").numbers[0], -0.25);
+  EXPECT_EQ(cellOf(tableOf(tables, "ba_g_precision"), "ns").state, TableCell::State::kMissing);
 }
 
 TEST(BaTables, RunsWithoutFilesGiveOnlyWhatTheIndexHolds) {
