@@ -16,6 +16,7 @@
 #include "core/pipeline/run_config.h"
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
+#include "estimator/vo_scenario.h"
 #include "test/geometry/geometry_test_utils.h"
 
 namespace marglab::test {
@@ -105,40 +106,9 @@ TYPED_TEST(StereoOffsetJacobian, ColumnIsTheCentralDifferenceOfTheResidualAndThe
   EXPECT_GT(std::abs(grad), 0.1);  // the test is not vacuous
 }
 
-// A camera driving on a circle (as test_vo.cpp's), the tracks simulated with the true rig, the
+// A camera driving on a circle (vo_scenario.h, as test_vo.cpp's), the tracks simulated with the true rig, the
 // estimator given the rig with the right camera's cx moved by −0.6 px: the window's offset comes
 // back to +0.6 px and the trajectory to the truth.
-class Circle : public TrajectoryFunction {
- public:
-  int64_t startTimeNs() const override { return 0; }
-  int64_t endTimeNs() const override { return 60'000'000'000; }
-  TrajectorySample evaluate(int64_t t_ns) const override {
-    const double t = 1e-9 * static_cast<double>(t_ns), r = 100.0, w = 0.08, th = w * t;
-    TrajectorySample s;
-    s.R_w_b = Eigen::AngleAxisd(th, Eigen::Vector3d::UnitY()).toRotationMatrix();
-    s.p_w_b = Eigen::Vector3d(r * (1 - std::cos(th)), 0.2 * std::sin(2 * t), r * std::sin(th));
-    s.v_w = Eigen::Vector3d(r * w * std::sin(th), 0.4 * std::cos(2 * t), r * w * std::cos(th));
-    s.a_w = Eigen::Vector3d(r * w * w * std::cos(th), -0.8 * std::sin(2 * t),
-                            -r * w * w * std::sin(th));
-    s.omega_b = Eigen::Vector3d(0, w, 0);
-    return s;
-  }
-};
-
-StereoCalib kittiLikeCalib() {
-  StereoCalib calib;
-  for (CameraCalib* cam : {&calib.cam0, &calib.cam1}) {
-    cam->fx = cam->fy = 718.856;
-    cam->cx = 607.1928;
-    cam->cy = 185.2157;
-    cam->width = 1241;
-    cam->height = 376;
-    cam->distortion_model = "none";
-  }
-  calib.cam1.t_b_c = Eigen::Vector3d(0.537, 0, 0);
-  return calib;
-}
-
 struct Recovery {
   double offset = std::numeric_limits<double>::quiet_NaN();
   double max_position_error = 0;
@@ -146,7 +116,7 @@ struct Recovery {
 
 template <typename Scalar>
 Recovery runWithShiftedRightCamera(bool estimate, int frames) {
-  Circle trajectory;
+  CircleTrajectory trajectory;
   const StereoCalib calib = kittiLikeCalib();
   TrackerOptions tracker;
   tracker.grid_cell_px = 30;

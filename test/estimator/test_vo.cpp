@@ -18,46 +18,13 @@
 #include "core/sim/feature_tracker.h"
 #include "core/sim/world.h"
 #include "estimator/variant_params.h"
+#include "estimator/vo_scenario.h"
 
 namespace marglab {
 namespace {
 
-// A camera (body = cam0, z forward, y down) driving on a circle of radius r in the x-z plane at
-// angular rate w, with a small vertical oscillation.
-class CircleTrajectory : public TrajectoryFunction {
- public:
-  static constexpr double kRadius = 100.0, kRate = 0.08, kBob = 0.2;
-  int64_t startTimeNs() const override { return 0; }
-  int64_t endTimeNs() const override { return 60'000'000'000; }
-  TrajectorySample evaluate(int64_t t_ns) const override {
-    const double t = 1e-9 * static_cast<double>(t_ns);
-    const double th = kRate * t;
-    TrajectorySample s;
-    s.R_w_b = Eigen::AngleAxisd(th, Eigen::Vector3d::UnitY()).toRotationMatrix();
-    s.p_w_b = Eigen::Vector3d(kRadius * (1 - std::cos(th)), kBob * std::sin(2 * t),
-                              kRadius * std::sin(th));
-    s.v_w = Eigen::Vector3d(kRadius * kRate * std::sin(th), 2 * kBob * std::cos(2 * t),
-                            kRadius * kRate * std::cos(th));
-    s.a_w = Eigen::Vector3d(kRadius * kRate * kRate * std::cos(th), -4 * kBob * std::sin(2 * t),
-                            -kRadius * kRate * kRate * std::sin(th));
-    s.omega_b = Eigen::Vector3d(0, kRate, 0);
-    return s;
-  }
-};
-
-StereoCalib kittiLikeCalib() {
-  StereoCalib calib;
-  for (CameraCalib* cam : {&calib.cam0, &calib.cam1}) {
-    cam->fx = cam->fy = 718.856;
-    cam->cx = 607.1928;
-    cam->cy = 185.2157;
-    cam->width = 1241;
-    cam->height = 376;
-    cam->distortion_model = "none";
-  }
-  calib.cam1.t_b_c = Eigen::Vector3d(0.537, 0, 0);
-  return calib;
-}
+using test::CircleTrajectory;
+using test::kittiLikeCalib;
 
 struct Scenario {
   CircleTrajectory trajectory;
