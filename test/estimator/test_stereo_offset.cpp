@@ -26,14 +26,6 @@ template <typename Scalar>
 class StereoOffsetJacobian : public ::testing::Test {};
 TYPED_TEST_SUITE(StereoOffsetJacobian, ScalarTypes, ScalarNames);
 
-StereoRig<double> kittiLikeRig() {
-  StereoRig<double> rig;
-  rig.cam0 = PinholeCamera<double>{718.856, 718.856, 607.193, 185.216, 1241, 376};
-  rig.cam1 = rig.cam0;
-  rig.T_i_c1 = SE3<double>(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.537, 0, 0));
-  return rig;
-}
-
 // Two frames and one landmark hosted in frame 0, seen by both cameras of both frames; its
 // observations are the projections moved by less than the Huber threshold (weight 1), so the
 // residual is affine in the offset c and the central difference has no truncation error.

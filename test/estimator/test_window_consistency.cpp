@@ -12,6 +12,7 @@
 
 #include "core/estimator/window.h"
 #include "core/geometry/stereographic.h"
+#include "estimator/vo_scenario.h"
 #include "test/geometry/geometry_test_utils.h"
 
 namespace marglab::test {
@@ -20,14 +21,6 @@ namespace {
 template <typename Scalar>
 class WindowConsistency : public ::testing::Test {};
 TYPED_TEST_SUITE(WindowConsistency, ScalarTypes, ScalarNames);
-
-StereoRig<double> kittiLikeRig() {
-  StereoRig<double> rig;
-  rig.cam0 = PinholeCamera<double>{718.856, 718.856, 607.193, 185.216, 1241, 376};
-  rig.cam1 = rig.cam0;
-  rig.T_i_c1 = SE3<double>(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.537, 0, 0));
-  return rig;
-}
 
 TYPED_TEST(WindowConsistency, ErrorsArePixelOffsetsOfTheSharedObservations) {
   using Scalar = TypeParam;

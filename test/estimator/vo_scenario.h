@@ -1,12 +1,14 @@
 #pragma once
 // The VO estimator tests' street-like scenario: an analytic trajectory and a KITTI-like rectified
-// stereo rig (test_vo.cpp, test_stereo_offset.cpp).
+// stereo rig, as calibration and as the estimator's camera model (test_vo.cpp,
+// test_stereo_offset.cpp, test_window_consistency.cpp).
 
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdint>
 
 #include "core/data/types.h"
+#include "core/geometry/camera.h"
 #include "core/sim/trajectory_spline.h"
 
 namespace marglab::test {
@@ -46,6 +48,15 @@ inline StereoCalib kittiLikeCalib() {
   }
   calib.cam1.t_b_c = Eigen::Vector3d(0.537, 0, 0);
   return calib;
+}
+
+// The same rig as the estimator's camera model (the window tests).
+inline StereoRig<double> kittiLikeRig() {
+  StereoRig<double> rig;
+  rig.cam0 = PinholeCamera<double>{718.856, 718.856, 607.193, 185.216, 1241, 376};
+  rig.cam1 = rig.cam0;
+  rig.T_i_c1 = SE3<double>(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.537, 0, 0));
+  return rig;
 }
 
 }  // namespace marglab::test

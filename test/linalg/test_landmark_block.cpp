@@ -61,6 +61,42 @@ struct Reduced {
   VecX<Scalar> b = VecX<Scalar>::Zero(kRcsSize);
 };
 
+// Independent: the full system [poses | landmarks] damped with the same diagonal (d_l on the
+// landmarks, lmDamping of the reduced system's diagonal on the poses), solved densely in double;
+// and κ of the damped reduced system, which amplifies the reduced system's error into the step.
+struct DenseStep {
+  VecXd delta;
+  double kappa_reduced = 0;
+};
+
+template <typename Scalar>
+DenseStep denseFullStep(const std::vector<LandmarkData>& landmarks,
+                        const std::vector<Vec3<Scalar>>& d_l, const MatXd& H_red, double lambda) {
+  const int n_full = kRcsSize + 3 * static_cast<int>(landmarks.size());
+  MatXd H_full = MatXd::Zero(n_full, n_full);
+  VecXd b_full = VecXd::Zero(n_full);
+  for (size_t l = 0; l < landmarks.size(); ++l) {
+    const auto& lm = landmarks[l];
+    MatXd J_row = MatXd::Zero(lm.r.size(), n_full);
+    for (size_t j = 0; j < lm.map.rcs_offset.size(); ++j) {
+      J_row.block(0, lm.map.rcs_offset[j], lm.r.size(), kPoseDim) =
+          lm.J_p.block(0, j * kPoseDim, lm.r.size(), kPoseDim);
+    }
+    J_row.block(0, kRcsSize + 3 * l, lm.r.size(), 3) = lm.J_l;
+    H_full += J_row.transpose() * J_row;
+    b_full += J_row.transpose() * lm.r;
+    H_full.diagonal().segment(kRcsSize + 3 * l, 3) += d_l[l].template cast<double>();
+  }
+  MatXd H_red_damped = H_red;
+  for (int i = 0; i < kRcsSize; ++i) {
+    const double d = lmDamping(H_red(i, i), lambda, 1e-7);
+    H_full(i, i) += d;
+    H_red_damped(i, i) += d;
+  }
+  const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<MatXd>(H_red_damped).eigenvalues();
+  return {-H_full.ldlt().solve(b_full), ev.maxCoeff() / ev.minCoeff()};
+}
+
 // The reduced systems of both eliminations, the LM step on them, and the landmark increments;
 // compared against a dense solve of the full damped system in double.
 template <typename Scalar>
@@ -109,32 +145,9 @@ void checkEliminationEquivalence(double lambda) {
   ASSERT_TRUE(step_ns.status.ok()) << step_ns.status.toString();
   ASSERT_TRUE(step_sc.status.ok()) << step_sc.status.toString();
 
-  // Independent: the full system [poses | landmarks] damped with the same diagonal, solved densely.
-  const int n_full = kRcsSize + 3 * static_cast<int>(landmarks.size());
-  MatXd H_full = MatXd::Zero(n_full, n_full);
-  VecXd b_full = VecXd::Zero(n_full);
-  for (size_t l = 0; l < landmarks.size(); ++l) {
-    const auto& lm = landmarks[l];
-    MatXd J_row = MatXd::Zero(lm.r.size(), n_full);
-    for (size_t j = 0; j < lm.map.rcs_offset.size(); ++j) {
-      J_row.block(0, lm.map.rcs_offset[j], lm.r.size(), kPoseDim) =
-          lm.J_p.block(0, j * kPoseDim, lm.r.size(), kPoseDim);
-    }
-    J_row.block(0, kRcsSize + 3 * l, lm.r.size(), 3) = lm.J_l;
-    H_full += J_row.transpose() * J_row;
-    b_full += J_row.transpose() * lm.r;
-    H_full.diagonal().segment(kRcsSize + 3 * l, 3) += d_l[l].template cast<double>();
-  }
-  MatXd H_red_damped = red_sc.H.template cast<double>();
-  for (int i = 0; i < kRcsSize; ++i) {
-    const double d = lmDamping(red_sc.H.template cast<double>()(i, i), lambda, 1e-7);
-    H_full(i, i) += d;
-    H_red_damped(i, i) += d;
-  }
-  const VecXd delta_full = -H_full.ldlt().solve(b_full);
-  // The step's error is the reduced system's error amplified by κ of the damped system.
-  const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<MatXd>(H_red_damped).eigenvalues();
-  const double tol_step = tol_reduced * ev.maxCoeff() / ev.minCoeff();
+  const DenseStep full = denseFullStep(landmarks, d_l, red_sc.H.template cast<double>(), lambda);
+  const VecXd& delta_full = full.delta;
+  const double tol_step = tol_reduced * full.kappa_reduced;
   EXPECT_LE(relError(step_ns.delta, step_sc.delta), tol_step);
   EXPECT_LE(relError(step_ns.delta, delta_full.head(kRcsSize)), tol_step);
 
